@@ -1,0 +1,48 @@
+# usvfast developer targets. `make help` lists them.
+.DEFAULT_GOAL := help
+SHELL := /bin/bash
+VENV := .venv
+export VIRTUAL_ENV := $(abspath $(VENV))
+export PATH := $(VIRTUAL_ENV)/bin:$(PATH)
+# Extras installed for development and CI (the peers we prove parity against).
+EXTRAS ?= test
+
+.PHONY: help dev lint fmt test test-rust test-python demo bench
+
+help: ## List the targets
+	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk 'BEGIN {FS = ":.*## "} {printf "  %-12s %s\n", $$1, $$2}'
+
+$(VENV)/bin/maturin:
+	python3 -m venv $(VENV)
+	$(VENV)/bin/pip install -q --upgrade pip
+	$(VENV)/bin/pip install -q "maturin>=1.7,<2"
+
+dev: $(VENV)/bin/maturin ## Create .venv, build the Rust extension (release) and install it with its extras
+	maturin develop --release --extras $(EXTRAS)
+
+lint: dev ## cargo fmt/clippy, ruff check/format
+	cargo fmt --check
+	cargo clippy --all-targets -- -D warnings
+	cargo clippy --all-targets --features python -- -D warnings
+	ruff check python tests benches
+	ruff format --check python tests benches
+
+fmt: dev ## Format Rust and Python sources
+	cargo fmt
+	ruff format python tests benches
+	ruff check --fix python tests benches
+
+test-rust: ## Rust unit tests (no Python linked)
+	cargo test
+
+test-python: dev ## Python tests (parity with peers, real data, bad input)
+	python -m pytest -q
+
+test: lint test-rust test-python ## Everything CI runs: lint, Rust tests, Python tests
+
+demo: dev ## Main job on bundled data: bearing fusion of visible + thermal cameras vs AIS
+	usvfast demo --out out/demo
+
+bench: dev ## Criterion benches and Python comparisons against the peers
+	cargo bench
+	python -m usvfast.bench

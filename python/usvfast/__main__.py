@@ -1,0 +1,5 @@
+"""`python -m usvfast` runs the command line."""
+
+from usvfast.cli import main
+
+main()

@@ -1,0 +1,28 @@
+"""The `usvfast` command line. Each concern adds its subcommands in its own module."""
+
+from __future__ import annotations
+
+import typer
+
+from usvfast import __version__
+
+app = typer.Typer(
+    help="usvfast: fast maritime multi-sensor detection and tracking.",
+    no_args_is_help=True,
+    add_completion=False,
+)
+
+
+@app.command()
+def version() -> None:
+    """Print the installed usvfast version."""
+    typer.echo(__version__)
+
+
+def main() -> None:
+    """Entry point of the `usvfast` console script."""
+    app()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,15 @@
+//! usvfast core: the algorithms behind the `usvfast` Python package.
+//!
+//! Every module here is free of pyo3, so `cargo test` and `cargo bench` never link
+//! Python; the bindings live in [`py`] behind the `python` cargo feature.
+//! Conventions (see `DESIGN.md`): SI units, radians, NED world frame, 2-D constant-velocity
+//! state `[n, v_n, e, v_e]`.
+
+pub mod error;
+pub mod kalman;
+pub mod models;
+
+#[cfg(feature = "python")]
+pub mod py;
+
+pub use error::{Error, Result};

@@ -1,0 +1,174 @@
+//! Linear-Gaussian motion models, discretised exactly as Stone Soup does.
+//!
+//! A [`MotionModel`] is a block-diagonal combination of per-axis components (Stone Soup's
+//! `CombinedLinearGaussianTransitionModel`). The 2-D constant-velocity model of the tracker
+//! is `[ConstantVelocity(q), ConstantVelocity(q)]` with state `[n, v_n, e, v_e]`.
+
+use crate::error::{Error, Result};
+use nalgebra::{Dim, OMatrix};
+
+/// One axis of a motion model; `q` is the noise diffusion coefficient (Stone Soup's
+/// `noise_diff_coeff`), in (state unit)² per second^(2k-1).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Component {
+    /// Position only: `F = [1]`, `Q = [q·dt]`.
+    RandomWalk { q: f64 },
+    /// Discretised Wiener velocity, state `[x, ẋ]`:
+    /// `F = [[1, dt], [0, 1]]`, `Q = q·[[dt³/3, dt²/2], [dt²/2, dt]]`.
+    ConstantVelocity { q: f64 },
+    /// Discretised Wiener acceleration, state `[x, ẋ, ẍ]`.
+    ConstantAcceleration { q: f64 },
+}
+
+impl Component {
+    /// Number of state entries of this component.
+    pub fn ndim(&self) -> usize {
+        match self {
+            Component::RandomWalk { .. } => 1,
+            Component::ConstantVelocity { .. } => 2,
+            Component::ConstantAcceleration { .. } => 3,
+        }
+    }
+
+    fn q(&self) -> f64 {
+        match *self {
+            Component::RandomWalk { q }
+            | Component::ConstantVelocity { q }
+            | Component::ConstantAcceleration { q } => q,
+        }
+    }
+}
+
+/// A block-diagonal combination of [`Component`]s.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MotionModel {
+    components: Vec<Component>,
+    ndim: usize,
+}
+
+impl MotionModel {
+    /// Builds a model; every `q` must be finite and non-negative and the list non-empty.
+    pub fn new(components: Vec<Component>) -> Result<Self> {
+        if components.is_empty() {
+            return Err(Error::param("motion_model", "needs at least one component"));
+        }
+        for c in &components {
+            if !(c.q().is_finite() && c.q() >= 0.0) {
+                return Err(Error::param(
+                    "motion_model",
+                    format!("noise coefficient must be finite and >= 0, got {}", c.q()),
+                ));
+            }
+        }
+        let ndim = components.iter().map(Component::ndim).sum();
+        Ok(Self { components, ndim })
+    }
+
+    /// The 2-D constant-velocity model `[n, v_n, e, v_e]` with the same `q` on both axes.
+    pub fn constant_velocity_2d(q: f64) -> Result<Self> {
+        Self::new(vec![Component::ConstantVelocity { q }; 2])
+    }
+
+    /// State dimension.
+    pub fn ndim(&self) -> usize {
+        self.ndim
+    }
+
+    /// The components, in state order.
+    pub fn components(&self) -> &[Component] {
+        &self.components
+    }
+
+    /// Writes the transition matrix `F(dt)` and process noise `Q(dt)` into `f` and `q`,
+    /// which must be `ndim × ndim` (all entries are overwritten). `dt` in seconds; a
+    /// negative `dt` is the caller's responsibility (it is a valid backward model).
+    pub fn fill<N: Dim>(&self, dt: f64, f: &mut OMatrix<f64, N, N>, q: &mut OMatrix<f64, N, N>)
+    where
+        nalgebra::DefaultAllocator: nalgebra::allocator::Allocator<N, N>,
+    {
+        f.fill(0.0);
+        q.fill(0.0);
+        let mut o = 0;
+        for c in &self.components {
+            match *c {
+                Component::RandomWalk { q: k } => {
+                    f[(o, o)] = 1.0;
+                    q[(o, o)] = k * dt;
+                }
+                Component::ConstantVelocity { q: k } => {
+                    let (dt2, dt3) = (dt * dt, dt * dt * dt);
+                    f[(o, o)] = 1.0;
+                    f[(o, o + 1)] = dt;
+                    f[(o + 1, o + 1)] = 1.0;
+                    q[(o, o)] = k * dt3 / 3.0;
+                    q[(o, o + 1)] = k * dt2 / 2.0;
+                    q[(o + 1, o)] = k * dt2 / 2.0;
+                    q[(o + 1, o + 1)] = k * dt;
+                }
+                Component::ConstantAcceleration { q: k } => {
+                    let dt2 = dt * dt;
+                    let dt3 = dt2 * dt;
+                    let dt4 = dt3 * dt;
+                    let dt5 = dt4 * dt;
+                    let fb = [[1.0, dt, dt2 / 2.0], [0.0, 1.0, dt], [0.0, 0.0, 1.0]];
+                    let qb = [
+                        [dt5 / 20.0, dt4 / 8.0, dt3 / 6.0],
+                        [dt4 / 8.0, dt3 / 3.0, dt2 / 2.0],
+                        [dt3 / 6.0, dt2 / 2.0, dt],
+                    ];
+                    for i in 0..3 {
+                        for j in 0..3 {
+                            f[(o + i, o + j)] = fb[i][j];
+                            q[(o + i, o + j)] = k * qb[i][j];
+                        }
+                    }
+                }
+            }
+            o += c.ndim();
+        }
+    }
+
+    /// `F(dt)` and `Q(dt)` as dynamic matrices.
+    pub fn matrices(&self, dt: f64) -> (nalgebra::DMatrix<f64>, nalgebra::DMatrix<f64>) {
+        let mut f = nalgebra::DMatrix::zeros(self.ndim, self.ndim);
+        let mut q = nalgebra::DMatrix::zeros(self.ndim, self.ndim);
+        self.fill(dt, &mut f, &mut q);
+        (f, q)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn wiener_velocity_matches_closed_form() {
+        let m = MotionModel::new(vec![Component::ConstantVelocity { q: 2.0 }]).unwrap();
+        let (f, q) = m.matrices(0.5);
+        assert_eq!(f[(0, 1)], 0.5);
+        assert!((q[(0, 0)] - 2.0 * 0.125 / 3.0).abs() < 1e-15);
+        assert!((q[(0, 1)] - 2.0 * 0.25 / 2.0).abs() < 1e-15);
+        assert!((q[(1, 1)] - 1.0).abs() < 1e-15);
+    }
+
+    #[test]
+    fn combined_is_block_diagonal() {
+        let m = MotionModel::new(vec![
+            Component::ConstantVelocity { q: 1.0 },
+            Component::RandomWalk { q: 3.0 },
+        ])
+        .unwrap();
+        assert_eq!(m.ndim(), 3);
+        let (f, q) = m.matrices(2.0);
+        assert_eq!(f[(0, 2)], 0.0);
+        assert_eq!(f[(2, 2)], 1.0);
+        assert_eq!(q[(2, 2)], 6.0);
+        assert_eq!(q[(0, 2)], 0.0);
+    }
+
+    #[test]
+    fn rejects_negative_noise() {
+        assert!(MotionModel::new(vec![Component::RandomWalk { q: -1.0 }]).is_err());
+        assert!(MotionModel::new(vec![]).is_err());
+    }
+}
