@@ -1,0 +1,16 @@
+"""Shared test configuration: hypothesis profiles (fast in CI, thorough locally on demand)."""
+
+import os
+import sys
+from pathlib import Path
+
+from hypothesis import HealthCheck, settings
+
+# tests/peers.py and friends are importable as top-level helpers.
+sys.path.insert(0, str(Path(__file__).parent))
+
+settings.register_profile("ci", max_examples=60, deadline=None)
+settings.register_profile(
+    "thorough", max_examples=1000, deadline=None, suppress_health_check=[HealthCheck.too_slow]
+)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
