@@ -288,14 +288,13 @@ pub fn run_batch(model: &MotionModel, input: &BatchInput, smooth: bool) -> Resul
     }
 }
 
-fn push_matrix<R: Dim, C: Dim>(out: &mut Vec<f64>, m: &OMatrix<f64, R, C>)
+/// Appends a symmetric matrix or a vector; column-major storage equals row-major for both.
+fn extend_flat<R: Dim, C: Dim>(out: &mut Vec<f64>, items: &[OMatrix<f64, R, C>])
 where
     DefaultAllocator: Allocator<R, C>,
 {
-    for i in 0..m.nrows() {
-        for j in 0..m.ncols() {
-            out.push(m[(i, j)]);
-        }
+    for m in items {
+        out.extend_from_slice(m.as_slice());
     }
 }
 
@@ -327,15 +326,12 @@ where
     let mut f = OMatrix::<f64, N, N>::zeros_generic(nd, nd);
     let mut q = OMatrix::<f64, N, N>::zeros_generic(nd, nd);
 
-    let mut out = BatchOutput {
-        predicted_states: Vec::with_capacity(n_meas * ndim),
-        predicted_covariances: Vec::with_capacity(n_meas * ndim * ndim),
-        filtered_states: Vec::with_capacity(n_meas * ndim),
-        filtered_covariances: Vec::with_capacity(n_meas * ndim * ndim),
-        nis: Vec::with_capacity(n_meas),
-        log_likelihood: Vec::with_capacity(n_meas),
-        ..Default::default()
-    };
+    let mut xp_all = Vec::with_capacity(n_meas);
+    let mut pp_all = Vec::with_capacity(n_meas);
+    let mut xf_all = Vec::with_capacity(n_meas);
+    let mut pf_all = Vec::with_capacity(n_meas);
+    let mut nis = Vec::with_capacity(n_meas);
+    let mut log_likelihood = Vec::with_capacity(n_meas);
     let mut t_prev = input.prior_time;
     for (i, &t) in input.times.iter().enumerate() {
         model.fill(t - t_prev, &mut f, &mut q);
@@ -354,55 +350,65 @@ where
             },
             other => other,
         })?;
-        push_matrix(&mut out.predicted_states, &xp);
-        push_matrix(&mut out.predicted_covariances, &pp);
-        push_matrix(&mut out.filtered_states, &u.x);
-        push_matrix(&mut out.filtered_covariances, &u.p);
-        out.nis.push(u.nis);
-        out.log_likelihood.push(u.log_likelihood);
-        x = u.x;
-        p = u.p;
+        nis.push(u.nis);
+        log_likelihood.push(u.log_likelihood);
+        x = u.x.clone();
+        p = u.p.clone();
+        xp_all.push(xp);
+        pp_all.push(pp);
+        xf_all.push(u.x);
+        pf_all.push(u.p);
     }
+    let mut out = BatchOutput {
+        nis,
+        log_likelihood,
+        ..Default::default()
+    };
     if smooth {
-        rts_smooth_flat::<N>(model, input.times, &mut out)?;
+        let (xs, ps) = rts_smooth(model, input.times, &xp_all, &pp_all, &xf_all, &pf_all)?;
+        extend_flat(&mut out.smoothed_states, &xs);
+        extend_flat(&mut out.smoothed_covariances, &ps);
     }
+    extend_flat(&mut out.predicted_states, &xp_all);
+    extend_flat(&mut out.predicted_covariances, &pp_all);
+    extend_flat(&mut out.filtered_states, &xf_all);
+    extend_flat(&mut out.filtered_covariances, &pf_all);
     Ok(out)
 }
 
-/// Rauch–Tung–Striebel smoother over flat batch outputs (fills the smoothed fields):
+/// Rauch–Tung–Striebel smoother over a filtered sequence. `predicted[k]` is the prediction
+/// to `times[k]` from the filtered state `k − 1`; returns the smoothed states and covariances:
 /// `C_k = P_k Fᵀ (P⁻_{k+1})⁻¹`, `x̂_k = x_k + C_k (x̂_{k+1} − x⁻_{k+1})`,
 /// `P̂_k = P_k + C_k (P̂_{k+1} − P⁻_{k+1}) C_kᵀ`.
-fn rts_smooth_flat<N: Dim>(model: &MotionModel, times: &[f64], out: &mut BatchOutput) -> Result<()>
+///
+/// Fails with [`Error::NotPositiveDefinite`] when a predicted covariance is singular.
+#[allow(clippy::type_complexity)]
+pub fn rts_smooth<N: Dim>(
+    model: &MotionModel,
+    times: &[f64],
+    predicted_states: &[OVector<f64, N>],
+    predicted_covariances: &[OMatrix<f64, N, N>],
+    filtered_states: &[OVector<f64, N>],
+    filtered_covariances: &[OMatrix<f64, N, N>],
+) -> Result<(Vec<OVector<f64, N>>, Vec<OMatrix<f64, N, N>>)>
 where
     DefaultAllocator: Allocator<N, N> + Allocator<N>,
 {
-    let ndim = model.ndim();
     let n = times.len();
-    let nd = N::from_usize(ndim);
-    let (s2, s1) = (ndim * ndim, ndim);
-    out.smoothed_states = out.filtered_states.clone();
-    out.smoothed_covariances = out.filtered_covariances.clone();
+    let mut xs = filtered_states.to_vec();
+    let mut ps = filtered_covariances.to_vec();
     if n < 2 {
-        return Ok(());
+        return Ok((xs, ps));
     }
+    let (nd, _) = filtered_covariances[0].shape_generic();
     let mut f = OMatrix::<f64, N, N>::zeros_generic(nd, nd);
     let mut q = OMatrix::<f64, N, N>::zeros_generic(nd, nd);
-    let vec_at = |v: &[f64], k: usize| {
-        OVector::<f64, N>::from_row_slice_generic(nd, U1, &v[k * s1..(k + 1) * s1])
-    };
-    let mat_at = |v: &[f64], k: usize| {
-        OMatrix::<f64, N, N>::from_row_slice_generic(nd, nd, &v[k * s2..(k + 1) * s2])
-    };
-    let mut xs_next = vec_at(&out.smoothed_states, n - 1);
-    let mut ps_next = mat_at(&out.smoothed_covariances, n - 1);
     for k in (0..n - 1).rev() {
         model.fill(times[k + 1] - times[k], &mut f, &mut q);
-        let xf = vec_at(&out.filtered_states, k);
-        let pf = mat_at(&out.filtered_covariances, k);
-        let xp = vec_at(&out.predicted_states, k + 1);
-        let pp = mat_at(&out.predicted_covariances, k + 1);
+        let pp = &predicted_covariances[k + 1];
+        let pf = &filtered_covariances[k];
         // C = P_k Fᵀ (P⁻)⁻¹ = ((P⁻)⁻¹ F P_k)ᵀ
-        let fp = &f * &pf;
+        let fp = &f * pf;
         let c = match Cholesky::new(pp.clone()) {
             Some(ch) => ch.solve(&fp).transpose(),
             None => pp
@@ -414,19 +420,13 @@ where
                     reason: "is singular, the RTS smoother cannot invert it".into(),
                 })?,
         };
-        let xs = &xf + &c * (&xs_next - &xp);
-        let mut ps = &pf + &c * (&ps_next - &pp) * c.transpose();
-        symmetrise(&mut ps);
-        out.smoothed_states[k * s1..(k + 1) * s1].copy_from_slice(xs.as_slice());
-        for i in 0..ndim {
-            for j in 0..ndim {
-                out.smoothed_covariances[k * s2 + i * ndim + j] = ps[(i, j)];
-            }
-        }
-        xs_next = xs;
-        ps_next = ps;
+        let x_new = &filtered_states[k] + &c * (&xs[k + 1] - &predicted_states[k + 1]);
+        let mut p_new = pf + &c * (&ps[k + 1] - pp) * c.transpose();
+        symmetrise(&mut p_new);
+        xs[k] = x_new;
+        ps[k] = p_new;
     }
-    Ok(())
+    Ok((xs, ps))
 }
 
 #[cfg(test)]
