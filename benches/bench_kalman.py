@@ -165,9 +165,8 @@ def main() -> None:
 
     ours_total = t_both / n
     print(f"Kalman filter + RTS smoother, {n} measurements, 2-state Wiener velocity, two R's")
-    print(
-        f"{'implementation':42s} {'filter µs':>10s} {'smooth µs':>10s} {'total µs':>10s} {'× usvfast':>10s}"
-    )
+    head = ("implementation", "filter µs", "smooth µs", "total µs", "× usvfast")
+    print(f"{head[0]:42s} " + " ".join(f"{h:>10s}" for h in head[1:]))
     for name, f, s, _ in rows:
         total = f if np.isnan(s) else f + s
         sm = "(incl.)" if np.isnan(s) else f"{s * 1e6:10.3f}"
