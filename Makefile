@@ -45,4 +45,4 @@ demo: dev ## Main job on bundled data: bearing fusion of visible + thermal camer
 
 bench: dev ## Criterion benches and Python comparisons against the peers
 	cargo bench
-	python -m usvfast.bench
+	python benches/run.py
