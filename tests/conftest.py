@@ -14,3 +14,6 @@ settings.register_profile(
     "thorough", max_examples=1000, deadline=None, suppress_health_check=[HealthCheck.too_slow]
 )
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
+
+# The real field data lives in shared/data beside the repository (as on CI).
+SHARED_DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
