@@ -30,7 +30,9 @@ def _latitudes(name: str, value: Any) -> np.ndarray:
     return lat
 
 
-def great_circle_bearing_deg(lat1_deg: Any, lon1_deg: Any, lat2_deg: Any, lon2_deg: Any) -> np.ndarray:
+def great_circle_bearing_deg(
+    lat1_deg: Any, lon1_deg: Any, lat2_deg: Any, lon2_deg: Any
+) -> np.ndarray:
     """Initial great-circle bearing from point 1 to point 2 (degrees clockwise from true north,
     in (-180°, 180°]), on a sphere; arrays broadcast. Undefined (returns 0°, north) when the
     points coincide. Raises ValueError naming the argument on non-finite or |lat| > 90°.
@@ -57,11 +59,15 @@ def relative_bearing_deg(
     β0 = wrap(atan2(sin Δλ cos φT, cos φR sin φT − sin φR cos φT cos Δλ) − heading).
     Raises ValueError naming the argument on non-finite values or |lat| > 90°.
     """
-    true_bearing = great_circle_bearing_deg(own_lat_deg, own_lon_deg, target_lat_deg, target_lon_deg)
+    true_bearing = great_circle_bearing_deg(
+        own_lat_deg, own_lon_deg, target_lat_deg, target_lon_deg
+    )
     return wrap_deg(true_bearing - as_float_array("own_heading_deg", own_heading_deg))
 
 
-def ais_report_interval_s(speed_kn: float, *, changing_course: bool = False, moored: bool = False) -> float:
+def ais_report_interval_s(
+    speed_kn: float, *, changing_course: bool = False, moored: bool = False
+) -> float:
     """Nominal reporting interval (seconds) of a Class A AIS position report (ITU-R M.1371-5,
     Table 1): moored/anchored and not faster than 3 kn 180 s; 0–14 kn 10 s (changing course
     3⅓ s); 14–23 kn 6 s (changing course 2 s); over 23 kn 2 s. Raises ValueError on a

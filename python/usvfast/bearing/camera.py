@@ -86,7 +86,9 @@ class BearingCamera:
 
 def square_pixel_vfov_deg(hfov_deg: float, width_px: float, height_px: float) -> float:
     """Vertical field of view (degrees) of a pinhole camera with square pixels."""
-    return math.degrees(2.0 * math.atan(math.tan(math.radians(hfov_deg) / 2.0) * height_px / width_px))
+    return math.degrees(
+        2.0 * math.atan(math.tan(math.radians(hfov_deg) / 2.0) * height_px / width_px)
+    )
 
 
 # The paper's calibration (Sect. 2.3): FLIR Blackfly 1920x1200 visible camera, f_x = 20.0°,
@@ -213,6 +215,10 @@ def bearing_to_pixel(
     tan_half_fy = math.tan(math.radians(camera.vfov_deg) / 2.0)
     with np.errstate(invalid="ignore"):
         ok = (np.abs(u) < 90.0) & (np.abs(v) < 90.0)
-        x = np.where(ok, camera.width_px * (0.5 + np.tan(np.radians(u)) / (2.0 * tan_half_fx)), np.nan)
-        y = np.where(ok, camera.height_px * (0.5 + np.tan(np.radians(v)) / (2.0 * tan_half_fy)), np.nan)
+        x = np.where(
+            ok, camera.width_px * (0.5 + np.tan(np.radians(u)) / (2.0 * tan_half_fx)), np.nan
+        )
+        y = np.where(
+            ok, camera.height_px * (0.5 + np.tan(np.radians(v)) / (2.0 * tan_half_fy)), np.nan
+        )
     return PixelPoint(x, y)

@@ -114,7 +114,9 @@ def _gauss_markov(rng: np.random.Generator, t: np.ndarray, sigma: float, tau: fl
     return out
 
 
-def _to_latlon(north: np.ndarray, east: np.ndarray, lat0: float, lon0: float) -> tuple[np.ndarray, np.ndarray]:
+def _to_latlon(
+    north: np.ndarray, east: np.ndarray, lat0: float, lon0: float
+) -> tuple[np.ndarray, np.ndarray]:
     lat = lat0 + np.degrees(north / EARTH_RADIUS_M)
     lon = lon0 + np.degrees(east / (EARTH_RADIUS_M * math.cos(math.radians(lat0))))
     return lat, lon
@@ -178,9 +180,13 @@ def generate_encounter(
         np.round(np.mod(target_path[2], 360.0)),
     )
 
-    columns: dict[str, list[np.ndarray]] = {k: [] for k in ("src", "t", "x", "y", "c", "pan", "b", "e")}
+    columns: dict[str, list[np.ndarray]] = {
+        k: [] for k in ("src", "t", "x", "y", "c", "pan", "b", "e")
+    }
     for sid, cam_rig in sorted(rig.items()):
-        t_cam = rng.uniform(0.0, 1.0 / cam_rig.rate_hz) + np.arange(0.0, duration_s, 1.0 / cam_rig.rate_hz)
+        t_cam = rng.uniform(0.0, 1.0 / cam_rig.rate_hz) + np.arange(
+            0.0, duration_s, 1.0 / cam_rig.rate_hz
+        )
         t_cam = np.round(t_cam + rng.normal(0.0, 0.002, t_cam.shape), 3)
         own_p, tgt_p = own_at(t_cam), target_at(t_cam)
         (lat_o, lon_o), (lat_t, lon_t) = latlon(own_p), latlon(tgt_p)
@@ -189,8 +195,12 @@ def generate_encounter(
         # Camera 30 m above the sea, the box centre 12 m: depression angle (down positive).
         elevation = np.degrees(np.arctan2(30.0 - 12.0, rng_m))
         x, y = bearing_to_pixel(bearing, elevation, cam_rig.camera, pan_deg=cam_rig.pan_deg)
-        x = np.round(x + _gauss_markov(rng, t_cam, cam_rig.wander_x_px, cam_rig.wander_tau_s)
-                     + rng.normal(0.0, cam_rig.noise_x_px, x.shape), 1)
+        x = np.round(
+            x
+            + _gauss_markov(rng, t_cam, cam_rig.wander_x_px, cam_rig.wander_tau_s)
+            + rng.normal(0.0, cam_rig.noise_x_px, x.shape),
+            1,
+        )
         y = np.round(y + rng.normal(0.0, cam_rig.noise_y_px, y.shape), 1)
         keep = rng.uniform(size=t_cam.shape) < cam_rig.detection_probability
         keep &= (x >= 0) & (x < cam_rig.camera.width_px) & (y >= 0) & (y < cam_rig.camera.height_px)
@@ -199,7 +209,16 @@ def generate_encounter(
         conf = np.round(rng.uniform(0.55, 0.95, t_cam.shape), 3)
         for key, arr in zip(
             ("src", "t", "x", "y", "c", "pan", "b", "e"),
-            (np.full(t_cam.shape, sid), t_cam, x, y, conf, np.full(t_cam.shape, cam_rig.pan_deg), bearing, elevation),
+            (
+                np.full(t_cam.shape, sid),
+                t_cam,
+                x,
+                y,
+                conf,
+                np.full(t_cam.shape, cam_rig.pan_deg),
+                bearing,
+                elevation,
+            ),
             strict=True,
         ):
             columns[key].append(arr[keep])
@@ -230,22 +249,46 @@ def write_encounter(sample: EncounterSample, out_dir: Path | str) -> list[Path]:
     with samples.open("w", newline="") as f:
         w = csv.writer(f, lineterminator="\n")
         w.writerow(["source", "t", "x_px", "y_px", "confidence", "pan_deg"])
-        for row in zip(sample.source, sample.times, sample.x_px, sample.y_px, sample.confidence, sample.pan_deg, strict=True):
-            w.writerow([int(row[0]), f"{row[1]:.3f}", f"{row[2]:.1f}", f"{row[3]:.1f}", f"{row[4]:.3f}", f"{row[5]:g}"])
+        for row in zip(
+            sample.source,
+            sample.times,
+            sample.x_px,
+            sample.y_px,
+            sample.confidence,
+            sample.pan_deg,
+            strict=True,
+        ):
+            w.writerow(
+                [
+                    int(row[0]),
+                    f"{row[1]:.3f}",
+                    f"{row[2]:.1f}",
+                    f"{row[3]:.1f}",
+                    f"{row[4]:.3f}",
+                    f"{row[5]:g}",
+                ]
+            )
     ais = out / "ais.csv"
     with ais.open("w", newline="") as f:
         w = csv.writer(f, lineterminator="\n")
         w.writerow(["vessel", "t", "lat_deg", "lon_deg", "heading_deg"])
         rows = []
         for name, track, fmt in (("own", sample.own, ".2f"), ("target", sample.target_ais, ".0f")):
-            headings = cast(np.ndarray, track.heading_deg)  # both tracks are generated with headings
-            for t, lat, lon, hdg in zip(track.times, track.lat_deg, track.lon_deg, headings, strict=True):
-                rows.append((t, name, [name, f"{t:.3f}", f"{lat:.7f}", f"{lon:.7f}", format(hdg, fmt)]))
+            headings = cast(
+                np.ndarray, track.heading_deg
+            )  # both tracks are generated with headings
+            for t, lat, lon, hdg in zip(
+                track.times, track.lat_deg, track.lon_deg, headings, strict=True
+            ):
+                rows.append(
+                    (t, name, [name, f"{t:.3f}", f"{lat:.7f}", f"{lon:.7f}", format(hdg, fmt)])
+                )
         for _, _, row in sorted(rows, key=lambda r: (r[0], r[1])):
             w.writerow(row)
     cameras = out / "cameras.json"
     cameras.write_text(
-        json.dumps({str(k): c.to_dict() for k, c in sorted(sample.cameras.items())}, indent=2) + "\n"
+        json.dumps({str(k): c.to_dict() for k, c in sorted(sample.cameras.items())}, indent=2)
+        + "\n"
     )
     return [samples, ais, cameras]
 
@@ -253,7 +296,9 @@ def write_encounter(sample: EncounterSample, out_dir: Path | str) -> list[Path]:
 def main(argv: list[str] | None = None) -> None:
     """`python -m usvfast.bearing.sample [--seed N] [--out DIR]`: regenerate the sample."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seed", type=int, default=DEFAULT_SEED, help="random seed (default %(default)s)")
+    parser.add_argument(
+        "--seed", type=int, default=DEFAULT_SEED, help="random seed (default %(default)s)"
+    )
     parser.add_argument("--out", type=Path, default=BUNDLED_DIR, help="output directory")
     parser.add_argument("--duration", type=float, default=240.0, help="seconds of camera data")
     args = parser.parse_args(argv)
