@@ -20,11 +20,11 @@ import numpy as np
 
 from usvfast._core import DimensionError, TimeOrderError
 from usvfast._validate import as_float_array
-from usvfast.bearing.angles import unwrap_deg, wrap_deg
+from usvfast.bearing.angles import float_array, unwrap_deg, wrap_deg
 
 
 def _latitudes(name: str, value: Any) -> np.ndarray:
-    lat = as_float_array(name, value)
+    lat = float_array(name, value)
     if np.any(np.abs(lat) > 90.0):
         raise ValueError(f"{name}: latitudes must be in [-90, 90] degrees")
     return lat
@@ -39,7 +39,7 @@ def great_circle_bearing_deg(
     """
     phi_r = np.radians(_latitudes("lat1_deg", lat1_deg))
     phi_t = np.radians(_latitudes("lat2_deg", lat2_deg))
-    dlam = np.radians(as_float_array("lon2_deg", lon2_deg) - as_float_array("lon1_deg", lon1_deg))
+    dlam = np.radians(float_array("lon2_deg", lon2_deg) - float_array("lon1_deg", lon1_deg))
     # eq. (2): atan2(sin Δλ cos φT, cos φR sin φT - sin φR cos φT cos Δλ)
     y = np.sin(dlam) * np.cos(phi_t)
     x = np.cos(phi_r) * np.sin(phi_t) - np.sin(phi_r) * np.cos(phi_t) * np.cos(dlam)
@@ -62,7 +62,7 @@ def relative_bearing_deg(
     true_bearing = great_circle_bearing_deg(
         own_lat_deg, own_lon_deg, target_lat_deg, target_lon_deg
     )
-    return wrap_deg(true_bearing - as_float_array("own_heading_deg", own_heading_deg))
+    return wrap_deg(true_bearing - float_array("own_heading_deg", own_heading_deg))
 
 
 def ais_report_interval_s(
@@ -102,9 +102,9 @@ class VesselTrack:
     def __post_init__(self) -> None:
         t = as_float_array("times", self.times, ndim=1)
         fields = {"times": t, "lat_deg": _latitudes("lat_deg", self.lat_deg)}
-        fields["lon_deg"] = as_float_array("lon_deg", self.lon_deg)
+        fields["lon_deg"] = float_array("lon_deg", self.lon_deg)
         if self.heading_deg is not None:
-            fields["heading_deg"] = as_float_array("heading_deg", self.heading_deg)
+            fields["heading_deg"] = float_array("heading_deg", self.heading_deg)
         for name, arr in fields.items():
             if arr.shape != t.shape:
                 raise DimensionError(f"{name}: expected shape {t.shape}, got {arr.shape}")
@@ -120,7 +120,7 @@ class VesselTrack:
         antimeridian and north are crossed the short way). NaN outside [times[0], times[-1]];
         heading is None when the track has none.
         """
-        t = as_float_array("times", times)
+        t = float_array("times", times)
         inside = (t >= self.times[0]) & (t <= self.times[-1])
 
         def interp(values: np.ndarray) -> np.ndarray:

@@ -6,6 +6,13 @@ from typing import Any
 
 import numpy as np
 
+from usvfast._validate import as_float_array
+
+
+def float_array(name: str, value: Any) -> np.ndarray:
+    """`as_float_array` that keeps the shape of scalars (0-D in, 0-D out)."""
+    return as_float_array(name, value).reshape(np.shape(value))
+
 
 def wrap_deg(angle_deg: Any) -> np.ndarray:
     """Wrap angles (degrees, any shape) to the half-open interval (-180°, 180°].

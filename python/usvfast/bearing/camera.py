@@ -22,7 +22,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from usvfast._validate import as_float_array
+from usvfast.bearing.angles import float_array
 
 
 @dataclass(frozen=True)
@@ -132,9 +132,9 @@ class PixelPoint(NamedTuple):
 def _ptz(
     camera: BearingCamera, pan_deg: Any, tilt_deg: Any, zoom: Any
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    pan = as_float_array("pan_deg", camera.pan_deg if pan_deg is None else pan_deg)
-    tilt = as_float_array("tilt_deg", camera.tilt_deg if tilt_deg is None else tilt_deg)
-    gamma = as_float_array("zoom", camera.zoom if zoom is None else zoom)
+    pan = float_array("pan_deg", camera.pan_deg if pan_deg is None else pan_deg)
+    tilt = float_array("tilt_deg", camera.tilt_deg if tilt_deg is None else tilt_deg)
+    gamma = float_array("zoom", camera.zoom if zoom is None else zoom)
     if np.any(gamma <= 0):
         raise ValueError("zoom: must be > 0")
     return pan, tilt, gamma
@@ -163,8 +163,8 @@ def pixel_to_bearing(
     pan-tilt-zoom (broadcastable), default the camera's. Bearing is clockwise positive
     (starboard), not wrapped. Raises NonFiniteError/ValueError naming the argument.
     """
-    x = as_float_array("x_px", x_px)
-    y = as_float_array("y_px", y_px)
+    x = float_array("x_px", x_px)
+    y = float_array("y_px", y_px)
     pan, tilt, gamma = _ptz(camera, pan_deg, tilt_deg, zoom)
     x, y, pan, tilt, gamma = _broadcast(
         ("x_px", "y_px", "pan_deg", "tilt_deg", "zoom"), x, y, pan, tilt, gamma
@@ -198,8 +198,8 @@ def bearing_to_pixel(
     90° off the optical axis (after un-rotating) have no image and come back as NaN; points
     outside the frame come back with coordinates outside [0, W] x [0, H].
     """
-    b = as_float_array("bearing_deg", bearing_deg)
-    e = as_float_array("elevation_deg", elevation_deg)
+    b = float_array("bearing_deg", bearing_deg)
+    e = float_array("elevation_deg", elevation_deg)
     pan, tilt, gamma = _ptz(camera, pan_deg, tilt_deg, zoom)
     b, e, pan, tilt, gamma = _broadcast(
         ("bearing_deg", "elevation_deg", "pan_deg", "tilt_deg", "zoom"), b, e, pan, tilt, gamma
