@@ -129,7 +129,7 @@ def bundled_fusion_rmse(seed: int):
 
 @pytest.mark.parametrize("seed", [11, 12, 13])
 def test_fusion_beats_each_single_camera(seed):
-    s, b, fused, ref, rows = bundled_fusion_rmse(seed)
+    s, _, _, ref, rows = bundled_fusion_rmse(seed)
     vis, ir = rows["visible (unfused)"], rows["thermal (unfused)"]
     assert rows["fused KF + RTS"].rmse_deg < 0.5 * min(vis.rmse_deg, ir.rmse_deg)
     assert rows["fused KF + RTS"].rmse_deg <= rows["fused KF"].rmse_deg

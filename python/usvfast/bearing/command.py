@@ -12,6 +12,7 @@ from typing import Annotated
 import numpy as np
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from usvfast.bearing.ais import reference_bearing_deg
@@ -216,11 +217,11 @@ def _run_and_report(
             warnings.simplefilter("always", SkippedRowsWarning)
             run = run_bearing(samples, ais, out, cameras_json=cameras, **kwargs)
     except ValueError as exc:
-        err.print(f"[red]error:[/red] {exc}")
+        err.print(f"[red]error:[/red] {escape(str(exc))}", soft_wrap=True)
         raise typer.Exit(code=1) from exc
     for w in caught:
         if issubclass(w.category, SkippedRowsWarning):
-            err.print(f"[yellow]warning:[/yellow] {w.message}")
+            err.print(f"[yellow]warning:[/yellow] {escape(str(w.message))}", soft_wrap=True)
         else:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     covered = int(np.isfinite(run.reference_deg).sum())
@@ -230,7 +231,7 @@ def _run_and_report(
     )
     console.print(_rmse_table(run.rmse))
     for path in run.files:
-        console.print(f"wrote {path}")
+        console.print(f"wrote {escape(str(path))}", soft_wrap=True)
 
 
 def bearing_command(
@@ -276,7 +277,7 @@ def demo_command(
     out: Annotated[Path, typer.Option(help="Output directory.")] = Path("out/demo"),
 ) -> None:
     """Main job on the bundled sample: bearing fusion of visible + thermal cameras vs AIS."""
-    Console().print(f"bundled sample: {BUNDLED_DIR}")
+    Console().print(f"bundled sample: {escape(str(BUNDLED_DIR))}", soft_wrap=True)
     _run_and_report(
         BUNDLED_DIR / "samples.csv", BUNDLED_DIR / "ais.csv", out, BUNDLED_DIR / "cameras.json"
     )
