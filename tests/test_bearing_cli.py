@@ -238,3 +238,12 @@ def test_cameras_file_errors(tmp_path):
         app, ["bearing", str(SAMPLES), str(AIS), "--cameras", str(bad), "--out", str(tmp_path)]
     )
     assert result.exit_code == 1 and "cannot read" in result.output
+
+
+def test_readme_bearing_example_runs(capsys):
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    section = readme[readme.index("## Bearing fusion") :]
+    code = section.split("```python\n", 1)[1].split("```", 1)[0]
+    exec(compile(code, "README.md", "exec"), {})
+    out = capsys.readouterr().out
+    assert "fused KF + RTS" in out and "visible (unfused)" in out

@@ -251,17 +251,19 @@ def bearing_command(
         typer.Option(help="Cameras JSON for pixel samples (default: the paper's calibration)."),
     ] = None,
     visible_std_deg: Annotated[
-        float, typer.Option(help="Bearing noise std of source 1 (visible) [deg].")
+        float, typer.Option(help="Bearing noise std of source 1 (visible), degrees.")
     ] = PAPER_MEASUREMENT_STD_DEG[VISIBLE],
     thermal_std_deg: Annotated[
-        float, typer.Option(help="Bearing noise std of source 2 (thermal) [deg].")
+        float, typer.Option(help="Bearing noise std of source 2 (thermal), degrees.")
     ] = PAPER_MEASUREMENT_STD_DEG[THERMAL],
     noise_diff_coeff_deg2: Annotated[
-        float, typer.Option(help="Wiener velocity process noise q [deg²/s³].")
+        float, typer.Option(help="Wiener velocity process noise q, deg²/s³.")
     ] = PAPER_NOISE_DIFF_COEFF_DEG2,
 ) -> None:
-    """Fuse visible + thermal camera bearings (KF + RTS), compare with AIS, write
-    fused_bearing.csv, rmse.csv and bearing.png into --out."""
+    """Fuse visible + thermal camera bearings (KF + RTS) and compare them with AIS.
+
+    Writes fused_bearing.csv, rmse.csv and bearing.png into --out and prints the RMSE table.
+    """
     _run_and_report(
         samples,
         ais,
