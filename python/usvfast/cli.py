@@ -5,6 +5,7 @@ from __future__ import annotations
 import typer
 
 from usvfast import __version__
+from usvfast.bearing.command import bearing_command, demo_command
 
 app = typer.Typer(
     help="usvfast: fast maritime multi-sensor detection and tracking.",
@@ -17,6 +18,10 @@ app = typer.Typer(
 def version() -> None:
     """Print the installed usvfast version."""
     typer.echo(__version__)
+
+
+app.command("bearing")(bearing_command)
+app.command("demo")(demo_command)
 
 
 def main() -> None:

@@ -1,0 +1,36 @@
+"""Angle helpers in degrees: wrap to (-180°, 180°] and unwrap a sequence."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from usvfast._validate import as_float_array
+
+
+def float_array(name: str, value: Any) -> np.ndarray:
+    """`as_float_array` that keeps the shape of scalars (0-D in, 0-D out)."""
+    return as_float_array(name, value).reshape(np.shape(value))
+
+
+def wrap_deg(angle_deg: Any) -> np.ndarray:
+    """Wrap angles (degrees, any shape) to the half-open interval (-180°, 180°].
+
+    +180° stays +180°, -180° becomes +180°; NaN stays NaN. Returns float64 of the same shape.
+    """
+    a = np.asarray(angle_deg, dtype=np.float64)
+    # 180 - ((180 - a) mod 360) lies in (-180, 180]: the mod is in [0, 360).
+    return 180.0 - np.mod(180.0 - a, 360.0)
+
+
+def unwrap_deg(angle_deg: Any) -> np.ndarray:
+    """Unwrap a 1-D sequence of angles (degrees): each value moves by a multiple of 360° to
+    lie within 180° of the previous unwrapped value, so the sequence has no ±360° jumps.
+
+    The first value is kept as given. Returns float64 (n,).
+    """
+    a = np.asarray(angle_deg, dtype=np.float64)
+    if a.size == 0:
+        return a.copy()
+    return np.unwrap(a, period=360.0)
