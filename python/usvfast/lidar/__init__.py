@@ -1,0 +1,82 @@
+"""LiDAR floating-object detection (thesis section 3.3): readers, water geometry, the
+prefilter -> LSD lines -> line memory -> line-of-sight -> buffered mean shift chain, and a
+VLP-16 scan simulator.
+
+Units are metres and radians (`_deg` names excepted), times UNIX seconds; sensor-frame
+points are Velodyne's (x forward, y left, z up), world points NED (north, east).
+"""
+
+from usvfast.lidar.frame import POINT_DTYPE, LidarFrame, make_points
+from usvfast.lidar.geometry import dead_zone_radius, downward_angles_deg, water_geometry
+from usvfast.lidar.lines import (
+    LineMemory,
+    blur,
+    covered_mask,
+    detect_segments,
+    drop_covered,
+    move_segments,
+    point_segment_distance,
+    rasterize,
+)
+from usvfast.lidar.pipeline import (
+    CycleResult,
+    FrameResult,
+    LidarConfig,
+    LidarDetection,
+    LidarDetector,
+    cluster_detections,
+    prefilter,
+    sensor_motion,
+    sensor_to_world,
+    world_to_sensor,
+)
+from usvfast.lidar.readers import (
+    BagReader,
+    LidarDataWarning,
+    ReadStats,
+    VelodynePcapReader,
+    open_lidar,
+    pointcloud2_to_points,
+    write_pointcloud2_bag,
+)
+from usvfast.lidar.simulator import Box, Cylinder, Scene, SimulatedFrame, VLP16Simulator, Wall
+
+__all__ = [
+    "POINT_DTYPE",
+    "BagReader",
+    "Box",
+    "CycleResult",
+    "Cylinder",
+    "FrameResult",
+    "LidarConfig",
+    "LidarDataWarning",
+    "LidarDetection",
+    "LidarDetector",
+    "LidarFrame",
+    "LineMemory",
+    "ReadStats",
+    "Scene",
+    "SimulatedFrame",
+    "VLP16Simulator",
+    "VelodynePcapReader",
+    "Wall",
+    "blur",
+    "cluster_detections",
+    "covered_mask",
+    "dead_zone_radius",
+    "detect_segments",
+    "downward_angles_deg",
+    "drop_covered",
+    "make_points",
+    "move_segments",
+    "open_lidar",
+    "point_segment_distance",
+    "pointcloud2_to_points",
+    "prefilter",
+    "rasterize",
+    "sensor_motion",
+    "sensor_to_world",
+    "water_geometry",
+    "world_to_sensor",
+    "write_pointcloud2_bag",
+]
