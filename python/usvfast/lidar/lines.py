@@ -183,3 +183,16 @@ class LineMemory:
         """Forget every segment."""
         self._segments = np.zeros((0, 4))
         self._age = np.zeros(0, dtype=np.int64)
+
+
+def extend_segments(segments: np.ndarray, distance: float) -> np.ndarray:
+    """Lengthen each segment (m, 4) by `distance` metres at both ends (zero-length ones stay).
+
+    LSD stops about half a pixel short of a line's ends and leaves corners open; extending
+    by a pixel or two closes them before the line-of-sight filter.
+    """
+    seg = np.asarray(segments, dtype=np.float64).reshape(-1, 4)
+    d = seg[:, 2:] - seg[:, :2]
+    length = np.hypot(d[:, 0], d[:, 1])
+    unit = d / np.where(length > 0, length, 1.0)[:, None]
+    return np.hstack([seg[:, :2] - distance * unit, seg[:, 2:] + distance * unit])

@@ -19,7 +19,7 @@ import numpy as np
 
 from usvfast._validate import as_float_array
 from usvfast.lidar.frame import LidarFrame
-from usvfast.lidar.lines import LineMemory, blur, detect_segments, rasterize
+from usvfast.lidar.lines import LineMemory, blur, detect_segments, extend_segments, rasterize
 
 
 @dataclass
@@ -34,6 +34,8 @@ class LidarConfig:
     min_segment_length : LSD segments shorter than this are ignored, m.
     line_memory_frames : frames a segment is remembered (N).
     cover_tolerance : a segment within this distance of a longer one is dropped, m.
+    segment_extension : segments are lengthened by this at both ends before the
+        line-of-sight filter (closes LSD's short ends and open corners), m.
     los_tolerance : points within this distance of a segment are dropped, m.
     buffer_frames : frames buffered in the world frame before clustering (K).
     bandwidth, bin_seeding, cluster_all, backend : mean shift parameters.
@@ -52,6 +54,7 @@ class LidarConfig:
     min_segment_length: float = 1.0
     line_memory_frames: int = 3
     cover_tolerance: float = 0.2
+    segment_extension: float = 0.4
     los_tolerance: float = 0.3
     buffer_frames: int = 4
     bandwidth: float = 2.0
@@ -78,7 +81,13 @@ class LidarConfig:
                 f"slice_min/slice_max: expected slice_min < slice_max, got "
                 f"{self.slice_min}, {self.slice_max}"
             )
-        for name in ("los_tolerance", "cover_tolerance", "min_position_std", "min_segment_length"):
+        for name in (
+            "los_tolerance",
+            "cover_tolerance",
+            "min_position_std",
+            "min_segment_length",
+            "segment_extension",
+        ):
             v = getattr(self, name)
             if not (np.isfinite(v) and v >= 0):
                 raise ValueError(f"{name}: expected a number >= 0, got {v}")
@@ -288,6 +297,7 @@ class FrameResult:
     image: np.ndarray
     new_segments: np.ndarray
     segments: np.ndarray
+    los_segments: np.ndarray
     keep: np.ndarray
     world: np.ndarray
     cycle: CycleResult | None = None
@@ -358,9 +368,12 @@ class LidarDetector:
             motion = sensor_motion(self._previous_pose, pose, **mount)
         segments = self.memory.update(new, motion)
         self._previous_pose = pose
+        los_segments = extend_segments(segments, cfg.segment_extension)
         if xy.shape[0]:
             keep = np.asarray(
-                line_of_sight_filter(xy, segments, sensor=(0.0, 0.0), tolerance=cfg.los_tolerance),
+                line_of_sight_filter(
+                    xy, los_segments, sensor=(0.0, 0.0), tolerance=cfg.los_tolerance
+                ),
                 dtype=bool,
             )
         else:
@@ -368,7 +381,9 @@ class LidarDetector:
         world = sensor_to_world(xy[keep], pose, **mount)
         self._buffer.append((world, frame.index, index[keep]))
         self._frames += 1
-        result = FrameResult(frame.stamp, pose, xy, index, image, new, segments, keep, world)
+        result = FrameResult(
+            frame.stamp, pose, xy, index, image, new, segments, los_segments, keep, world
+        )
         if len(self._buffer) >= cfg.buffer_frames:
             result.cycle = self._cluster(frame.stamp)
             self._buffer = []

@@ -233,8 +233,9 @@ class VLP16Simulator:
                 t1, t2 = (lo - o) / d, (hi - o) / d
             parallel = d == 0
             inside = (o >= lo) & (o <= hi)
+            # a beam parallel to a slab misses the box unless it runs inside the slab
             t1 = np.where(parallel, np.where(inside, -np.inf, np.inf), t1)
-            t2 = np.where(parallel, np.where(inside, np.inf, -np.inf), t2)
+            t2 = np.where(parallel, np.where(inside, np.inf, np.inf), t2)
             t_min = np.maximum(t_min, np.minimum(t1, t2))
             t_max = np.minimum(t_max, np.maximum(t1, t2))
         ok = (t_min <= t_max) & (t_min > 0)
@@ -255,3 +256,66 @@ class VLP16Simulator:
         pn, pe = r_top * un - wn, r_top * ue - we
         cap = (tan < 0) & (r_top > 0) & (pn * pn + pe * pe <= cyl.radius**2)
         return np.where(cap & (r_top < out), r_top, out)
+
+
+def harbour_scene(
+    *,
+    seed: int = 0,
+    walls: int = 2,
+    boats: int = 3,
+    floats: int = 8,
+    channel_width: float = 16.0,
+    length: float = 60.0,
+    near: float = 3.5,
+    far: float = 10.0,
+    separation: float = 4.0,
+    clutter_probability: float = 0.0,
+) -> Scene:
+    """A straight harbour channel along north around a vessel starting at the origin.
+
+    Quay walls 2 m high at east = ±channel_width/2 (`walls` = 1 keeps the eastern one; the
+    western side is then open water), `boats` boxes (2.5 m wide, 1.4 m high, 5–9 m long,
+    at least 3 m apart) moored against the eastern wall from north −10 m on, and `floats`
+    floating objects (boxes 0.3–0.6 m across or cylinders of radius 0.15–0.3 m, tops 5–30 cm
+    above the water) between `near` and `far` metres from the origin, at least `separation`
+    apart (mean shift with a 2 m bandwidth merges objects closer than about twice that) and
+    1.5 m from walls and boats. Deterministic given `seed`; raises ValueError when the
+    objects do not fit.
+    """
+    rng = np.random.default_rng(seed)
+    half = channel_width / 2
+    objects: list = [Wall(np.array([[-length, half], [length, half]]), height=2.0)]
+    if walls >= 2:
+        objects.append(Wall(np.array([[length, -half], [-length, -half]]), height=2.0))
+    boat_width = 2.5
+    n0 = -10.0 + rng.uniform(0.0, 3.0)
+    for _ in range(boats):
+        ln = rng.uniform(5.0, 9.0)
+        centre = (n0 + ln / 2, half - boat_width / 2 - 0.3)
+        objects.append(Box(centre, ln, boat_width, 0.0, 0.0, 1.4, BOAT))
+        n0 += ln + rng.uniform(3.0, 6.0)
+    east_limit = (half - boat_width - 0.3 - 1.5) if boats else half - 1.5
+    west_limit = -half + 1.5 if walls >= 2 else -far
+    placed: list[np.ndarray] = []
+    for _ in range(10000):
+        if len(placed) == floats:
+            break
+        p = np.array([rng.uniform(-far, far), rng.uniform(west_limit, east_limit)])
+        if not near <= np.hypot(*p) <= far:
+            continue
+        if any(np.hypot(*(p - q)) < separation for q in placed):
+            continue
+        placed.append(p)
+    if len(placed) < floats:
+        raise ValueError(f"floats: could not place {floats} objects {separation} m apart")
+    for p in placed:
+        top = rng.uniform(0.05, 0.30)
+        if rng.random() < 0.5:
+            objects.append(Cylinder(tuple(p), rng.uniform(0.15, 0.3), 0.0, top, FLOAT))
+        else:
+            size = rng.uniform(0.3, 0.6)
+            yaw = rng.uniform(0, np.pi)
+            objects.append(
+                Box(tuple(p), size, size * rng.uniform(0.6, 1.0), yaw, 0.0, top, FLOAT)
+            )
+    return Scene(objects, clutter_probability=clutter_probability)
