@@ -27,3 +27,19 @@ def kalman_batch(
     prior_time: float | None = None,
     smooth: bool = True,
 ) -> dict[str, npt.NDArray[np.float64]]: ...
+
+# --- lidar (rust/src/py/lidar.rs) ---
+def line_of_sight_filter(
+    points: npt.NDArray[np.float64],
+    segments: npt.NDArray[np.float64],
+    *,
+    sensor: tuple[float, float] = (0.0, 0.0),
+    tolerance: float = 0.1,
+) -> npt.NDArray[np.bool_]: ...
+def line_of_sight_filter_naive(
+    points: npt.NDArray[np.float64],
+    segments: npt.NDArray[np.float64],
+    *,
+    sensor: tuple[float, float] = (0.0, 0.0),
+    tolerance: float = 0.1,
+) -> npt.NDArray[np.bool_]: ...

@@ -7,6 +7,7 @@
 
 pub mod error;
 pub mod kalman;
+pub mod line_of_sight;
 pub mod models;
 
 #[cfg(feature = "python")]

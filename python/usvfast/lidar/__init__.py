@@ -1,6 +1,7 @@
 """LiDAR floating-object detection (thesis section 3.3): readers, water geometry, the
 prefilter -> LSD lines -> line memory -> line-of-sight -> buffered mean shift chain, and a
-VLP-16 scan simulator.
+VLP-16 scan simulator. The Rust hot paths are the line-of-sight filter
+(`line_of_sight_filter`) and the flat-kernel mean shift.
 
 Units are metres and radians (`_deg` names excepted), times UNIX seconds; sensor-frame
 points are Velodyne's (x forward, y left, z up), world points NED (north, east).
@@ -8,6 +9,11 @@ points are Velodyne's (x forward, y left, z up), world points NED (north, east).
 
 from usvfast.lidar.frame import POINT_DTYPE, LidarFrame, make_points
 from usvfast.lidar.geometry import dead_zone_radius, downward_angles_deg, water_geometry
+from usvfast.lidar.line_of_sight import (
+    line_of_sight_filter,
+    line_of_sight_filter_naive,
+    line_of_sight_filter_numpy,
+)
 from usvfast.lidar.lines import (
     LineMemory,
     blur,
@@ -69,6 +75,9 @@ __all__ = [
     "downward_angles_deg",
     "drop_covered",
     "extend_segments",
+    "line_of_sight_filter",
+    "line_of_sight_filter_naive",
+    "line_of_sight_filter_numpy",
     "make_points",
     "move_segments",
     "open_lidar",
