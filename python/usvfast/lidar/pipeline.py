@@ -26,7 +26,9 @@ from usvfast.lidar.lines import LineMemory, blur, detect_segments, extend_segmen
 class LidarConfig:
     """Parameters of the LiDAR chain (defaults from the thesis / issue 4).
 
-    radius : keep points within this horizontal range of the sensor, m (raster half-width).
+    radius : keep points within this horizontal range of the sensor, m.
+    line_margin : lines are extracted from points up to radius + line_margin (the raster's
+        half-width), so walls and boats crossing the radius are still seen as lines, m.
     mount_height : sensor height above the water, m.
     slice_min, slice_max : keep points whose height above the water is in this slice, m.
     min_intensity : drop points below this intensity (None: no threshold).
@@ -46,6 +48,7 @@ class LidarConfig:
     """
 
     radius: float = 10.0
+    line_margin: float = 2.0
     mount_height: float = 1.0
     slice_min: float = -0.5
     slice_max: float = 0.5
@@ -55,7 +58,7 @@ class LidarConfig:
     line_memory_frames: int = 3
     cover_tolerance: float = 0.2
     segment_extension: float = 0.4
-    los_tolerance: float = 0.3
+    los_tolerance: float = 0.4
     buffer_frames: int = 4
     bandwidth: float = 2.0
     bin_seeding: bool = False
@@ -83,6 +86,7 @@ class LidarConfig:
             )
         for name in (
             "los_tolerance",
+            "line_margin",
             "cover_tolerance",
             "min_position_std",
             "min_segment_length",
@@ -283,8 +287,8 @@ def cluster_detections(
 class FrameResult:
     """Intermediate products of one frame (sensor frame unless noted).
 
-    xy / index : prefiltered points (k, 2) and their indices in the frame; image : blurred
-    raster; new_segments : LSD output this frame; segments : active line memory used by the
+    xy / index : prefiltered points within `radius` (k, 2) and their indices in the frame;
+    image : blurred raster (of the points up to radius + line_margin); new_segments : LSD output this frame; segments : active line memory used by the
     line-of-sight filter; keep : (k,) mask of points that passed it; world : (j, 2) kept
     points in the world frame (north, east); cycle : a `CycleResult` when this frame closed
     a buffer, else None.
@@ -351,18 +355,21 @@ class LidarDetector:
         cfg = self.config
         pose = _pose("pose", pose)
         mount = {"lever_arm": cfg.lever_arm, "mount_yaw": cfg.mount_yaw}
+        line_radius = cfg.radius + cfg.line_margin
         xy, index = prefilter(
             frame.points,
-            radius=cfg.radius,
+            radius=line_radius,
             mount_height=cfg.mount_height,
             slice_min=cfg.slice_min,
             slice_max=cfg.slice_max,
             min_intensity=cfg.min_intensity,
         )
-        image = blur(rasterize(xy, radius=cfg.radius, pixel=cfg.pixel))
+        image = blur(rasterize(xy, radius=line_radius, pixel=cfg.pixel))
         new = detect_segments(
-            image, radius=cfg.radius, pixel=cfg.pixel, min_length=cfg.min_segment_length
+            image, radius=line_radius, pixel=cfg.pixel, min_length=cfg.min_segment_length
         )
+        inside = (xy**2).sum(axis=1) <= cfg.radius**2
+        xy, index = xy[inside], index[inside]
         motion = (0.0, 0.0, 0.0)
         if self._previous_pose is not None:
             motion = sensor_motion(self._previous_pose, pose, **mount)
