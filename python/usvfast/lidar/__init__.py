@@ -7,6 +7,7 @@ Units are metres and radians (`_deg` names excepted), times UNIX seconds; sensor
 points are Velodyne's (x forward, y left, z up), world points NED (north, east).
 """
 
+from usvfast.lidar.evaluation import SceneScore, evaluate_scene, straight_run
 from usvfast.lidar.frame import POINT_DTYPE, LidarFrame, make_points
 from usvfast.lidar.geometry import dead_zone_radius, downward_angles_deg, water_geometry
 from usvfast.lidar.line_of_sight import (
@@ -46,7 +47,15 @@ from usvfast.lidar.readers import (
     pointcloud2_to_points,
     write_pointcloud2_bag,
 )
-from usvfast.lidar.simulator import Box, Cylinder, Scene, SimulatedFrame, VLP16Simulator, Wall
+from usvfast.lidar.simulator import (
+    Box,
+    Cylinder,
+    Scene,
+    SimulatedFrame,
+    VLP16Simulator,
+    Wall,
+    harbour_scene,
+)
 
 __all__ = [
     "POINT_DTYPE",
@@ -63,6 +72,7 @@ __all__ = [
     "LineMemory",
     "ReadStats",
     "Scene",
+    "SceneScore",
     "SimulatedFrame",
     "VLP16Simulator",
     "VelodynePcapReader",
@@ -74,7 +84,9 @@ __all__ = [
     "detect_segments",
     "downward_angles_deg",
     "drop_covered",
+    "evaluate_scene",
     "extend_segments",
+    "harbour_scene",
     "line_of_sight_filter",
     "line_of_sight_filter_naive",
     "line_of_sight_filter_numpy",
@@ -87,6 +99,7 @@ __all__ = [
     "rasterize",
     "sensor_motion",
     "sensor_to_world",
+    "straight_run",
     "water_geometry",
     "world_to_sensor",
     "write_pointcloud2_bag",

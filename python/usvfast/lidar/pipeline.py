@@ -288,10 +288,11 @@ class FrameResult:
     """Intermediate products of one frame (sensor frame unless noted).
 
     xy / index : prefiltered points within `radius` (k, 2) and their indices in the frame;
-    image : blurred raster (of the points up to radius + line_margin); new_segments : LSD output this frame; segments : active line memory used by the
-    line-of-sight filter; keep : (k,) mask of points that passed it; world : (j, 2) kept
-    points in the world frame (north, east); cycle : a `CycleResult` when this frame closed
-    a buffer, else None.
+    image : blurred raster (of the points up to radius + line_margin); new_segments : LSD
+    output this frame; segments : active line memory; los_segments : the memory extended
+    by `segment_extension`, as given to the line-of-sight filter; keep : (k,) mask of
+    points that passed it; world : (j, 2) kept points in the world frame (north, east);
+    cycle : a `CycleResult` when this frame closed a buffer, else None.
     """
 
     stamp: float

@@ -347,7 +347,8 @@ def pointcloud2_to_points(msg: object) -> tuple[float, np.ndarray]:
     step = int(msg.point_step)
     n = int(msg.width) * int(msg.height)
     data = np.asarray(msg.data, dtype=np.uint8)
-    if step <= 0 or max(o + np.dtype(t).itemsize for o, t in zip(offsets, formats)) > step:
+    ends = [o + np.dtype(t).itemsize for o, t in zip(offsets, formats, strict=True)]
+    if step <= 0 or max(ends) > step:
         raise ValueError("PointCloud2: point_step smaller than its fields")
     if data.size < n * step or int(msg.row_step) * int(msg.height) != data.size:
         raise ValueError("PointCloud2: data size does not match width*height*point_step")
@@ -392,10 +393,10 @@ def points_to_pointcloud2(stamp: float, points: np.ndarray, frame_id: str, types
     kinds = [7, 7, 7, 7, 4, 7]
     fields = [
         pf(name=n, offset=o, datatype=k, count=1)
-        for n, o, k in zip(POINT_DTYPE.names, offsets, kinds)
+        for n, o, k in zip(POINT_DTYPE.names, offsets, kinds, strict=True)
     ]
     sec = int(np.floor(stamp))
-    nanosec = min(int(round((stamp - sec) * 1e9)), 999_999_999)
+    nanosec = min(round((stamp - sec) * 1e9), 999_999_999)
     return pc2(
         header=header_t(stamp=time_t(sec=sec, nanosec=nanosec), frame_id=frame_id),
         height=1,
@@ -436,13 +437,13 @@ def write_pointcloud2_bag(
             for fr in frames:
                 msg = points_to_pointcloud2(fr.stamp, fr.points, frame_id, store)
                 raw = store.serialize_ros1(msg, msgtype)
-                writer.write(conn, int(round(fr.stamp * 1e9)), raw)
+                writer.write(conn, round(fr.stamp * 1e9), raw)
     else:
         with Writer2(path, version=8) as writer:
             conn = writer.add_connection(topic, msgtype, typestore=store)
             for fr in frames:
                 msg = points_to_pointcloud2(fr.stamp, fr.points, frame_id, store)
-                writer.write(conn, int(round(fr.stamp * 1e9)), store.serialize_cdr(msg, msgtype))
+                writer.write(conn, round(fr.stamp * 1e9), store.serialize_cdr(msg, msgtype))
     return path
 
 
@@ -487,7 +488,9 @@ class BagReader:
                 if c.msgtype in LIDAR_MSGTYPES and (self.topic is None or c.topic == self.topic)
             ]
             if not conns:
-                raise ValueError(f"{source}: no VelodyneScan/PointCloud2 topic (topic={self.topic})")
+                raise ValueError(
+                    f"{source}: no VelodyneScan/PointCloud2 topic (topic={self.topic})"
+                )
             decoder = None
             for conn, _, raw in reader.messages(connections=conns):
                 stats.records += 1

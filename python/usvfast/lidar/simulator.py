@@ -14,6 +14,7 @@ rotation); point times still follow the azimuth.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -198,13 +199,13 @@ class VLP16Simulator:
         frame = LidarFrame(float(stamp), points, source="simulator", index=self._frames)
         self._frames += 1
         return SimulatedFrame(
-            frame, labels, dict(zip(ids.tolist(), counts.tolist())), np.asarray(sensor)
+            frame, labels, dict(zip(ids.tolist(), counts.tolist(), strict=True)), np.asarray(sensor)
         )
 
     def _hit_wall(self, wall: Wall, sensor, un, ue, tan) -> np.ndarray:
         poly = np.asarray(wall.polyline, dtype=np.float64).reshape(-1, 2)
         out = np.full(un.size, np.inf)
-        for a, b in zip(poly[:-1], poly[1:]):
+        for a, b in itertools.pairwise(poly):
             dn, de = b[0] - a[0], b[1] - a[1]
             den = _cross(un, ue, dn, de)
             wn, we = a[0] - sensor[0], a[1] - sensor[1]
@@ -315,7 +316,5 @@ def harbour_scene(
         else:
             size = rng.uniform(0.3, 0.6)
             yaw = rng.uniform(0, np.pi)
-            objects.append(
-                Box(tuple(p), size, size * rng.uniform(0.6, 1.0), yaw, 0.0, top, FLOAT)
-            )
+            objects.append(Box(tuple(p), size, size * rng.uniform(0.6, 1.0), yaw, 0.0, top, FLOAT))
     return Scene(objects, clutter_probability=clutter_probability)
