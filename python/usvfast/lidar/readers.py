@@ -307,11 +307,11 @@ class VelodynePcapReader:
 LIDAR_MSGTYPES = ("velodyne_msgs/msg/VelodyneScan", "sensor_msgs/msg/PointCloud2")
 
 
-def lidar_typestore():
-    """A rosbags typestore with the ROS 2 Humble types plus velodyne_msgs."""
+def lidar_typestore(ros1: bool = False):
+    """A rosbags typestore with the ROS 2 Humble (or ROS 1 Noetic) types plus velodyne_msgs."""
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-    store = get_typestore(Stores.ROS2_HUMBLE)
+    store = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
     types = {}
     types.update(get_types_from_msg(VELODYNE_PACKET_MSG, "velodyne_msgs/msg/VelodynePacket"))
     types.update(get_types_from_msg(VELODYNE_SCAN_MSG, "velodyne_msgs/msg/VelodyneScan"))
@@ -378,6 +378,16 @@ def pointcloud2_to_points(msg: object) -> tuple[float, np.ndarray]:
     return stamp, out[finite]
 
 
+def make_header(typestore, stamp: float, frame_id: str):
+    """A std_msgs/msg/Header of `typestore` (ROS 1 headers get seq = 0) at `stamp` UNIX s."""
+    header_t = typestore.types["std_msgs/msg/Header"]
+    time_t = typestore.types["builtin_interfaces/msg/Time"]
+    sec = int(np.floor(stamp))
+    nanosec = min(round((stamp - sec) * 1e9), 999_999_999)
+    extra = {"seq": 0} if "seq" in header_t.__dataclass_fields__ else {}
+    return header_t(stamp=time_t(sec=sec, nanosec=nanosec), frame_id=frame_id, **extra)
+
+
 def points_to_pointcloud2(stamp: float, points: np.ndarray, frame_id: str, typestore):
     """Build a sensor_msgs/msg/PointCloud2 (rosbags class) holding `POINT_DTYPE` points.
 
@@ -386,8 +396,6 @@ def points_to_pointcloud2(stamp: float, points: np.ndarray, frame_id: str, types
     """
     pc2 = typestore.types["sensor_msgs/msg/PointCloud2"]
     pf = typestore.types["sensor_msgs/msg/PointField"]
-    header_t = typestore.types["std_msgs/msg/Header"]
-    time_t = typestore.types["builtin_interfaces/msg/Time"]
     packed = np.ascontiguousarray(points, dtype=POINT_DTYPE)
     offsets = [POINT_DTYPE.fields[n][1] for n in POINT_DTYPE.names]
     kinds = [7, 7, 7, 7, 4, 7]
@@ -395,10 +403,8 @@ def points_to_pointcloud2(stamp: float, points: np.ndarray, frame_id: str, types
         pf(name=n, offset=o, datatype=k, count=1)
         for n, o, k in zip(POINT_DTYPE.names, offsets, kinds, strict=True)
     ]
-    sec = int(np.floor(stamp))
-    nanosec = min(round((stamp - sec) * 1e9), 999_999_999)
     return pc2(
-        header=header_t(stamp=time_t(sec=sec, nanosec=nanosec), frame_id=frame_id),
+        header=make_header(typestore, stamp, frame_id),
         height=1,
         width=packed.shape[0],
         fields=fields,
@@ -426,14 +432,11 @@ def write_pointcloud2_bag(
     from rosbags.rosbag2 import Writer as Writer2
 
     path = Path(path)
-    store = lidar_typestore()
+    store = lidar_typestore(ros1)
     msgtype = "sensor_msgs/msg/PointCloud2"
     if ros1:
-        from rosbags.typesys import Stores, get_typestore
-
-        ros1_store = get_typestore(Stores.ROS1_NOETIC)
         with Writer1(path) as writer:
-            conn = writer.add_connection(topic, msgtype, typestore=ros1_store)
+            conn = writer.add_connection(topic, msgtype, typestore=store)
             for fr in frames:
                 msg = points_to_pointcloud2(fr.stamp, fr.points, frame_id, store)
                 raw = store.serialize_ros1(msg, msgtype)
@@ -476,7 +479,7 @@ class BagReader:
 
         self.stats = stats = ReadStats()
         source = str(self.path)
-        store = lidar_typestore()
+        store = lidar_typestore(ros1=self.path.suffix == ".bag")
         with AnyReader([self.path], default_typestore=store) as reader:
             # Bags that embed definitions bring their own store; make sure velodyne_msgs is there.
             for name, fdef in store.fielddefs.items():
