@@ -123,22 +123,26 @@ def prefilter(
     Returns
     -------
     xy : (k, 2) float64 positions of the kept points, sensor frame, m.
-    index : (k,) int64 index of each kept point in `points` (first of duplicates).
+    index : (k,) int64 index of each kept point in `points`, ascending (of exact duplicates
+        the first is kept).
     """
-    x = np.asarray(points["x"], dtype=np.float64)
-    y = np.asarray(points["y"], dtype=np.float64)
-    z = np.asarray(points["z"], dtype=np.float64)
-    h = z + mount_height
+    px, py, pz = points["x"], points["y"], points["z"]
+    x = np.asarray(px, dtype=np.float64)
+    y = np.asarray(py, dtype=np.float64)
+    h = np.asarray(pz, dtype=np.float64) + mount_height
     mask = (x * x + y * y <= radius * radius) & (h >= slice_min) & (h <= slice_max)
     if min_intensity is not None:
         mask &= np.asarray(points["intensity"]) >= min_intensity
     index = np.flatnonzero(mask)
-    xyz = np.column_stack([x[index], y[index], z[index]])
-    if index.size:
-        _, first = np.unique(xyz, axis=0, return_index=True)
-        first.sort()
-        index, xyz = index[first], xyz[first]
-    return xyz[:, :2].copy(), index
+    if index.size > 1:
+        # exact duplicates: sort on the coordinates' bit patterns (+0.0 folds -0.0 into 0.0)
+        cols = [np.ascontiguousarray(np.asarray(c)[index] + 0.0) for c in (pz, py, px)]
+        keys = [c.view(f"u{c.dtype.itemsize}") for c in cols]
+        order = np.lexsort(keys)
+        new = np.ones(order.size, dtype=bool)
+        new[1:] = np.any([k[order[1:]] != k[order[:-1]] for k in keys], axis=0)
+        index = index[np.sort(order[new])]
+    return np.column_stack([x[index], y[index]]), index
 
 
 # --------------------------------------------------------------------------------------

@@ -65,11 +65,12 @@ class Cylinder:
 @dataclass
 class Scene:
     """Objects over the water; `clutter_probability` is the chance that a beam meeting the
-    water within `clutter_range` m returns a surface point anyway."""
+    water between `clutter_min_range` and `clutter_range` m returns a surface point anyway."""
 
     objects: list = field(default_factory=list)
     clutter_probability: float = 0.0
     clutter_range: float = 15.0
+    clutter_min_range: float = 0.0
 
     def kinds(self) -> np.ndarray:
         """(k,) kind of each object, indexed like the ground-truth labels."""
@@ -175,7 +176,10 @@ class VLP16Simulator:
         clutter = np.zeros(n_rays, dtype=bool)
         if self.scene.clutter_probability > 0:
             draw = self.rng.random(n_rays) < self.scene.clutter_probability
-            clutter = ~hit & (r_water <= self.scene.clutter_range) & draw
+            in_band = (r_water >= self.scene.clutter_min_range) & (
+                r_water <= self.scene.clutter_range
+            )
+            clutter = ~hit & in_band & draw
         r = np.where(hit, best, np.where(clutter, r_water, np.nan))
         ok = hit | clutter
         cos_el = np.cos(self._el)
