@@ -7,6 +7,7 @@ Units are metres and radians (`_deg` names excepted), times UNIX seconds; sensor
 points are Velodyne's (x forward, y left, z up), world points NED (north, east).
 """
 
+from usvfast.lidar.clustering import mean_shift
 from usvfast.lidar.evaluation import SceneScore, evaluate_scene, straight_run
 from usvfast.lidar.frame import POINT_DTYPE, LidarFrame, make_points
 from usvfast.lidar.geometry import dead_zone_radius, downward_angles_deg, water_geometry
@@ -91,6 +92,7 @@ __all__ = [
     "line_of_sight_filter_naive",
     "line_of_sight_filter_numpy",
     "make_points",
+    "mean_shift",
     "move_segments",
     "open_lidar",
     "point_segment_distance",
