@@ -88,7 +88,7 @@ def main() -> None:
     frame = frames[-1]
     pts = frame.points
     R = cfg.radius + cfg.line_margin
-    t_pre, (xy_all, idx_all) = timed(
+    t_pre, (xy_all, _) = timed(
         lambda: prefilter(pts, radius=R, mount_height=1.0, slice_min=-0.5, slice_max=0.5),
         args.repeat,
     )
@@ -129,7 +129,7 @@ def main() -> None:
 
     print(f"frame: {len(pts)} points, {len(xy_all)} after prefilter, {len(xy)} within radius,")
     print(f"       {len(segs)} LSD segments, {len(active)} in line memory, {keep.sum()} kept")
-    print("stage times (best of %d), ms:" % args.repeat)
+    print(f"stage times (best of {args.repeat}), ms:")
     rows = [
         ("prefilter", t_pre),
         ("raster + blur", t_ras),
@@ -155,9 +155,7 @@ def main() -> None:
     det_pts = []
     for fr, pose in zip(frames, poses, strict=True):
         p2, _ = prefilter(fr.points, radius=cfg.radius)
-        det_pts.append(
-            sensor_to_world(p2[line_of_sight_filter(p2, los_segs, tolerance=0.4)], pose)
-        )
+        det_pts.append(sensor_to_world(p2[line_of_sight_filter(p2, los_segs, tolerance=0.4)], pose))
     buffered = np.vstack(det_pts)
     cluster_detections(buffered[:20], time=0.0, backend="rust")  # warm up imports
     backends = ["rust"] + (["sklearn"] if args.full else [])

@@ -5,6 +5,7 @@ from __future__ import annotations
 import typer
 
 from usvfast import __version__
+from usvfast.lidar.command import lidar_command
 
 app = typer.Typer(
     help="usvfast: fast maritime multi-sensor detection and tracking.",
@@ -17,6 +18,9 @@ app = typer.Typer(
 def version() -> None:
     """Print the installed usvfast version."""
     typer.echo(__version__)
+
+
+app.command("lidar")(lidar_command)
 
 
 def main() -> None:
