@@ -204,8 +204,8 @@ def _udp_payload(linktype: int, frame: bytes) -> tuple[int, bytes] | None:
         raise ValueError("link/IP header") from exc
     if not isinstance(ip, dpkt.ip.IP):
         return None
-    header = bytes(frame[len(frame) - len(bytes(ip)) :][: ip.hl * 4]) if linktype == 1 else None
-    if header is not None and dpkt.in_cksum(header) != 0:
+    # the header as stored (pack_hdr keeps the received checksum): sums to 0 when intact
+    if dpkt.in_cksum(ip.pack_hdr() + bytes(ip.opts)) != 0:
         raise ValueError("IP checksum")
     udp = ip.data
     if not isinstance(udp, dpkt.udp.UDP):
@@ -495,7 +495,7 @@ class BagReader:
                     f"{source}: no VelodyneScan/PointCloud2 topic (topic={self.topic})"
                 )
             decoder = None
-            for conn, _, raw in reader.messages(connections=conns):
+            for conn, raw in _guarded(reader.messages(connections=conns), stats):
                 stats.records += 1
                 try:
                     msg = reader.deserialize(raw, conn.msgtype)
@@ -548,6 +548,21 @@ class BagReader:
             return None
         stamp = stamp_pair.device if self.device_time else stamp_pair.host
         return float(stamp), _decoded_to_points(arr)
+
+
+def _guarded(messages, stats: ReadStats):
+    """Yield (connection, raw bytes) until the bag's storage fails; a failure ends the
+    stream (counted as damage) without losing what was read before it."""
+    it = iter(messages)
+    while True:
+        try:
+            conn, _, raw = next(it)
+        except StopIteration:
+            return
+        except Exception:  # storage errors of sqlite3 / mcap / rosbag1 chunks
+            stats.damage("bag storage")
+            return
+        yield conn, raw
 
 
 def open_lidar(path: str | Path, *, topic: str | None = None, **kwargs):
