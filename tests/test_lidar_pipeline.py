@@ -15,6 +15,7 @@ from usvfast.lidar import (
     VLP16Simulator,
     blur,
     cluster_detections,
+    covered_mask,
     detect_segments,
     drop_covered,
     extend_segments,
@@ -234,3 +235,27 @@ def test_detector_cycles_and_intermediates():
 def test_config_validation(kw, match):
     with pytest.raises(ValueError, match=match):
         LidarConfig(**kw)
+
+
+@given(
+    seg=st.lists(
+        st.lists(st.floats(-5, 5).map(lambda v: round(v, 1)), min_size=4, max_size=4),
+        min_size=0,
+        max_size=25,
+    ),
+    tol=st.sampled_from([0.0, 0.1, 0.3]),
+)
+def test_covered_mask_equals_the_dense_definition(seg, tol):
+    seg = np.array(seg, dtype=float).reshape(-1, 4)
+    seg = np.vstack([seg, seg[::2]])  # exact duplicates too
+    m = seg.shape[0]
+    length = np.hypot(seg[:, 2] - seg[:, 0], seg[:, 3] - seg[:, 1])
+    idx = np.arange(m)
+    near = (point_segment_distance(seg[:, :2], seg) <= tol) & (
+        point_segment_distance(seg[:, 2:], seg) <= tol
+    )
+    np.fill_diagonal(near, False)
+    longer = (length[None, :] > length[:, None]) | (
+        (length[None, :] == length[:, None]) & (idx[None, :] < idx[:, None])
+    )
+    np.testing.assert_array_equal(covered_mask(seg, tol), (near & longer).any(axis=1))

@@ -82,12 +82,16 @@ def detect_segments(
 
 def point_segment_distance(points: np.ndarray, segments: np.ndarray) -> np.ndarray:
     """(n, m) Euclidean distance from each point (n, 2) to each segment (m, 4), metres."""
-    p = np.asarray(points, dtype=np.float64).reshape(-1, 2)[:, None, :]
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     s = np.asarray(segments, dtype=np.float64).reshape(-1, 4)
-    a, d = s[None, :, :2], (s[:, 2:] - s[:, :2])[None]
-    len2 = (d**2).sum(-1)
-    t = np.clip(((p - a) * d).sum(-1) / np.where(len2 > 0, len2, 1.0), 0.0, 1.0)
-    return np.linalg.norm(p - (a + t[..., None] * d), axis=-1)
+    px, py = p[:, 0:1], p[:, 1:2]
+    ax, ay = s[None, :, 0], s[None, :, 1]
+    dx, dy = s[None, :, 2] - ax, s[None, :, 3] - ay
+    len2 = dx * dx + dy * dy
+    rx, ry = px - ax, py - ay
+    t = np.clip((rx * dx + ry * dy) / np.where(len2 > 0, len2, 1.0), 0.0, 1.0)
+    ex, ey = rx - t * dx, ry - t * dy
+    return np.sqrt(ex * ex + ey * ey)
 
 
 def covered_mask(segments: np.ndarray, tolerance: float = 0.2) -> np.ndarray:
@@ -101,15 +105,30 @@ def covered_mask(segments: np.ndarray, tolerance: float = 0.2) -> np.ndarray:
     if m < 2:
         return np.zeros(m, dtype=bool)
     length = np.hypot(seg[:, 2] - seg[:, 0], seg[:, 3] - seg[:, 1])
-    d1 = point_segment_distance(seg[:, :2], seg)
-    d2 = point_segment_distance(seg[:, 2:], seg)
-    covers = (d1 <= tolerance) & (d2 <= tolerance)  # covers[i, j]: j covers i
-    np.fill_diagonal(covers, False)
+    lo = np.minimum(seg[:, :2], seg[:, 2:])
+    hi = np.maximum(seg[:, :2], seg[:, 2:])
     idx = np.arange(m)
-    longer = (length[None, :] > length[:, None]) | (
+    # candidates: j at least as long as i (ties: the earlier wins) and i's bounding box
+    # inside j's grown by the tolerance; then the exact endpoint distances on those pairs
+    cand = (length[None, :] > length[:, None]) | (
         (length[None, :] == length[:, None]) & (idx[None, :] < idx[:, None])
     )
-    return (covers & longer).any(axis=1)
+    for k in (0, 1):
+        cand &= lo[:, None, k] >= lo[None, :, k] - tolerance
+        cand &= hi[:, None, k] <= hi[None, :, k] + tolerance
+    i, j = np.nonzero(cand)
+    covered = np.zeros(m, dtype=bool)
+    if i.size:
+        a, d = seg[j, :2], seg[j, 2:] - seg[j, :2]
+        len2 = (d * d).sum(axis=1)
+        ok = np.ones(i.size, dtype=bool)
+        for end in (seg[i, :2], seg[i, 2:]):
+            r = end - a
+            t = np.clip((r * d).sum(axis=1) / np.where(len2 > 0, len2, 1.0), 0.0, 1.0)
+            e = r - t[:, None] * d
+            ok &= (e * e).sum(axis=1) <= tolerance * tolerance
+        covered[i[ok]] = True
+    return covered
 
 
 def drop_covered(segments: np.ndarray, tolerance: float = 0.2) -> np.ndarray:
