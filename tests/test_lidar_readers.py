@@ -279,3 +279,22 @@ def test_bag_without_lidar_topic(tmp_path):
         w.add_connection("/chatter", "std_msgs/msg/String", typestore=store)
     with pytest.raises(ValueError, match="no VelodyneScan/PointCloud2"):
         list(open_lidar(path))
+
+
+@pytest.mark.parametrize(
+    ("magic", "endian", "scale"), [(0xA1B2C3D4, ">", 1), (0xA1B23C4D, "<", 1000)]
+)
+def test_other_pcap_byte_orders_and_nanoseconds(tmp_path, clean, magic, endian, scale):
+    """The same capture rewritten big-endian or with nanosecond stamps reads the same."""
+    data = PCAP.read_bytes()
+    head = struct.unpack_from("<IHHiIII", data, 0)
+    out = [struct.pack(endian + "IHHiIII", magic, *head[1:])]
+    for o, n in records(data):
+        sec, frac, incl, orig = struct.unpack_from("<IIII", data, o)
+        out.append(struct.pack(endian + "IIII", sec, frac * scale, incl, orig))
+        out.append(data[o + 16 : o + n])
+    path = tmp_path / "other.pcap"
+    path.write_bytes(b"".join(out))
+    frames, reader = read(path)
+    assert reader.stats.damaged == 0
+    assert_same_frames(frames, clean[0])

@@ -43,6 +43,7 @@ def test_harbour_scene_detection(name):
     assert len(score.cycles) == 10
     assert score.detectable >= 3 * len(score.cycles)  # the scene really tests something
     assert score.detected >= 0.95 * score.detectable
+    assert score.worst_cycle_rate >= 0.75  # at most one miss in a cycle of 4+ objects
     walls_boats = [f for c in score.cycles for f in c.false if f[0] in ("wall", "boat")]
     assert walls_boats == []
     if scene.clutter_probability == 0:

@@ -14,6 +14,8 @@ cannot be detected: Velodyne sensors send UDP checksums of zero.
 
 from __future__ import annotations
 
+import mmap
+import os
 import struct
 import warnings
 from collections import Counter
@@ -251,9 +253,19 @@ class VelodynePcapReader:
     def __iter__(self) -> Iterator[LidarFrame]:
         import velodyne_decoder as vd
 
+        with open(self.path, "rb") as fh:
+            size = os.fstat(fh.fileno()).st_size
+            # memory-mapped: captures of several GB are streamed, not loaded
+            data = mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) if size else b""
+            try:
+                yield from self._frames(data, vd)
+            finally:
+                if isinstance(data, mmap.mmap):
+                    data.close()
+
+    def _frames(self, data, vd) -> Iterator[LidarFrame]:
         self.stats = stats = ReadStats()
         source = str(self.path)
-        data = self.path.read_bytes()
         decoder = vd.StreamDecoder(vd.Config(model=self.model))
         model_id: int | None = None
 
