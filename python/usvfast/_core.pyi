@@ -27,3 +27,29 @@ def kalman_batch(
     prior_time: float | None = None,
     smooth: bool = True,
 ) -> dict[str, npt.NDArray[np.float64]]: ...
+
+# --- lidar (rust/src/py/lidar.rs) ---
+def line_of_sight_filter(
+    points: npt.NDArray[np.float64],
+    segments: npt.NDArray[np.float64],
+    *,
+    sensor: tuple[float, float] = (0.0, 0.0),
+    tolerance: float = 0.1,
+) -> npt.NDArray[np.bool_]: ...
+def line_of_sight_filter_naive(
+    points: npt.NDArray[np.float64],
+    segments: npt.NDArray[np.float64],
+    *,
+    sensor: tuple[float, float] = (0.0, 0.0),
+    tolerance: float = 0.1,
+) -> npt.NDArray[np.bool_]: ...
+def mean_shift(
+    points: npt.NDArray[np.float64],
+    *,
+    bandwidth: float = 2.0,
+    seeds: npt.NDArray[np.float64] | None = None,
+    bin_seeding: bool = False,
+    min_bin_freq: int = 1,
+    cluster_all: bool = True,
+    max_iter: int = 300,
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.int64], int, bool]: ...

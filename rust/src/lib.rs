@@ -7,6 +7,8 @@
 
 pub mod error;
 pub mod kalman;
+pub mod line_of_sight;
+pub mod mean_shift;
 pub mod models;
 
 #[cfg(feature = "python")]

@@ -1,0 +1,422 @@
+"""The thesis's LiDAR chain (section 3.3, Figure 3.6), stage by stage, and `LidarDetector`.
+
+prefilter -> raster + blur + LSD -> line memory -> line-of-sight filter -> buffer K frames in
+the world frame -> mean shift -> detections. Each stage is a function of its own; the
+detector wires them with a `LidarConfig` and keeps every intermediate product on its
+results for plotting and debugging.
+
+Frames: points arrive in the sensor frame (x forward, y left, z up; Velodyne's). The world
+frame is NED; a vessel pose is (north m, east m, heading rad clockwise from north). The
+LiDAR sits at `lever_arm` (forward, starboard m) on the vessel, rotated by `mount_yaw`
+(rad, clockwise) and `mount_height` metres above the water.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from usvfast._validate import as_float_array
+from usvfast.lidar.frame import LidarFrame
+from usvfast.lidar.lines import LineMemory, blur, detect_segments, extend_segments, rasterize
+
+
+@dataclass
+class LidarConfig:
+    """Parameters of the LiDAR chain (defaults from the thesis / issue 4).
+
+    radius : keep points within this horizontal range of the sensor, m.
+    line_margin : lines are extracted from points up to radius + line_margin (the raster's
+        half-width), so walls and boats crossing the radius are still seen as lines, m.
+    mount_height : sensor height above the water, m.
+    slice_min, slice_max : keep points whose height above the water is in this slice, m.
+    min_intensity : drop points below this intensity (None: no threshold).
+    pixel : raster pixel size, m.
+    min_segment_length : LSD segments shorter than this are ignored, m.
+    line_memory_frames : frames a segment is remembered (N).
+    cover_tolerance : a segment within this distance of a longer one is dropped, m.
+    segment_extension : segments are lengthened by this at both ends before the
+        line-of-sight filter (closes LSD's short ends and open corners), m.
+    los_tolerance : points within this distance of a segment are dropped, m.
+    buffer_frames : frames buffered in the world frame before clustering (K).
+    bandwidth, bin_seeding, cluster_all, backend : mean shift parameters.
+    min_cluster_points : clusters with fewer points are dropped.
+    min_position_std : floor of the detection's standard deviation along any axis, m.
+    lever_arm, mount_yaw : LiDAR position (forward, starboard m) and yaw (rad) on the vessel.
+    sensor_id : written on every detection.
+    """
+
+    radius: float = 10.0
+    line_margin: float = 2.0
+    mount_height: float = 1.0
+    slice_min: float = -0.5
+    slice_max: float = 0.5
+    min_intensity: float | None = None
+    pixel: float = 0.2
+    min_segment_length: float = 1.0
+    line_memory_frames: int = 3
+    cover_tolerance: float = 0.2
+    segment_extension: float = 0.4
+    los_tolerance: float = 0.4
+    buffer_frames: int = 4
+    bandwidth: float = 2.0
+    bin_seeding: bool = False
+    cluster_all: bool = False
+    backend: str = "rust"
+    min_cluster_points: int = 15
+    min_position_std: float = 0.1
+    lever_arm: tuple[float, float] = (0.0, 0.0)
+    mount_yaw: float = 0.0
+    sensor_id: str = "lidar"
+
+    def __post_init__(self) -> None:
+        for name in ("radius", "mount_height", "pixel", "bandwidth"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 0):
+                raise ValueError(f"{name}: expected a positive number, got {v}")
+        for name in ("line_memory_frames", "buffer_frames", "min_cluster_points"):
+            v = getattr(self, name)
+            if int(v) != v or v < 1:
+                raise ValueError(f"{name}: expected an integer >= 1, got {v}")
+        if not self.slice_min < self.slice_max:
+            raise ValueError(
+                f"slice_min/slice_max: expected slice_min < slice_max, got "
+                f"{self.slice_min}, {self.slice_max}"
+            )
+        for name in (
+            "los_tolerance",
+            "line_margin",
+            "cover_tolerance",
+            "min_position_std",
+            "min_segment_length",
+            "segment_extension",
+        ):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v >= 0):
+                raise ValueError(f"{name}: expected a number >= 0, got {v}")
+
+
+# --------------------------------------------------------------------------------------
+# stage 1: prefilter
+# --------------------------------------------------------------------------------------
+def prefilter(
+    points: np.ndarray,
+    *,
+    radius: float = 10.0,
+    mount_height: float = 1.0,
+    slice_min: float = -0.5,
+    slice_max: float = 0.5,
+    min_intensity: float | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Keep unique points near the water and within range; drop z.
+
+    Parameters
+    ----------
+    points : (n,) structured array with fields x, y, z (and intensity when `min_intensity`
+        is given), sensor frame, m.
+    radius : maximum horizontal range from the sensor, m (inclusive).
+    mount_height, slice_min, slice_max : a point is kept when slice_min <= z + mount_height
+        <= slice_max (its height above the water, m).
+    min_intensity : keep points with intensity >= this; None keeps all.
+
+    Returns
+    -------
+    xy : (k, 2) float64 positions of the kept points, sensor frame, m.
+    index : (k,) int64 index of each kept point in `points`, ascending (of exact duplicates
+        the first is kept).
+    """
+    px, py, pz = points["x"], points["y"], points["z"]
+    x = np.asarray(px, dtype=np.float64)
+    y = np.asarray(py, dtype=np.float64)
+    h = np.asarray(pz, dtype=np.float64) + mount_height
+    mask = (x * x + y * y <= radius * radius) & (h >= slice_min) & (h <= slice_max)
+    if min_intensity is not None:
+        mask &= np.asarray(points["intensity"]) >= min_intensity
+    index = np.flatnonzero(mask)
+    if index.size > 1:
+        # exact duplicates: sort on the coordinates' bit patterns (+0.0 folds -0.0 into 0.0)
+        cols = [np.ascontiguousarray(np.asarray(c)[index] + 0.0) for c in (pz, py, px)]
+        keys = [c.view(f"u{c.dtype.itemsize}") for c in cols]
+        order = np.lexsort(keys)
+        new = np.ones(order.size, dtype=bool)
+        new[1:] = np.any([k[order[1:]] != k[order[:-1]] for k in keys], axis=0)
+        index = index[np.sort(order[new])]
+    return np.column_stack([x[index], y[index]]), index
+
+
+# --------------------------------------------------------------------------------------
+# frames and poses
+# --------------------------------------------------------------------------------------
+def _pose(name: str, pose) -> np.ndarray:
+    p = as_float_array(name, pose, ndim=1)
+    if p.shape != (3,):
+        raise ValueError(f"{name}: expected (north, east, heading), got shape {p.shape}")
+    return p
+
+
+def sensor_to_world(
+    xy: np.ndarray,
+    pose,
+    *,
+    lever_arm: tuple[float, float] = (0.0, 0.0),
+    mount_yaw: float = 0.0,
+) -> np.ndarray:
+    """(n, 2) sensor-frame points (x forward, y left, m) -> (n, 2) world (north, east, m).
+
+    `pose` = (north, east, heading rad clockwise from north) of the vessel; the sensor sits
+    at `lever_arm` (forward, starboard) and is yawed by `mount_yaw` (clockwise).
+    """
+    n0, e0, psi = _pose("pose", pose)
+    xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+    # sensor (x fwd, y left) -> body FRD (x fwd, y starboard), then the mount yaw
+    cm, sm = np.cos(mount_yaw), np.sin(mount_yaw)
+    bx = lever_arm[0] + cm * xy[:, 0] + sm * xy[:, 1]
+    by = lever_arm[1] + sm * xy[:, 0] - cm * xy[:, 1]
+    c, s = np.cos(psi), np.sin(psi)
+    return np.column_stack([n0 + c * bx - s * by, e0 + s * bx + c * by])
+
+
+def world_to_sensor(
+    ne: np.ndarray,
+    pose,
+    *,
+    lever_arm: tuple[float, float] = (0.0, 0.0),
+    mount_yaw: float = 0.0,
+) -> np.ndarray:
+    """Inverse of `sensor_to_world`: (n, 2) world (north, east) -> sensor (x fwd, y left)."""
+    n0, e0, psi = _pose("pose", pose)
+    ne = np.asarray(ne, dtype=np.float64).reshape(-1, 2)
+    c, s = np.cos(psi), np.sin(psi)
+    dn, de = ne[:, 0] - n0, ne[:, 1] - e0
+    bx = c * dn + s * de - lever_arm[0]
+    by = -s * dn + c * de - lever_arm[1]
+    cm, sm = np.cos(mount_yaw), np.sin(mount_yaw)
+    return np.column_stack([cm * bx + sm * by, sm * bx - cm * by])
+
+
+def sensor_motion(
+    previous_pose,
+    pose,
+    *,
+    lever_arm: tuple[float, float] = (0.0, 0.0),
+    mount_yaw: float = 0.0,
+) -> tuple[float, float, float]:
+    """Sensor motion between two vessel poses as (dx, dy, dyaw) for `move_segments`.
+
+    (dx, dy): new sensor position in the previous sensor frame (m, x forward, y left);
+    dyaw: rotation counter-clockwise seen from above (rad) = −Δheading, wrapped to (−π, π].
+    """
+    p0 = _pose("previous_pose", previous_pose)
+    p1 = _pose("pose", pose)
+    origin = sensor_to_world(np.zeros((1, 2)), p1, lever_arm=lever_arm, mount_yaw=mount_yaw)
+    d = world_to_sensor(origin, p0, lever_arm=lever_arm, mount_yaw=mount_yaw)[0]
+    dyaw = -float(np.angle(np.exp(1j * (p1[2] - p0[2]))))
+    return float(d[0]), float(d[1]), dyaw
+
+
+# --------------------------------------------------------------------------------------
+# clustering -> detections
+# --------------------------------------------------------------------------------------
+@dataclass
+class LidarDetection:
+    """One LiDAR point detection for the tracker.
+
+    time : UNIX s; position : (2,) world (north, east) m; covariance : (2, 2) m²;
+    n_points : cluster size; sensor_id : the LiDAR's id.
+    """
+
+    time: float
+    position: np.ndarray
+    covariance: np.ndarray
+    n_points: int
+    sensor_id: str = "lidar"
+
+
+def cluster_detections(
+    points: np.ndarray,
+    *,
+    time: float,
+    bandwidth: float = 2.0,
+    min_cluster_points: int = 15,
+    min_position_std: float = 0.1,
+    bin_seeding: bool = False,
+    cluster_all: bool = False,
+    backend: str = "rust",
+    sensor_id: str = "lidar",
+) -> tuple[list[LidarDetection], np.ndarray, np.ndarray]:
+    """Mean-shift (n, 2) world points and turn every big enough cluster into a detection.
+
+    Clusters with fewer than `min_cluster_points` members, and orphans (label −1 with
+    `cluster_all=False`), produce nothing. A detection's position is the mean of its
+    members; its covariance is their sample covariance with every eigenvalue raised to at
+    least `min_position_std`².
+
+    Returns (detections, labels (n,) int with −1 for points in no kept cluster, centres
+    (c, 2) of all mean-shift clusters). Labels of kept clusters index `centres`.
+    """
+    from usvfast.lidar.clustering import mean_shift
+
+    pts = as_float_array("points", points, ndim=2)
+    if pts.shape[0] == 0:
+        return [], np.zeros(0, dtype=np.int64), np.zeros((0, 2))
+    centres, labels = mean_shift(
+        pts,
+        bandwidth=bandwidth,
+        bin_seeding=bin_seeding,
+        cluster_all=cluster_all,
+        backend=backend,
+    )
+    labels = np.asarray(labels, dtype=np.int64).copy()
+    detections = []
+    floor = min_position_std**2
+    for k in range(np.asarray(centres).shape[0]):
+        members = labels == k
+        count = int(members.sum())
+        if count < min_cluster_points:
+            labels[members] = -1
+            continue
+        m = pts[members]
+        cov = np.cov(m, rowvar=False)
+        w, v = np.linalg.eigh((cov + cov.T) / 2)
+        cov = (v * np.maximum(w, floor)) @ v.T
+        detections.append(LidarDetection(float(time), m.mean(axis=0), cov, count, sensor_id))
+    return detections, labels, np.asarray(centres, dtype=np.float64).reshape(-1, 2)
+
+
+# --------------------------------------------------------------------------------------
+# the detector
+# --------------------------------------------------------------------------------------
+@dataclass
+class FrameResult:
+    """Intermediate products of one frame (sensor frame unless noted).
+
+    xy / index : prefiltered points within `radius` (k, 2) and their indices in the frame;
+    image : blurred raster (of the points up to radius + line_margin); new_segments : LSD
+    output this frame; segments : active line memory; los_segments : the memory extended
+    by `segment_extension`, as given to the line-of-sight filter; keep : (k,) mask of
+    points that passed it; world : (j, 2) kept points in the world frame (north, east);
+    cycle : a `CycleResult` when this frame closed a buffer, else None.
+    """
+
+    stamp: float
+    pose: np.ndarray
+    xy: np.ndarray
+    index: np.ndarray
+    image: np.ndarray
+    new_segments: np.ndarray
+    segments: np.ndarray
+    los_segments: np.ndarray
+    keep: np.ndarray
+    world: np.ndarray
+    cycle: CycleResult | None = None
+
+
+@dataclass
+class CycleResult:
+    """One buffered clustering cycle.
+
+    points : (n, 2) buffered world points; frame_index / point_index : (n,) where each
+    point came from (stream index of the frame, index in that frame's points); labels :
+    (n,) cluster of each point (−1: none kept); centres : mean-shift centres;
+    detections : kept clusters as `LidarDetection`s; stamp : time of the last frame.
+    """
+
+    stamp: float
+    points: np.ndarray
+    frame_index: np.ndarray
+    point_index: np.ndarray
+    labels: np.ndarray
+    centres: np.ndarray
+    detections: list[LidarDetection] = field(default_factory=list)
+
+
+class LidarDetector:
+    """Run the LiDAR chain frame by frame: `process(frame, pose)` -> `FrameResult`.
+
+    Every `config.buffer_frames` frames the buffered world points are clustered and the
+    result (with its detections) is attached to that frame's `FrameResult.cycle`; the
+    buffer then starts afresh.
+    """
+
+    def __init__(self, config: LidarConfig | None = None) -> None:
+        self.config = config or LidarConfig()
+        self.memory = LineMemory(self.config.line_memory_frames, self.config.cover_tolerance)
+        self._previous_pose: np.ndarray | None = None
+        self._buffer: list[tuple[np.ndarray, int, np.ndarray]] = []
+        self._frames = 0
+
+    def reset(self) -> None:
+        """Forget line memory, buffer and previous pose."""
+        self.memory.reset()
+        self._previous_pose = None
+        self._buffer = []
+        self._frames = 0
+
+    def process(self, frame: LidarFrame, pose) -> FrameResult:
+        """Run every stage on one frame taken at vessel `pose` (north, east, heading rad)."""
+        from usvfast.lidar.line_of_sight import line_of_sight_filter
+
+        cfg = self.config
+        pose = _pose("pose", pose)
+        mount = {"lever_arm": cfg.lever_arm, "mount_yaw": cfg.mount_yaw}
+        line_radius = cfg.radius + cfg.line_margin
+        xy, index = prefilter(
+            frame.points,
+            radius=line_radius,
+            mount_height=cfg.mount_height,
+            slice_min=cfg.slice_min,
+            slice_max=cfg.slice_max,
+            min_intensity=cfg.min_intensity,
+        )
+        image = blur(rasterize(xy, radius=line_radius, pixel=cfg.pixel))
+        new = detect_segments(
+            image, radius=line_radius, pixel=cfg.pixel, min_length=cfg.min_segment_length
+        )
+        inside = (xy**2).sum(axis=1) <= cfg.radius**2
+        xy, index = xy[inside], index[inside]
+        motion = (0.0, 0.0, 0.0)
+        if self._previous_pose is not None:
+            motion = sensor_motion(self._previous_pose, pose, **mount)
+        segments = self.memory.update(new, motion)
+        self._previous_pose = pose
+        los_segments = extend_segments(segments, cfg.segment_extension)
+        if xy.shape[0]:
+            keep = np.asarray(
+                line_of_sight_filter(
+                    xy, los_segments, sensor=(0.0, 0.0), tolerance=cfg.los_tolerance
+                ),
+                dtype=bool,
+            )
+        else:
+            keep = np.zeros(0, dtype=bool)
+        world = sensor_to_world(xy[keep], pose, **mount)
+        self._buffer.append((world, frame.index, index[keep]))
+        self._frames += 1
+        result = FrameResult(
+            frame.stamp, pose, xy, index, image, new, segments, los_segments, keep, world
+        )
+        if len(self._buffer) >= cfg.buffer_frames:
+            result.cycle = self._cluster(frame.stamp)
+            self._buffer = []
+        return result
+
+    def _cluster(self, stamp: float) -> CycleResult:
+        cfg = self.config
+        points = np.vstack([b[0] for b in self._buffer]).reshape(-1, 2)
+        frame_index = np.concatenate(
+            [np.full(b[0].shape[0], b[1], dtype=np.int64) for b in self._buffer]
+        )
+        point_index = np.concatenate([b[2] for b in self._buffer]).astype(np.int64)
+        detections, labels, centres = cluster_detections(
+            points,
+            time=stamp,
+            bandwidth=cfg.bandwidth,
+            min_cluster_points=cfg.min_cluster_points,
+            min_position_std=cfg.min_position_std,
+            bin_seeding=cfg.bin_seeding,
+            cluster_all=cfg.cluster_all,
+            backend=cfg.backend,
+            sensor_id=cfg.sensor_id,
+        )
+        return CycleResult(stamp, points, frame_index, point_index, labels, centres, detections)
