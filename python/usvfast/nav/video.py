@@ -47,8 +47,9 @@ class VideoReader:
     offset: seconds added to every timestamp (clock correction). fps: frames per second for the
     rate time base (default: the container's; required when the container has none).
     time_base: 'auto' (the rate when fps is given, else container timestamps while they
-    increase, then rate-based from the last good one), 'container' or 'rate'. skip_until: frames before this UNIX time (after the
-    offset) are grabbed without decoding and not yielded.
+    increase, then rate-based from the last good one), 'container' or 'rate'.
+    skip_until: frames before this UNIX time (after the offset) are grabbed without decoding
+    and not yielded.
     Raises ValueError naming the argument for a file OpenCV cannot open, a missing frame rate,
     or both start_time and end_time given.
     """
