@@ -387,7 +387,9 @@ class StreamCounts:
     no_pose: int = 0
 
 
-def _record(rec: Any) -> tuple[float, Any]:
+def split_record(rec: Any) -> tuple[float, Any]:
+    """(time, data) of a stream record: a `(time, data)` tuple or an object with `.time`
+    (data: its `.data` attribute, or the object itself). Raises TypeError otherwise."""
     if isinstance(rec, tuple) and len(rec) == 2:
         return float(rec[0]), rec[1]
     t = getattr(rec, "time", None)
@@ -447,7 +449,7 @@ class Replay:
         seq = count()
         off = spec.clock_offset
         for rec in source:
-            t, data = _record(rec)
+            t, data = split_record(rec)
             counts.damaged = int(getattr(source, "damaged", 0))
             t += off
             if t < last:
