@@ -82,13 +82,12 @@ def test_reorder_window_sorts_local_jitter(base, jitter):
     # A stream whose items are displaced by at most `jitter` positions comes out sorted and
     # complete when the window is at least that large.
     times = sorted(base)
-    perm = list(range(len(times)))
-    for i in range(0, len(perm) - 1, 2):
-        if jitter:
-            j = min(len(perm) - 1, i + jitter)
-            perm[i], perm[j] = perm[j], perm[i]
+    # Reverse consecutive blocks of jitter + 1 items: no item moves more than `jitter` places.
+    perm = []
+    for start in range(0, len(times), jitter + 1):
+        perm.extend(reversed(range(start, min(start + jitter + 1, len(times)))))
     shuffled = [(float(times[p]), p) for p in perm]
-    rec = _recording([shuffled], [0.0], window=2 * jitter)
+    rec = _recording([shuffled], [0.0], window=jitter)
     replay = Replay(rec)
     got = list(replay)
     assert [g.time for g in got] == [float(t) for t in times]
