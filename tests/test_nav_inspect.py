@@ -5,7 +5,9 @@ known inputs; single files; errors."""
 from __future__ import annotations
 
 import math
+import re
 from datetime import datetime, timezone
+from pathlib import Path
 
 import cv2
 import gpxpy
@@ -16,6 +18,7 @@ from rosbags.rosbag1 import Writer as Writer1
 from typer.testing import CliRunner
 
 from usvfast.cli import app
+from usvfast.nav._damage import DamagedRecordsWarning
 from usvfast.nav.bags import bag_typestore
 from usvfast.nav.inspect import inspect_recording, recording_for_path
 from usvfast.nav.replay import load_recording
@@ -45,12 +48,12 @@ def _gpx(path):
     path.write_text(text)
 
 
-def _bag(path):
+def _bag(path, topic="/imu"):
     ts = bag_typestore(ros2=False)
     T = ts.types
     Vec, Quat = T["geometry_msgs/msg/Vector3"], T["geometry_msgs/msg/Quaternion"]
     with Writer1(path) as w:
-        conn = w.add_connection("/imu", "sensor_msgs/msg/Imu", typestore=ts)
+        conn = w.add_connection(topic, "sensor_msgs/msg/Imu", typestore=ts)
         for i, t in enumerate(IMU_T):
             sec, nsec = divmod(round((T0 + t) * 1e9), 10**9)
             msg = T["sensor_msgs/msg/Imu"](
@@ -170,3 +173,24 @@ def test_cli_errors(tmp_path, recording):
     assert not math.isnan(
         inspect_recording(load_recording(tmp_path / "part.toml")).streams[0].start
     )
+
+
+def test_readme_example(tmp_path, monkeypatch):
+    """The README's recording runs: its TOML with files made here, `usvfast inspect`, replay."""
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    section = readme.split("## Recordings")[1]
+    toml = re.search(r"```toml\n(.*?)```", section, re.DOTALL).group(1)
+    code = re.search(r"```python\n(.*?)```", section, re.DOTALL).group(1)
+    (tmp_path / "harbour.toml").write_text(toml)
+    _gpx(tmp_path / "track.gpx")
+    _bag(tmp_path / "run.bag", topic="/imu/data")
+    vw = cv2.VideoWriter(str(tmp_path / "cam.avi"), cv2.VideoWriter_fourcc(*"MJPG"), 4.0, (32, 24))
+    for i in range(8):
+        vw.write(np.full((24, 32, 3), i, np.uint8))
+    vw.release()
+    monkeypatch.chdir(tmp_path)
+    res = CliRunner().invoke(app, ["inspect", "harbour.toml"])
+    assert res.exit_code == 0, res.output
+    assert "harbour run" in res.output and "overlap of all streams: 2023" in res.output
+    with pytest.warns(DamagedRecordsWarning):  # the damaged GPX point and bag message
+        exec(compile(code, "README.md", "exec"), {})
