@@ -104,6 +104,17 @@ def test_out_of_order_beyond_window_counted():
     assert replay.counts["s0"].out_of_order == 1 and replay.counts["s0"].yielded == 7
 
 
+def test_time_window():
+    stream = [(float(t), t) for t in range(10)]
+    rec = _recording([stream, [(4.5, "x")]], [0.0, 0.0])
+    got = [(i.time, i.stream, i.index) for i in Replay(rec, start=3.0, end=5.0)]
+    assert got == [(3.0, "s0", 3), (4.0, "s0", 4), (4.5, "s1", 0), (5.0, "s0", 5)]
+    with pytest.raises(ValueError, match="start, end"):
+        Replay(rec, start=5.0, end=3.0)
+    with pytest.raises(ValueError, match="end: expected a finite"):
+        Replay(rec, end=float("nan"))
+
+
 def test_lazy_on_endless_stream():
     def endless():
         for i in itertools.count():
@@ -112,6 +123,8 @@ def test_lazy_on_endless_stream():
     rec = _recording([endless, [(2.5, "x")]], [0.0, 0.0])
     got = [(i.time, i.data) for i in itertools.islice(Replay(rec), 6)]
     assert got == [(0.0, 0), (1.0, 1), (2.0, 2), (2.5, "x"), (3.0, 3), (4.0, 4)]
+    # An end time stops an endless replay.
+    assert len(list(Replay(rec, end=99.5))) == 101
 
 
 class _Pose:

@@ -364,7 +364,7 @@ class PoseSource(Protocol):
 class ReplayItem:
     """One replayed item: time (UNIX s, clock offset applied), stream (id), sensor_id, mount,
     data (the reader's record), pose (the vessel pose at `time`, or None), index (position
-    among the stream's good records)."""
+    of the record among the stream's good records, in reading order)."""
 
     time: float
     stream: str
@@ -416,6 +416,7 @@ class Replay:
     pose_track: a PoseSource queried at each item's time (None: poses are None).
     skip_without_pose: leave out items the pose track does not cover (counted either way).
     streams: ids to replay (default all). decode: False for fast scans (images undecoded).
+    start, end: replay only items with start <= time <= end (UNIX s; the merge stops at end).
     `counts` holds a StreamCounts per stream id, updated during iteration.
     """
 
@@ -427,7 +428,16 @@ class Replay:
         skip_without_pose: bool = False,
         streams: Iterable[str] | None = None,
         decode: bool = True,
+        start: float | None = None,
+        end: float | None = None,
     ) -> None:
+        for name, v in (("start", start), ("end", end)):
+            if v is not None and (isinstance(v, bool) or not math.isfinite(v)):
+                raise ValueError(f"{name}: expected a finite UNIX time, got {v!r}")
+        self.start = -math.inf if start is None else float(start)
+        self.end = math.inf if end is None else float(end)
+        if self.start > self.end:
+            raise ValueError(f"start, end: start {start} is after end {end}")
         if pose_track is not None and not callable(getattr(pose_track, "pose_at", None)):
             raise TypeError("pose_track: expected an object with a pose_at(t) method")
         chosen = (
@@ -466,9 +476,12 @@ class Replay:
 
     def __iter__(self) -> Iterator[ReplayItem]:
         gens = [self._stream(k, s) for k, s in enumerate(self.specs)]
-        index = {s.id: 0 for s in self.specs}
         try:
-            for t, k, _, data in heapq.merge(*gens, key=lambda x: (x[0], x[1], x[2])):
+            for t, k, seq, data in heapq.merge(*gens, key=lambda x: (x[0], x[1], x[2])):
+                if t < self.start:
+                    continue
+                if t > self.end:
+                    break
                 spec = self.specs[k]
                 counts = self.counts[spec.id]
                 pose = None
@@ -482,9 +495,7 @@ class Replay:
                         if self.skip_without_pose:
                             continue
                 counts.yielded += 1
-                i = index[spec.id]
-                index[spec.id] = i + 1
-                yield ReplayItem(t, spec.id, spec.sensor_id, spec.mount, data, pose, i)
+                yield ReplayItem(t, spec.id, spec.sensor_id, spec.mount, data, pose, seq)
         finally:
             for g in gens:
                 g.close()
