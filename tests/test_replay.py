@@ -267,3 +267,47 @@ def test_bad_recordings_name_the_key(tmp_path, text, match):
 def test_missing_recording_file(tmp_path):
     with pytest.raises(RecordingError, match="cannot read"):
         load_recording(tmp_path / "none.toml")
+
+
+def test_navigation_fixes_gpx_and_bag(tmp_path):
+    from rosbags.rosbag2 import Writer as Writer2
+
+    from usvfast.nav.bags import bag_typestore
+    from usvfast.nav.fixes import navigation_fixes
+
+    _write_files(tmp_path)
+    ts = bag_typestore()
+    T = ts.types
+    lat = [63.1, 63.2, float("nan"), 63.4]
+    status = [0, 2, 0, -1]
+    with Writer2(tmp_path / "bag", version=9) as w:
+        conn = w.add_connection("/fix", "sensor_msgs/msg/NavSatFix", typestore=ts)
+        for i in range(4):
+            msg = T["sensor_msgs/msg/NavSatFix"](
+                header=T["std_msgs/msg/Header"](
+                    stamp=T["builtin_interfaces/msg/Time"](sec=int(T0) + i, nanosec=0),
+                    frame_id="gps",
+                ),
+                status=T["sensor_msgs/msg/NavSatStatus"](status=status[i], service=1),
+                latitude=lat[i],
+                longitude=10.0,
+                altitude=5.0 + i,
+                position_covariance=np.zeros(9),
+                position_covariance_type=0,
+            )
+            w.write(conn, (int(T0) + i) * 10**9, bytes(ts.serialize_cdr(msg, msg.__msgtype__)))
+    path = tmp_path / "rec.toml"
+    path.write_text(
+        RECORDING.format(t0=T0)
+        + '\n[[stream]]\nid = "fix"\ntype = "bag"\npath = "bag"\ntopic = "/fix"\n'
+        + "clock_offset = -0.25\n"
+    )
+    rec = load_recording(path)
+    gnss = navigation_fixes(rec)
+    assert gnss.stream == "gnss" and gnss.times.tolist() == [T0 + k for k in range(11)]
+    np.testing.assert_array_equal(gnss.lat_deg, 63.43 + np.arange(11) * 1e-5)
+    fix = navigation_fixes(rec, "fix")
+    assert fix.times.tolist() == [T0 - 0.25, T0 + 0.75] and fix.no_fix == 2
+    assert fix.lat_deg.tolist() == [63.1, 63.2] and fix.alt_m.tolist() == [5.0, 6.0]
+    with pytest.raises(ValueError, match="holds VideoFrame records"):
+        navigation_fixes(rec, "cam")
