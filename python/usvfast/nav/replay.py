@@ -377,7 +377,8 @@ class ReplayItem:
 
 @dataclass
 class StreamCounts:
-    """Per-stream counts of a replay: yielded items, damaged records (from the reader),
+    """Per-stream counts of a replay: yielded items, damaged records (from the reader, set
+    when the stream ends),
     out_of_order (skipped: earlier than an item already emitted beyond the reorder window),
     no_pose (items whose time the pose track does not cover)."""
 
@@ -458,26 +459,34 @@ class Replay:
         last = -math.inf
         seq = count()
         off = spec.clock_offset
-        for rec in source:
-            t, data = split_record(rec)
-            counts.damaged = int(getattr(source, "damaged", 0))
-            t += off
-            if t < last:
-                counts.out_of_order += 1
-                continue
-            heapq.heappush(buf, (t, next(seq), data))
-            if len(buf) > window:
-                t0, s0, d0 = heapq.heappop(buf)
+        try:
+            for rec in source:
+                if type(rec) is tuple and len(rec) == 2:
+                    t, data = float(rec[0]), rec[1]
+                else:
+                    t, data = split_record(rec)
+                t += off
+                if t < last:
+                    counts.out_of_order += 1
+                    continue
+                item = (t, next(seq), data)
+                if len(buf) < window:
+                    heapq.heappush(buf, item)
+                    continue
+                # Full window: emit the earliest of the window and the new item.
+                t0, s0, d0 = heapq.heappushpop(buf, item) if buf else item
                 last = t0
                 yield t0, k, s0, d0
-        counts.damaged = int(getattr(source, "damaged", 0))
-        while buf:
-            yield _pop(buf, k)
+            while buf:
+                yield _pop(buf, k)
+        finally:
+            counts.damaged = int(getattr(source, "damaged", 0))
 
     def __iter__(self) -> Iterator[ReplayItem]:
         gens = [self._stream(k, s) for k, s in enumerate(self.specs)]
         try:
-            for t, k, seq, data in heapq.merge(*gens, key=lambda x: (x[0], x[1], x[2])):
+            # (time, stream, seq) is unique: tuples never compare the data.
+            for t, k, seq, data in heapq.merge(*gens):
                 if t < self.start:
                     continue
                 if t > self.end:
