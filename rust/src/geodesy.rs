@@ -17,6 +17,7 @@
 //! length 1 (broadcast to `n`), and they return three `Vec`s of length `n`.
 
 use crate::error::{check_finite, Error, Result};
+use crate::fastmath::{atan2, map_blocks, sin_cos, Block, LANES};
 
 /// A reference ellipsoid of revolution, semi-axes in metres.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -66,19 +67,23 @@ impl Ellipsoid {
     }
 
     /// Geodetic (lat, lon in radians; height in metres) → ECEF (x, y, z) in metres.
+    /// Angles beyond ±1.6e6 rad lose accuracy (the batch functions reject them).
+    #[inline(always)]
     #[must_use]
     pub fn geodetic_to_ecef(&self, lat: f64, lon: f64, h: f64) -> [f64; 3] {
-        let (sl, cl) = lat.sin_cos();
-        let (so, co) = lon.sin_cos();
+        let (sl, cl) = sin_cos(lat);
+        let (so, co) = sin_cos(lon);
         // N = a² / sqrt(a² cos²φ + b² sin²φ): prime-vertical radius of curvature.
-        let n = self.a * self.a / (self.a * cl).hypot(self.b * sl);
+        let (ac, bs) = (self.a * cl, self.b * sl);
+        let n = self.a * self.a / (ac * ac + bs * bs).sqrt();
         let r = (n + h) * cl;
         [r * co, r * so, (n * (1.0 - self.e2) + h) * sl]
     }
 
     /// ECEF (x, y, z) in metres → geodetic (lat, lon in radians, height in metres).
     ///
-    /// Vermeille (2011), closed form, valid everywhere. On the polar axis the longitude is 0;
+    /// Vermeille (2011), closed form, valid everywhere; the reference the fast batch path
+    /// ([`Ellipsoid::ecef_to_geodetic_iterative`]) is tested against. On the polar axis the longitude is 0;
     /// the Earth's centre itself maps to the north pole at height `-b`.
     #[must_use]
     pub fn ecef_to_geodetic(&self, x: f64, y: f64, z: f64) -> [f64; 3] {
@@ -136,6 +141,40 @@ impl Ellipsoid {
     }
 }
 
+impl Ellipsoid {
+    /// ECEF → geodetic like [`Ellipsoid::ecef_to_geodetic`], by two Bowring iterations (cubic convergence) on
+    /// the parametric latitude with sines and cosines only (no trigonometric calls until the
+    /// final `atan2`s), so it vectorises. Valid for points farther than [`ITERATIVE_MIN_RADIUS`]
+    /// from the Earth's centre (about 350 km below the surface or higher): there it agrees with
+    /// the closed form to nanometres (tested below).
+    #[inline(always)]
+    #[must_use]
+    pub fn ecef_to_geodetic_iterative(&self, x: f64, y: f64, z: f64) -> [f64; 3] {
+        let (a, b, e2) = (self.a, self.b, self.e2);
+        let ep2 = e2 / (1.0 - e2);
+        let rho = (x * x + y * y).sqrt();
+        let unit = |p: f64, q: f64| {
+            let r = (p * p + q * q).sqrt();
+            (p / r, q / r)
+        };
+        // Start: tan β = a z / (b ρ).
+        let (mut sb, mut cb) = unit(a * z, b * rho);
+        let (mut sp, mut cp) = (0.0, 1.0);
+        for _ in 0..2 {
+            // tan φ = (z + e'² b sin³β) / (ρ − e² a cos³β); tan β = (b/a) tan φ.
+            (sp, cp) = unit(z + ep2 * b * sb * sb * sb, rho - e2 * a * cb * cb * cb);
+            (sb, cb) = unit(b * sp, a * cp);
+        }
+        // h = ρ cos φ + z sin φ − a sqrt(1 − e² sin²φ): well conditioned everywhere.
+        let h = rho * cp + z * sp - a * (1.0 - e2 * sp * sp).sqrt();
+        [atan2(sp, cp), atan2(y, x), h]
+    }
+}
+
+/// Below this distance from the centre (metres) the batch ECEF → geodetic path uses the
+/// closed form instead of the iteration.
+pub const ITERATIVE_MIN_RADIUS: f64 = 6.0e6;
+
 /// Which local tangent-plane axes to use.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum LocalFrame {
@@ -157,10 +196,11 @@ pub struct Origin {
 
 impl Origin {
     /// The tangent plane at (lat0, lon0 in radians, h0 in metres) on `ell`.
+    #[inline(always)]
     #[must_use]
     pub fn new(ell: &Ellipsoid, lat0: f64, lon0: f64, h0: f64) -> Self {
-        let (sin_lat, cos_lat) = lat0.sin_cos();
-        let (sin_lon, cos_lon) = lon0.sin_cos();
+        let (sin_lat, cos_lat) = sin_cos(lat0);
+        let (sin_lon, cos_lon) = sin_cos(lon0);
         Origin {
             ecef: ell.geodetic_to_ecef(lat0, lon0, h0),
             sin_lat,
@@ -171,9 +211,14 @@ impl Origin {
     }
 
     /// ECEF point (metres) → local coordinates (metres) in `frame`.
+    #[inline(always)]
     #[must_use]
     pub fn ecef_to_local(&self, frame: LocalFrame, p: [f64; 3]) -> [f64; 3] {
-        let (dx, dy, dz) = (p[0] - self.ecef[0], p[1] - self.ecef[1], p[2] - self.ecef[2]);
+        let (dx, dy, dz) = (
+            p[0] - self.ecef[0],
+            p[1] - self.ecef[1],
+            p[2] - self.ecef[2],
+        );
         let t = self.cos_lon * dx + self.sin_lon * dy;
         let east = -self.sin_lon * dx + self.cos_lon * dy;
         let north = -self.sin_lat * t + self.cos_lat * dz;
@@ -185,6 +230,7 @@ impl Origin {
     }
 
     /// Local coordinates (metres) in `frame` → ECEF point (metres).
+    #[inline(always)]
     #[must_use]
     pub fn local_to_ecef(&self, frame: LocalFrame, l: [f64; 3]) -> [f64; 3] {
         let (north, east, up) = match frame {
@@ -201,8 +247,8 @@ impl Origin {
     }
 }
 
-/// Three coordinate columns, each of length `n` or 1 (broadcast).
-type Columns<'a> = [(&'a str, &'a [f64]); 3];
+/// Three named coordinate columns, each of length `n` or 1 (broadcast).
+pub type Columns<'a> = [(&'a str, &'a [f64]); 3];
 
 /// Common length of the argument slices (each `n` or 1); fails on a mismatch or a
 /// non-finite value.
@@ -219,15 +265,6 @@ fn broadcast_len(args: &[(&str, &[f64])]) -> Result<usize> {
         check_finite(name, s)?;
     }
     Ok(n)
-}
-
-#[inline(always)]
-fn at(s: &[f64], i: usize) -> f64 {
-    if s.len() == 1 {
-        s[0]
-    } else {
-        s[i]
-    }
 }
 
 fn angle_scale(deg: bool) -> f64 {
@@ -253,25 +290,35 @@ fn check_latitude(name: &str, lat: &[f64], scale: f64) -> Result<()> {
     }
 }
 
-fn map_columns(
-    n: usize,
-    cols: &Columns<'_>,
-    mut f: impl FnMut(f64, f64, f64) -> [f64; 3],
-) -> [Vec<f64>; 3] {
-    let mut out = [vec![0.0; n], vec![0.0; n], vec![0.0; n]];
-    let [(_, c0), (_, c1), (_, c2)] = *cols;
-    let [o0, o1, o2] = &mut out;
-    for i in 0..n {
-        let r = f(at(c0, i), at(c1, i), at(c2, i));
-        o0[i] = r[0];
-        o1[i] = r[1];
-        o2[i] = r[2];
+/// Longitudes beyond ±1e5 rad (±5.7e6°) are rejected: the fast sine loses accuracy there.
+fn check_longitude(name: &str, lon: &[f64], scale: f64) -> Result<()> {
+    match lon.iter().position(|v| (v * scale).abs() > 1e5) {
+        None => Ok(()),
+        Some(i) => Err(Error::param(
+            name,
+            format!(
+                "longitude out of range (|lon| <= 1e5 rad), element {i} is {}",
+                lon[i]
+            ),
+        )),
     }
-    out
+}
+
+/// Applies a per-point function to every lane of a block.
+#[inline(always)]
+fn lanes<const NI: usize>(b: &[Block; NI], f: impl Fn(&[f64; NI]) -> [f64; 3]) -> [Block; 3] {
+    let mut o = [[0.0; LANES]; 3];
+    for l in 0..LANES {
+        let r = f(&std::array::from_fn(|j| b[j][l]));
+        o[0][l] = r[0];
+        o[1][l] = r[1];
+        o[2][l] = r[2];
+    }
+    o
 }
 
 /// Geodetic (lat, lon, h) → ECEF (x, y, z), metres. Angles in degrees if `deg`, else radians.
-/// Fails on mismatched lengths, non-finite values or |lat| > 90°.
+/// Fails on mismatched lengths, non-finite values, |lat| > 90° or |lon| > 1e5 rad.
 pub fn geodetic2ecef(
     ell: &Ellipsoid,
     lat: &[f64],
@@ -279,17 +326,68 @@ pub fn geodetic2ecef(
     h: &[f64],
     deg: bool,
 ) -> Result<[Vec<f64>; 3]> {
-    let cols = [("lat", lat), ("lon", lon), ("h", h)];
-    let n = broadcast_len(&cols)?;
+    let n = broadcast_len(&[("lat", lat), ("lon", lon), ("h", h)])?;
     let s = angle_scale(deg);
     check_latitude("lat", lat, s)?;
-    Ok(map_columns(n, &cols, |la, lo, hh| {
-        ell.geodetic_to_ecef(la * s, lo * s, hh)
+    check_longitude("lon", lon, s)?;
+    Ok(map_blocks(n, [lat, lon, h], |b| {
+        lanes(b, |p| ell.geodetic_to_ecef(p[0] * s, p[1] * s, p[2]))
     }))
 }
 
+/// ECEF → geodetic for one block: the iteration unless a point is near the centre. Written
+/// step by step over the lanes so that each step vectorises.
+#[inline(always)]
+fn ecef_block(ell: &Ellipsoid, b: &[Block; 3], out_scale: f64) -> [Block; 3] {
+    let [x, y, z] = b;
+    let r2 = ITERATIVE_MIN_RADIUS * ITERATIVE_MIN_RADIUS;
+    let near_centre = (0..LANES).any(|l| x[l] * x[l] + y[l] * y[l] + z[l] * z[l] < r2);
+    if near_centre {
+        return lanes(b, |p| {
+            let g = ell.ecef_to_geodetic(p[0], p[1], p[2]);
+            [g[0] * out_scale, g[1] * out_scale, g[2]]
+        });
+    }
+    let (a, bb, e2) = (ell.a, ell.b, ell.e2);
+    let ep2 = e2 / (1.0 - e2);
+    let mut rho = [0.0; LANES];
+    let (mut sb, mut cb, mut sp, mut cp) = ([0.0; LANES], [0.0; LANES], [0.0; LANES], [0.0; LANES]);
+    for l in 0..LANES {
+        rho[l] = (x[l] * x[l] + y[l] * y[l]).sqrt();
+        let (p, q) = (a * z[l], bb * rho[l]);
+        let inv = 1.0 / (p * p + q * q).sqrt();
+        sb[l] = p * inv;
+        cb[l] = q * inv;
+    }
+    // Same steps as `Ellipsoid::ecef_to_geodetic_iterative`.
+    for _ in 0..2 {
+        for l in 0..LANES {
+            let p = z[l] + ep2 * bb * sb[l] * sb[l] * sb[l];
+            let q = rho[l] - e2 * a * cb[l] * cb[l] * cb[l];
+            let inv = 1.0 / (p * p + q * q).sqrt();
+            sp[l] = p * inv;
+            cp[l] = q * inv;
+            let (p, q) = (bb * sp[l], a * cp[l]);
+            let inv = 1.0 / (p * p + q * q).sqrt();
+            sb[l] = p * inv;
+            cb[l] = q * inv;
+        }
+    }
+    let mut o = [[0.0; LANES]; 3];
+    for l in 0..LANES {
+        o[2][l] = rho[l] * cp[l] + z[l] * sp[l] - a * (1.0 - e2 * sp[l] * sp[l]).sqrt();
+    }
+    for l in 0..LANES {
+        o[0][l] = atan2(sp[l], cp[l]) * out_scale;
+    }
+    for l in 0..LANES {
+        o[1][l] = atan2(y[l], x[l]) * out_scale;
+    }
+    o
+}
+
 /// ECEF (x, y, z) metres → geodetic (lat, lon, h); angles in degrees if `deg`, else radians,
-/// longitude in (-180°, 180°]. Fails on mismatched lengths or non-finite values.
+/// longitude in [-180°, 180°]. Fails on mismatched lengths or non-finite values.
 pub fn ecef2geodetic(
     ell: &Ellipsoid,
     x: &[f64],
@@ -297,53 +395,86 @@ pub fn ecef2geodetic(
     z: &[f64],
     deg: bool,
 ) -> Result<[Vec<f64>; 3]> {
-    let cols = [("x", x), ("y", y), ("z", z)];
-    let n = broadcast_len(&cols)?;
+    let n = broadcast_len(&[("x", x), ("y", y), ("z", z)])?;
     let s = 1.0 / angle_scale(deg);
-    Ok(map_columns(n, &cols, |xx, yy, zz| {
-        let [la, lo, h] = ell.ecef_to_geodetic(xx, yy, zz);
-        [la * s, lo * s, h]
-    }))
+    Ok(map_blocks(n, [x, y, z], |b| ecef_block(ell, b, s)))
 }
 
-/// Iterates `f(origin, i)` over `n` points with origins taken from `origin` columns (each of
-/// length `n` or 1); a single origin is built once.
-fn with_origins(
-    ell: &Ellipsoid,
-    origin: &Columns<'_>,
-    scale: f64,
-    n: usize,
-    mut f: impl FnMut(&Origin, usize) -> [f64; 3],
-) -> [Vec<f64>; 3] {
-    let [(_, lat0), (_, lon0), (_, h0)] = *origin;
-    let make = |i: usize| Origin::new(ell, at(lat0, i) * scale, at(lon0, i) * scale, at(h0, i));
-    let single = lat0.len() == 1 && lon0.len() == 1 && h0.len() == 1;
-    let first = make(0);
-    let mut out = [vec![0.0; n], vec![0.0; n], vec![0.0; n]];
-    let [o0, o1, o2] = &mut out;
-    for i in 0..n {
-        let r = if single { f(&first, i) } else { f(&make(i), i) };
-        o0[i] = r[0];
-        o1[i] = r[1];
-        o2[i] = r[2];
-    }
-    out
-}
-
+/// Checks the point and origin columns; returns the common length and the angle scale.
 fn prepare(
     points: &Columns<'_>,
     origin: &Columns<'_>,
-    lat_arg: Option<&str>,
+    geodetic_points: bool,
     deg: bool,
 ) -> Result<(usize, f64)> {
     let all: Vec<(&str, &[f64])> = points.iter().chain(origin.iter()).copied().collect();
     let n = broadcast_len(&all)?;
     let s = angle_scale(deg);
-    if let Some(name) = lat_arg {
-        check_latitude(name, points[0].1, s)?;
+    if geodetic_points {
+        check_latitude(points[0].0, points[0].1, s)?;
+        check_longitude(points[1].0, points[1].1, s)?;
     }
-    check_latitude("lat0", origin[0].1, s)?;
+    check_latitude(origin[0].0, origin[0].1, s)?;
+    check_longitude(origin[1].0, origin[1].1, s)?;
     Ok((n, s))
+}
+
+/// A per-point conversion relative to an origin; a trait (not a closure) so that
+/// `#[inline(always)]` reaches the lane loop and it vectorises.
+trait OriginFn {
+    fn apply(&self, o: &Origin, p: [f64; 3]) -> [f64; 3];
+}
+
+/// Geodetic point (angles scaled by `.2`) → local.
+struct GeodeticToLocal<'a>(&'a Ellipsoid, LocalFrame, f64);
+/// ECEF point → local.
+struct EcefToLocal(LocalFrame);
+/// Local point → ECEF.
+struct LocalToEcef(LocalFrame);
+
+impl OriginFn for GeodeticToLocal<'_> {
+    #[inline(always)]
+    fn apply(&self, o: &Origin, p: [f64; 3]) -> [f64; 3] {
+        let s = self.2;
+        o.ecef_to_local(self.1, self.0.geodetic_to_ecef(p[0] * s, p[1] * s, p[2]))
+    }
+}
+impl OriginFn for EcefToLocal {
+    #[inline(always)]
+    fn apply(&self, o: &Origin, p: [f64; 3]) -> [f64; 3] {
+        o.ecef_to_local(self.0, p)
+    }
+}
+impl OriginFn for LocalToEcef {
+    #[inline(always)]
+    fn apply(&self, o: &Origin, p: [f64; 3]) -> [f64; 3] {
+        o.local_to_ecef(self.0, p)
+    }
+}
+
+/// Runs `f(origin, point)` over all points: one origin built once when the origin columns
+/// are single values, otherwise one origin per point.
+fn with_origins(
+    ell: &Ellipsoid,
+    points: &Columns<'_>,
+    origin: &Columns<'_>,
+    scale: f64,
+    n: usize,
+    f: impl OriginFn,
+) -> [Vec<f64>; 3] {
+    let [(_, p0), (_, p1), (_, p2)] = *points;
+    let [(_, lat0), (_, lon0), (_, h0)] = *origin;
+    if lat0.len() == 1 && lon0.len() == 1 && h0.len() == 1 {
+        let o = Origin::new(ell, lat0[0] * scale, lon0[0] * scale, h0[0]);
+        map_blocks(n, [p0, p1, p2], |b| lanes(b, |p| f.apply(&o, *p)))
+    } else {
+        map_blocks(n, [p0, p1, p2, lat0, lon0, h0], |b| {
+            lanes(b, |p| {
+                let o = Origin::new(ell, p[3] * scale, p[4] * scale, p[5]);
+                f.apply(&o, [p[0], p[1], p[2]])
+            })
+        })
+    }
 }
 
 /// ECEF points (metres) → local `frame` coordinates (metres) at the geodetic origin
@@ -355,11 +486,8 @@ pub fn ecef2local(
     origin: Columns<'_>,
     deg: bool,
 ) -> Result<[Vec<f64>; 3]> {
-    let (n, s) = prepare(&ecef, &origin, None, deg)?;
-    let [(_, x), (_, y), (_, z)] = ecef;
-    Ok(with_origins(ell, &origin, s, n, |o, i| {
-        o.ecef_to_local(frame, [at(x, i), at(y, i), at(z, i)])
-    }))
+    let (n, s) = prepare(&ecef, &origin, false, deg)?;
+    Ok(with_origins(ell, &ecef, &origin, s, n, EcefToLocal(frame)))
 }
 
 /// Local `frame` coordinates (metres) at the origin → ECEF points (metres).
@@ -370,11 +498,8 @@ pub fn local2ecef(
     origin: Columns<'_>,
     deg: bool,
 ) -> Result<[Vec<f64>; 3]> {
-    let (n, s) = prepare(&local, &origin, None, deg)?;
-    let [(_, a), (_, b), (_, c)] = local;
-    Ok(with_origins(ell, &origin, s, n, |o, i| {
-        o.local_to_ecef(frame, [at(a, i), at(b, i), at(c, i)])
-    }))
+    let (n, s) = prepare(&local, &origin, false, deg)?;
+    Ok(with_origins(ell, &local, &origin, s, n, LocalToEcef(frame)))
 }
 
 /// Geodetic points → local `frame` coordinates (metres) at the origin; all angles in degrees
@@ -386,12 +511,9 @@ pub fn geodetic2local(
     origin: Columns<'_>,
     deg: bool,
 ) -> Result<[Vec<f64>; 3]> {
-    let (n, s) = prepare(&geodetic, &origin, Some("lat"), deg)?;
-    let [(_, la), (_, lo), (_, h)] = geodetic;
-    Ok(with_origins(ell, &origin, s, n, |o, i| {
-        let p = ell.geodetic_to_ecef(at(la, i) * s, at(lo, i) * s, at(h, i));
-        o.ecef_to_local(frame, p)
-    }))
+    let (n, s) = prepare(&geodetic, &origin, true, deg)?;
+    let f = GeodeticToLocal(ell, frame, s);
+    Ok(with_origins(ell, &geodetic, &origin, s, n, f))
 }
 
 /// Local `frame` coordinates (metres) at the origin → geodetic points; angles in degrees if
@@ -403,14 +525,26 @@ pub fn local2geodetic(
     origin: Columns<'_>,
     deg: bool,
 ) -> Result<[Vec<f64>; 3]> {
-    let (n, s) = prepare(&local, &origin, None, deg)?;
-    let [(_, a), (_, b), (_, c)] = local;
+    let (n, s) = prepare(&local, &origin, false, deg)?;
     let inv = 1.0 / s;
-    Ok(with_origins(ell, &origin, s, n, |o, i| {
-        let p = o.local_to_ecef(frame, [at(a, i), at(b, i), at(c, i)]);
-        let [la, lo, h] = ell.ecef_to_geodetic(p[0], p[1], p[2]);
-        [la * inv, lo * inv, h]
-    }))
+    let [(_, p0), (_, p1), (_, p2)] = local;
+    let [(_, lat0), (_, lon0), (_, h0)] = origin;
+    // One fused pass: local → ECEF → geodetic per block.
+    if lat0.len() == 1 && lon0.len() == 1 && h0.len() == 1 {
+        let o = Origin::new(ell, lat0[0] * s, lon0[0] * s, h0[0]);
+        Ok(map_blocks(n, [p0, p1, p2], |b| {
+            let e = lanes(b, |p| o.local_to_ecef(frame, *p));
+            ecef_block(ell, &e, inv)
+        }))
+    } else {
+        Ok(map_blocks(n, [p0, p1, p2, lat0, lon0, h0], |b| {
+            let e = lanes(b, |p| {
+                let o = Origin::new(ell, p[3] * s, p[4] * s, p[5]);
+                o.local_to_ecef(frame, [p[0], p[1], p[2]])
+            });
+            ecef_block(ell, &e, inv)
+        }))
+    }
 }
 
 #[cfg(test)]
@@ -460,11 +594,17 @@ mod tests {
 
     #[test]
     fn near_the_centre_is_finite_and_consistent() {
-        for &(x, y, z) in &[(1.0, 0.0, 0.0), (0.0, 0.0, 10.0), (2e4, 1e4, -3e4), (4e4, 0.0, 1.0)] {
+        for &(x, y, z) in &[
+            (1.0, 0.0, 0.0),
+            (0.0, 0.0, 10.0),
+            (2e4, 1e4, -3e4),
+            (4e4, 0.0, 1.0),
+        ] {
             let [lat, lon, h] = W.ecef_to_geodetic(x, y, z);
             assert!(lat.is_finite() && h.is_finite());
             let back = W.geodetic_to_ecef(lat, lon, h);
-            let err = ((back[0] - x).powi(2) + (back[1] - y).powi(2) + (back[2] - z).powi(2)).sqrt();
+            let err =
+                ((back[0] - x).powi(2) + (back[1] - y).powi(2) + (back[2] - z).powi(2)).sqrt();
             assert!(err < 1e-6, "{x} {y} {z}: {err}");
         }
     }
@@ -485,6 +625,40 @@ mod tests {
             prop_assert!((dlon * W.a * lat.cos()).abs() < 1e-8);
             let r = newton_geodetic(x, y, z);
             prop_assert!(((r[0] - lat2) * W.a).abs() < 1e-8 && (r[2] - h2).abs() < 1e-8);
+        }
+
+        #[test]
+        fn iteration_equals_closed_form(
+            lat in -FRAC_PI_2..=FRAC_PI_2,
+            lon in -PI..=PI,
+            h in -350_000.0..1.0e8f64,
+        ) {
+            let [x, y, z] = W.geodetic_to_ecef(lat, lon, h);
+            prop_assume!((x * x + y * y + z * z).sqrt() > ITERATIVE_MIN_RADIUS);
+            let c = W.ecef_to_geodetic(x, y, z);
+            let i = W.ecef_to_geodetic_iterative(x, y, z);
+            let r = (x * x + y * y + z * z).sqrt();
+            // Angles as arc lengths at the point's distance, heights directly (metres); the
+            // bound is a few ulp of r (5e-8 m at 1e8 m).
+            let tol = 1e-8f64.max(r * 5e-16);
+            prop_assert!(((c[0] - i[0]) * r).abs() < tol, "lat {:?} {:?}", c, i);
+            prop_assert!(((c[1] - i[1]) * r).abs() < tol);
+            prop_assert!((c[2] - i[2]).abs() < tol, "h {:?} {:?}", c, i);
+        }
+
+        #[test]
+        fn batch_round_trip(lat in prop::collection::vec(-90.0..=90.0f64, 1..30),
+                            h in -1000.0..100_000.0f64) {
+            let lon: Vec<f64> = lat.iter().map(|v| 2.0 * v - 1.0).collect();
+            let [x, y, z] = geodetic2ecef(&W, &lat, &lon, &[h], true).unwrap();
+            let [la, lo, hh] = ecef2geodetic(&W, &x, &y, &z, true).unwrap();
+            for k in 0..lat.len() {
+                prop_assert!(((la[k] - lat[k]) * W.a).abs() < 1e-6);
+                if lat[k].abs() < 89.0 {
+                    prop_assert!(((lo[k] - lon[k]) * W.a).abs() < 1e-6);
+                }
+                prop_assert!((hh[k] - h).abs() < 1e-8);
+            }
         }
 
         #[test]
@@ -569,5 +743,10 @@ mod tests {
             assert_eq!(many[0][i], one[0][0]);
         }
         assert!(Ellipsoid::new(1.0, 2.0).is_err());
+        // A block with one point near the centre takes the closed form for all its points.
+        let x = [1.0, W.a, 2.0 * W.a];
+        let [la, _, h] = ecef2geodetic(&W, &x, &[0.0], &[0.0], false).unwrap();
+        assert!(la[1].abs() < 1e-15 && h[1].abs() < 1e-8 && (h[2] - W.a).abs() < 1e-8);
+        assert!(la.iter().chain(&h).all(|v| v.is_finite()));
     }
 }
