@@ -150,16 +150,16 @@ def test_radians_and_other_ellipsoid():
 
 def test_shapes_like_pymap3d():
     # Scalars in -> numpy float64 scalars out.
-    x, y, z = ug.geodetic2ecef(10, 20, 30)
-    px, _, _ = pymap3d.geodetic2ecef(10, 20, 30)
-    assert isinstance(x, np.float64) and np.ndim(x) == 0
-    assert x == pytest.approx(px, abs=1e-6)
+    ours = ug.geodetic2ecef(10, 20, 30)
+    for a, b in zip(ours, pymap3d.geodetic2ecef(10, 20, 30), strict=True):
+        assert isinstance(a, np.float64) and np.ndim(a) == 0
+        assert a == pytest.approx(b, abs=1e-6)
     # 2-D arrays keep their shape; lists work; a single origin broadcasts.
     lat = np.linspace(-80, 80, 6).reshape(2, 3)
     n, e, d = ug.geodetic2ned(lat, [[1.0, 2.0, 3.0]], 0.0, 1.0, 2.0, 3.0)
     assert n.shape == e.shape == d.shape == (2, 3)
-    pn, pe, pd = pymap3d.geodetic2ned(lat, np.array([[1.0, 2.0, 3.0]]), 0.0, 1.0, 2.0, 3.0)
-    np.testing.assert_allclose(n, pn, atol=MM)
+    peer = pymap3d.geodetic2ned(lat, np.array([[1.0, 2.0, 3.0]]), 0.0, 1.0, 2.0, 3.0)
+    np.testing.assert_allclose((n, e, d), peer, rtol=0, atol=MM)
     # Per-point origins broadcast too and equal one call per origin.
     lat0 = np.array([1.0, 50.0, -30.0])
     n, e, d = ug.geodetic2enu(10.0, 20.0, 0.0, lat0, 21.0, 5.0)
