@@ -27,3 +27,61 @@ def kalman_batch(
     prior_time: float | None = None,
     smooth: bool = True,
 ) -> dict[str, npt.NDArray[np.float64]]: ...
+
+# --- geodesy (rust/src/py/geodesy.rs) ---
+_F = npt.NDArray[np.float64]
+
+def geodetic_to_ecef(
+    lat: _F, lon: _F, h: _F, *, ellipsoid: tuple[float, float], deg: bool
+) -> tuple[_F, _F, _F]: ...
+def ecef_to_geodetic(
+    x: _F, y: _F, z: _F, *, ellipsoid: tuple[float, float], deg: bool
+) -> tuple[_F, _F, _F]: ...
+def geodetic_to_local(
+    frame: str,
+    u: _F,
+    v: _F,
+    w: _F,
+    lat0: _F,
+    lon0: _F,
+    h0: _F,
+    *,
+    ellipsoid: tuple[float, float],
+    deg: bool,
+) -> tuple[_F, _F, _F]: ...
+def local_to_geodetic(
+    frame: str,
+    u: _F,
+    v: _F,
+    w: _F,
+    lat0: _F,
+    lon0: _F,
+    h0: _F,
+    *,
+    ellipsoid: tuple[float, float],
+    deg: bool,
+) -> tuple[_F, _F, _F]: ...
+def ecef_to_local(
+    frame: str,
+    u: _F,
+    v: _F,
+    w: _F,
+    lat0: _F,
+    lon0: _F,
+    h0: _F,
+    *,
+    ellipsoid: tuple[float, float],
+    deg: bool,
+) -> tuple[_F, _F, _F]: ...
+def local_to_ecef(
+    frame: str,
+    u: _F,
+    v: _F,
+    w: _F,
+    lat0: _F,
+    lon0: _F,
+    h0: _F,
+    *,
+    ellipsoid: tuple[float, float],
+    deg: bool,
+) -> tuple[_F, _F, _F]: ...

@@ -6,6 +6,8 @@
 //! state `[n, v_n, e, v_e]`.
 
 pub mod error;
+pub mod fastmath;
+pub mod geodesy;
 pub mod kalman;
 pub mod models;
 

@@ -4,6 +4,7 @@
 use pyo3::prelude::*;
 
 mod errors;
+mod geodesy;
 mod kalman;
 
 pub use errors::to_py_err;
@@ -13,6 +14,7 @@ pub use errors::to_py_err;
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     errors::register(m)?;
+    geodesy::register(m)?;
     kalman::register(m)?;
     Ok(())
 }
