@@ -14,6 +14,7 @@ import gpxpy
 import gpxpy.gpx
 import numpy as np
 import pytest
+from conftest import SHARED_DATA
 from rosbags.rosbag1 import Writer as Writer1
 from typer.testing import CliRunner
 
@@ -24,6 +25,8 @@ from usvfast.nav.inspect import inspect_recording, recording_for_path
 from usvfast.nav.replay import load_recording
 
 T0 = 1_686_909_600.0
+# shared/ beside the clone (CI); from a git worktree under /work/wt, the workspace's copy.
+NMEA_DATA = (SHARED_DATA if SHARED_DATA.exists() else Path("/work/shared/data")) / "nmea"
 GPX_T = [0.0, 1.2, 2.0, 5.0, 6.0, 6.5, 9.0]  # largest gaps: 3.0, 2.5, 1.2
 IMU_T = np.arange(30) * 0.1 + 2.0  # 2.0 .. 4.9 s
 
@@ -194,3 +197,64 @@ def test_readme_example(tmp_path, monkeypatch):
     assert "harbour run" in res.output and "overlap of all streams: 2023" in res.output
     with pytest.warns(DamagedRecordsWarning):  # the damaged GPX point and bag message
         exec(compile(code, "README.md", "exec"), {})
+
+
+def test_cli_on_shared_nmea_log():
+    """The real u-blox log: one row per kind of record; the positions row matches an
+    independent scan of the raw lines with pynmea2 (distinct fix epochs, their span)."""
+    import pynmea2
+
+    log = NMEA_DATA / "ublox-zed-f9p-nmea.log"
+    epochs = set()
+    for line in log.read_text(errors="replace").splitlines():
+        try:
+            msg = pynmea2.parse(line.strip(), check=True)
+        except (pynmea2.ParseError, ValueError, AttributeError):
+            continue
+        if msg.sentence_type in ("GGA", "RMC", "GLL") and msg.timestamp is not None:
+            ts = msg.timestamp
+            epochs.add(ts.hour * 3600 + ts.minute * 60 + ts.second + ts.microsecond * 1e-6)
+    res = CliRunner().invoke(app, ["inspect", str(log)])
+    assert res.exit_code == 0, res.output
+    rows = {
+        line.split("│")[1].strip(): [c.strip() for c in line.split("│")[1:-1]]
+        for line in res.output.splitlines()
+        if line.count("│") > 5
+    }
+    pos = rows["ublox-zed-f9p-nmea:positions"]
+    assert pos[1] == "nmea" and int(pos[3]) == len(epochs)
+    assert float(pos[5]) == pytest.approx(max(epochs) - min(epochs))
+    assert pos[4].startswith("2019-04-12T")  # the date comes from RMC
+    assert pos[-1] == "0"
+
+
+def test_nmea_stream_in_recording(tmp_path):
+    """A damaged copy of the real log as the navigation stream of a recording: damaged lines
+    are counted, the fixes of the good lines all reach the replay and navigation_fixes."""
+    from usvfast.nav.fixes import navigation_fixes
+    from usvfast.nav.nmea import read_nmea
+    from usvfast.nav.replay import NmeaFix, Replay
+
+    lines = (NMEA_DATA / "ublox-zed-f9p-nmea.log").read_text().splitlines()
+    k = next(i for i, line in enumerate(lines) if line.startswith("$GNGGA"))
+    lines[k] = lines[k][:-1] + "Z"  # checksum broken
+    lines.insert(12, "$GNGGA,garbage")
+    (tmp_path / "gnss.log").write_text("\n".join(lines) + "\n")
+    (tmp_path / "rec.toml").write_text(
+        '[recording]\nnavigation = "gnss"\n[[stream]]\nid = "gnss"\ntype = "nmea"\n'
+        'path = "gnss.log"\nclock_offset = 0.2\n'
+    )
+    with pytest.warns(DamagedRecordsWarning):
+        ref = read_nmea(tmp_path / "gnss.log")
+    rec = load_recording(tmp_path / "rec.toml")
+    with pytest.warns(DamagedRecordsWarning):
+        replay = Replay(rec)
+        items = list(replay)
+    assert replay.counts["gnss"].damaged == ref.n_damaged == 2
+    fixes = [it for it in items if isinstance(it.data, NmeaFix)]
+    np.testing.assert_array_equal([f.time for f in fixes], ref.positions.time + 0.2)
+    with pytest.warns(DamagedRecordsWarning):
+        nav = navigation_fixes(rec)
+    good = ref.positions.fix_quality > 0
+    np.testing.assert_array_equal(nav.lat_deg, ref.positions.lat_deg[good])
+    assert nav.no_fix == int((~good).sum()) and nav.damaged == 2

@@ -5,9 +5,10 @@ from __future__ import annotations
 import warnings
 from pathlib import Path
 
+# One warning class for every reader of usvfast.nav (defined with the NMEA reader).
+from usvfast.nav.nmea import DamagedRecordsWarning
 
-class DamagedRecordsWarning(UserWarning):
-    """Some records of a field-data file were damaged and skipped (the count is on the reader)."""
+__all__ = ["DamageCounter", "DamagedRecordsWarning", "check_file"]
 
 
 class DamageCounter:

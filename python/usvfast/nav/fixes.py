@@ -10,15 +10,25 @@ from dataclasses import dataclass
 import numpy as np
 
 from usvfast.nav.bags import NavSatFixSample
-from usvfast.nav.replay import GeoPoint, Recording, open_stream, split_record
+from usvfast.nav.replay import (
+    GeoPoint,
+    NmeaFix,
+    NmeaHeading,
+    NmeaRateOfTurn,
+    NmeaVelocity,
+    Recording,
+    open_stream,
+    split_record,
+)
 
 
 @dataclass(frozen=True)
 class GeoFixes:
     """Fixes in time order: times (n,) UNIX s (clock offset applied), lat_deg (n,), lon_deg
-    (n,) WGS84 degrees, alt_m (n,) metres (NaN when unknown); stream (its id); damaged (records
-    the reader skipped); no_fix (NavSatFix messages with status -1 or non-finite lat/lon,
-    left out)."""
+    (n,) WGS84 degrees, alt_m (n,) metres as the source gives it (GPX elevation, NMEA height
+    above mean sea level, NavSatFix ellipsoidal height; NaN when unknown); stream (its id);
+    damaged (records the reader skipped); no_fix (fixes without a position: NavSatFix status
+    -1, NMEA quality 0, or non-finite lat/lon; left out)."""
 
     stream: str
     times: np.ndarray
@@ -32,7 +42,7 @@ class GeoFixes:
 def navigation_fixes(recording: Recording, stream_id: str | None = None) -> GeoFixes:
     """Read the geodetic fixes of `stream_id` (default: the recording's navigation stream).
 
-    The stream must be a `gpx` stream or a `bag` topic of NavSatFix messages; records are
+    The stream must be a `gpx` or `nmea` stream or a `bag` topic of NavSatFix messages; records are
     sorted by time (stable). Raises ValueError naming the stream when there is no navigation
     stream, it holds no position fixes, or no usable fix.
     """
@@ -48,6 +58,15 @@ def navigation_fixes(recording: Recording, stream_id: str | None = None) -> GeoF
         t += spec.clock_offset
         if isinstance(data, GeoPoint):
             rows.append((t, data.lat_deg, data.lon_deg, data.ele_m))
+        elif isinstance(data, NmeaFix):
+            if data.fix_quality == 0 or not (
+                math.isfinite(data.lat_deg) and math.isfinite(data.lon_deg)
+            ):
+                no_fix += 1
+                continue
+            rows.append((t, data.lat_deg, data.lon_deg, data.altitude))
+        elif isinstance(data, (NmeaHeading, NmeaVelocity, NmeaRateOfTurn)):
+            continue  # the other records of an NMEA stream
         elif isinstance(data, NavSatFixSample):
             if data.status < 0 or not (math.isfinite(data.lat_deg) and math.isfinite(data.lon_deg)):
                 no_fix += 1

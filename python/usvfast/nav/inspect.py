@@ -19,7 +19,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from usvfast.nav.replay import (
-    STREAM_TYPES,
+    NMEA_RECORDS,
     Recording,
     StreamSpec,
     load_recording,
@@ -144,8 +144,9 @@ def inspect_recording(recording: Recording, top_gaps: int = 3) -> Inspection:
 def recording_for_path(path: Path | str) -> Recording:
     """A Recording for `path`: a recording TOML file, or a single data file as a recording of
     its own (GPX; ROS1 `.bag` or ROS2 bag folder/`.db3`/`.mcap`: one stream per topic; video:
-    timed from the file's write time; anything else: NMEA text). Raises ValueError naming the
-    path when it cannot be read."""
+    timed from the file's write time; anything else: NMEA text, one stream per kind of record
+    found: positions, headings, velocities, rates_of_turn). Raises ValueError naming the path
+    when it cannot be read."""
     from usvfast.nav.bags import bag_topics
 
     p = Path(path)
@@ -168,9 +169,15 @@ def recording_for_path(path: Path | str) -> Recording:
         return Recording(p.name, specs)
     if suffix in VIDEO_SUFFIXES:
         return Recording(p.name, (StreamSpec(p.stem, "video", p),))
-    if "nmea" not in STREAM_TYPES:
-        raise ValueError(f"path: {p}: no NMEA reader is registered to read it")
-    return Recording(p.name, (StreamSpec(p.stem, "nmea", p),))
+    from usvfast.nav.nmea import read_nmea
+
+    # NMEA text: one stream per kind of record the log holds.
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        log = read_nmea(p)
+    kinds = [k for k in NMEA_RECORDS if getattr(log, k).time.size]
+    specs = tuple(StreamSpec(f"{p.stem}:{k}", "nmea", p, options={"records": [k]}) for k in kinds)
+    return Recording(p.name, specs)
 
 
 def _utc(t: float) -> str:

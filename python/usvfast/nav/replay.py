@@ -198,7 +198,97 @@ def _open_video(spec: StreamSpec, decode: bool) -> Iterable[Any]:
     return _VideoRecords(VideoReader(spec.path, **dict(spec.options)), decode)
 
 
+@dataclass(frozen=True)
+class NmeaFix:
+    """An NMEA position fix (GGA/RMC/GLL): lat_deg, lon_deg (WGS84), altitude (m above mean
+    sea level, NaN unknown), fix_quality (GGA quality)."""
+
+    lat_deg: float
+    lon_deg: float
+    altitude: float
+    fix_quality: int
+
+
+@dataclass(frozen=True)
+class NmeaHeading:
+    """An NMEA true heading (HDT/THS): heading_deg clockwise from true north."""
+
+    heading_deg: float
+
+
+@dataclass(frozen=True)
+class NmeaVelocity:
+    """NMEA speed (m/s) and course over ground (course_deg, NaN when not given)."""
+
+    speed: float
+    course_deg: float
+
+
+@dataclass(frozen=True)
+class NmeaRateOfTurn:
+    """NMEA rate of turn (ROT): rate_deg_per_min (negative: to port), valid."""
+
+    rate_deg_per_min: float
+    valid: bool
+
+
+NMEA_RECORDS = ("positions", "headings", "velocities", "rates_of_turn")
+
+
+def _open_nmea(spec: StreamSpec, decode: bool) -> Iterable[Any]:
+    from usvfast.nav.nmea import read_nmea
+
+    assert spec.path is not None
+    kinds = spec.options.get("records", list(NMEA_RECORDS))
+    if not isinstance(kinds, list) or not set(kinds) <= set(NMEA_RECORDS) or not kinds:
+        raise RecordingError(
+            f"stream {spec.id!r}: key 'records': expected a list of {list(NMEA_RECORDS)}, "
+            f"got {kinds!r}"
+        )
+    log = read_nmea(spec.path)
+    p, h, v, r = log.positions, log.headings, log.velocities, log.rates_of_turn
+    parts = {
+        "positions": lambda: (
+            (t, NmeaFix(la, lo, al, q))
+            for t, la, lo, al, q in zip(
+                p.time.tolist(),
+                p.lat_deg.tolist(),
+                p.lon_deg.tolist(),
+                p.altitude.tolist(),
+                p.fix_quality.tolist(),
+                strict=True,
+            )
+        ),
+        "headings": lambda: (
+            (t, NmeaHeading(x))
+            for t, x in zip(h.time.tolist(), h.heading_deg.tolist(), strict=True)
+        ),
+        "velocities": lambda: (
+            (t, NmeaVelocity(s, c))
+            for t, s, c in zip(
+                v.time.tolist(), v.speed.tolist(), v.course_deg.tolist(), strict=True
+            )
+        ),
+        "rates_of_turn": lambda: (
+            (t, NmeaRateOfTurn(x, bool(ok)))
+            for t, x, ok in zip(
+                r.time.tolist(), r.rate_deg_per_min.tolist(), r.valid.tolist(), strict=True
+            )
+        ),
+    }
+    chosen = [parts[k] for k in NMEA_RECORDS if k in kinds]
+
+    def it() -> Iterator[tuple[float, Any]]:
+        # Each kind is in time order; ties keep the order positions, headings, velocities, ROT.
+        keyed = [((t, i, d) for t, d in part()) for i, part in enumerate(chosen)]
+        for t, _, d in heapq.merge(*keyed, key=lambda x: (x[0], x[1])):
+            yield t, d
+
+    return _Records(it, lambda: log.n_damaged)
+
+
 register_stream_type("gpx", _open_gpx)
+register_stream_type("nmea", _open_nmea, options=["records"])
 register_stream_type("bag", _open_bag, needs_topic=True, options=["time_source", "decode_images"])
 register_stream_type(
     "video", _open_video, options=["start_time", "end_time", "fps", "time_base", "skip_until"]
