@@ -3,6 +3,7 @@ each with one deliberately corrupt message, read back and compared exactly."""
 
 from __future__ import annotations
 
+import datetime
 from pathlib import Path
 
 import cv2
@@ -22,6 +23,7 @@ from usvfast.nav.bags import (
     bag_typestore,
     read_bag_imu,
     read_bag_navsatfix,
+    read_bag_nmea,
     read_bag_poses,
 )
 
@@ -114,8 +116,8 @@ def _msgs(ts, ros2: bool):
         ],
     )
     sentences = [
-        "$GPHDT,274.07,T*03",
-        "$GNGGA,100000.00,6326.31807,N,01023.91509,E,1,12,0.8,40.0,M,41.0,M,,*7A",
+        "$HEHDT,274.07,T*19",
+        "$GNGGA,100000.00,6326.31807,N,01023.91509,E,1,12,0.8,40.0,M,41.0,M,,*41",
     ]
     out["/nmea"] = (
         "nmea_msgs/msg/Sentence",
@@ -330,6 +332,18 @@ def test_nmea_sentences(bag):
     path, msgs = bag
     _, got = _read(path, "/nmea")
     assert [m.data for m in got] == [s.sentence for s in msgs["/nmea"][1]]
+    # Fed to the NMEA reader: times come from the sentences (GGA time of day + given date).
+    with pytest.warns(DamagedRecordsWarning):
+        nmea = read_bag_nmea(path, "/nmea", date=datetime.date(2023, 6, 16))
+    assert nmea.skipped_messages == 1
+    pos = nmea.log.positions
+    assert pos.time.tolist() == [T0 + 0.0]  # all GGA share one epoch
+    assert pos.lat_deg[0] == pytest.approx(63 + 26.31807 / 60, abs=1e-12)
+    assert pos.lon_deg[0] == pytest.approx(10 + 23.91509 / 60, abs=1e-12)
+    # The first HDT comes before any time of day: untimed, dropped by read_nmea.
+    assert nmea.log.headings.heading_deg.tolist() == [274.07] * 2 and nmea.log.n_untimed == 1
+    with pytest.raises(ValueError, match="expected nmea_msgs"):
+        read_bag_nmea(path, "/imu")
 
 
 def test_bayer_encodings_match_pattern():

@@ -449,6 +449,37 @@ def read_bag_poses(
     )
 
 
+@dataclass(frozen=True)
+class BagNmeaLog:
+    """NMEA sentences of a bag topic decoded by `usvfast.nav.nmea.read_nmea`: log (its
+    NmeaLog, times from the sentences themselves), skipped_messages (bag messages that could not
+    be deserialized)."""
+
+    log: Any
+    skipped_messages: int
+
+
+def read_bag_nmea(
+    path: Path | str, topic: str, *, date: Any = None, require_checksum: bool = True
+) -> BagNmeaLog:
+    """Feed the `nmea_msgs/Sentence` messages of `topic` (lazily, in record order) to
+    `usvfast.nav.nmea.read_nmea` (date, require_checksum: as there).
+
+    Raises ValueError when the topic is missing or of another type, or read_nmea finds no
+    usable sentence.
+    """
+    from usvfast.nav.nmea import read_nmea
+
+    reader = BagTopic(path, topic)
+    if reader.msgtype != "nmea_msgs/msg/Sentence":
+        raise ValueError(
+            f"topic: {topic!r} in {reader.path} holds {reader.msgtype}, "
+            "expected nmea_msgs/msg/Sentence"
+        )
+    log = read_nmea((m.data for m in reader), date=date, require_checksum=require_checksum)
+    return BagNmeaLog(log, reader.damaged)
+
+
 def read_bag_imu(path: Path | str, topic: str, *, time_source: TimeSource = "header") -> ImuSamples:
     """All `sensor_msgs/Imu` messages of `topic` as arrays.
 
