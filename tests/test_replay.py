@@ -264,6 +264,17 @@ def test_bad_recordings_name_the_key(tmp_path, text, match):
         load_recording(path)
 
 
+def test_reader_errors_name_the_stream(tmp_path):
+    _write_files(tmp_path)
+    path = tmp_path / "rec.toml"
+    path.write_text(RECORDING.format(t0='"yesterday"'))
+    with pytest.raises(RecordingError, match="stream 'cam' \\(video\\): start_time"):
+        list(Replay(load_recording(path)))
+    path.write_text(RECORDING.format(t0=T0).replace("track.gpx", "gone.gpx"))
+    with pytest.raises(RecordingError, match="stream 'gnss' \\(gpx\\): gpx: no such file"):
+        list(Replay(load_recording(path)))
+
+
 def test_missing_recording_file(tmp_path):
     with pytest.raises(RecordingError, match="cannot read"):
         load_recording(tmp_path / "none.toml")

@@ -493,12 +493,20 @@ def split_record(rec: Any) -> tuple[float, Any]:
 
 
 def open_stream(spec: StreamSpec, decode: bool = True) -> Iterable[Any]:
-    """Open a stream with its registered reader (records before the clock offset)."""
+    """Open a stream with its registered reader (records before the clock offset).
+
+    Raises RecordingError naming the stream when the reader rejects the file or an option.
+    """
     try:
         st = STREAM_TYPES[spec.type]
     except KeyError:
         raise ValueError(f"type: {spec.type!r} is not a registered stream type") from None
-    return st.opener(spec, decode)
+    try:
+        return st.opener(spec, decode)
+    except RecordingError:
+        raise
+    except (TypeError, ValueError) as exc:
+        raise RecordingError(f"stream {spec.id!r} ({spec.type}): {exc}") from exc
 
 
 class Replay:

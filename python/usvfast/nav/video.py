@@ -74,10 +74,18 @@ class VideoReader:
             )
         if start_time is not None and end_time is not None:
             raise ValueError("start_time, end_time: give at most one of them")
-        for name, v in (("start_time", start_time), ("end_time", end_time), ("offset", offset)):
-            if v is not None and not math.isfinite(v):
-                raise ValueError(f"{name}: must be finite, got {v!r}")
-        if fps is not None and not (math.isfinite(fps) and fps > 0):
+        for name, v in (
+            ("start_time", start_time),
+            ("end_time", end_time),
+            ("offset", offset),
+            ("fps", fps),
+            ("skip_until", skip_until),
+        ):
+            if v is not None and (
+                isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)
+            ):
+                raise ValueError(f"{name}: expected a finite number, got {v!r}")
+        if fps is not None and fps <= 0:
             raise ValueError(f"fps: must be a positive number, got {fps!r}")
         cap = self._open()
         try:
