@@ -43,7 +43,10 @@ def test_positions_equal_gpsd(name):
     assert log.n_damaged == 0 and log.n_used > 0
     p = log.positions
     assert np.all(np.diff(p.time) > 0)
-    ours = {round(t % 86400, 3): (la, lo) for t, la, lo in zip(p.time, p.lat_deg, p.lon_deg)}
+    ours = {
+        round(t % 86400, 3): (la, lo)
+        for t, la, lo in zip(p.time, p.lat_deg, p.lon_deg, strict=True)
+    }
     matched = 0
     for rec in gpsd_reports(name, "TPV"):
         if "lat" in rec and "time" in rec:
@@ -65,7 +68,11 @@ def test_dates_and_speeds_equal_gpsd(name):
     }
     assert set(log.positions.time) <= gps_times
     v = log.velocities
-    rmc = {t: (s, c) for t, s, c, k in zip(v.time, v.speed, v.course_deg, v.sentence) if k == "RMC"}
+    rmc = {
+        t: (s, c)
+        for t, s, c, k in zip(v.time, v.speed, v.course_deg, v.sentence, strict=True)
+        if k == "RMC"
+    }
     checked = 0
     for rec in gpsd_reports(name, "TPV"):
         t = dt.datetime.fromisoformat(
@@ -94,7 +101,7 @@ def test_saab_heading_rot_and_date():
         if r["mmsi"] == 244121341
     }
     compared = 0
-    for t, hd in zip(h.time, h.heading_deg):
+    for t, hd in zip(h.time, h.heading_deg, strict=True):
         if int(t) % 60 in own:
             assert round(hd) == own[int(t) % 60]
             compared += 1

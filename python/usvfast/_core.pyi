@@ -85,3 +85,14 @@ def local_to_ecef(
     ellipsoid: tuple[float, float],
     deg: bool,
 ) -> tuple[_F, _F, _F]: ...
+
+# --- frames (rust/src/py/frames.rs) ---
+def sensor_to_ned(
+    points: _F,
+    mount_rotation: _F,
+    mount_translation: _F,
+    roll: _F,
+    pitch: _F,
+    yaw: _F,
+    position: _F,
+) -> _F: ...

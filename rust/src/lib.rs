@@ -7,6 +7,7 @@
 
 pub mod error;
 pub mod fastmath;
+pub mod frames;
 pub mod geodesy;
 pub mod kalman;
 pub mod models;
