@@ -153,6 +153,35 @@ def test_pose_at_item_time_and_outside():
         Replay(rec, object())
 
 
+def test_replay_with_the_recordings_pose_track(tmp_path):
+    """GPX navigation: the pose at each item's own time is the linear interpolation of the
+    fixes (numpy.interp as the reference); items past the track have no pose."""
+    from usvfast.nav.fixes import recording_pose_track
+
+    _write_files(tmp_path)
+    path = tmp_path / "rec.toml"
+    text = RECORDING.format(t0=T0 + 8.0).replace('name = "pier test"', "max_pose_gap = 1.5")
+    path.write_text(text)
+    rec = load_recording(path)
+    assert rec.max_pose_gap == 1.5
+    track = recording_pose_track(rec)
+    replay = Replay(rec, track)
+    items = list(replay)
+    fix_t = T0 + np.arange(11.0)
+    fix_lat = 63.43 + np.arange(11) * 1e-5
+    for it in items:
+        if it.time > fix_t[-1]:
+            assert it.pose is None
+        else:
+            assert it.pose.lat_deg[0] == pytest.approx(
+                np.interp(it.time, fix_t, fix_lat), abs=1e-12
+            )
+            assert it.pose.time[0] == it.time
+    # cam: 12 frames from T0 + 8.3 every 0.25 s; those after T0 + 10 have no pose.
+    assert replay.counts["cam"].no_pose == int(np.sum(T0 + 8.3 + np.arange(12) / 4.0 > fix_t[-1]))
+    assert replay.counts["gnss"].no_pose == 0
+
+
 # --- recordings from TOML with real files ----------------------------------------------------
 
 T0 = 1_686_909_600.0
@@ -211,7 +240,8 @@ def test_toml_recording_replay(tmp_path):
     rec = load_recording(path)
     assert rec.name == "pier test" and rec.navigation == "gnss"
     cam = rec.stream("cam")
-    assert cam.mount.lever_arm == (1.2, 0.0, -0.8) and cam.mount.ypr_deg == (90.0, 0.0, 0.0)
+    assert cam.mount.lever_arm.tolist() == [1.2, 0.0, -0.8]
+    assert (cam.mount.yaw, cam.mount.pitch, cam.mount.roll) == (np.pi / 2, 0.0, 0.0)
     assert cam.path == tmp_path / "cam.avi" and cam.sensor_id == "hikvision"
     items = list(Replay(rec))
     assert len(items) == 11 + 12
@@ -240,6 +270,10 @@ BAD = [
     (
         "[[stream]]\nid = 'a'\ntype = 'gpx'\npath = 'x'\n[stream.mount]\nlever_arm = [1, 2]\n",
         "key 'mount.lever_arm'",
+    ),
+    (
+        "[recording]\nmax_pose_gap = 0\n[[stream]]\nid = 'a'\ntype = 'gpx'\npath = 'x'\n",
+        "key 'recording.max_pose_gap'",
     ),
     (
         "[[stream]]\nid = 'a'\ntype = 'gpx'\npath = 'x'\n"

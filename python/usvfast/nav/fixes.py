@@ -1,6 +1,6 @@
-"""Position fixes of a recording's navigation stream as arrays, the input of a vessel pose
-track: GPX points and `sensor_msgs/NavSatFix` bag messages (WGS84), with the stream's clock
-offset applied."""
+"""The navigation stream of a recording: its position fixes as arrays (GPX points, NMEA fixes,
+`sensor_msgs/NavSatFix` bag messages; WGS84, the stream's clock offset applied) and the vessel
+pose track built from them (usvfast.nav.pose.PoseTrack)."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from usvfast.nav.bags import NavSatFixSample
+from usvfast.nav.pose import PoseTrack
 from usvfast.nav.replay import (
     GeoPoint,
     NmeaFix,
@@ -90,3 +91,29 @@ def navigation_fixes(recording: Recording, stream_id: str | None = None) -> GeoF
         damaged=int(getattr(source, "damaged", 0)),
         no_fix=no_fix,
     )
+
+
+def recording_pose_track(recording: Recording, *, max_gap: float | None = None) -> PoseTrack:
+    """The vessel pose track (usvfast.nav.pose.PoseTrack) from the recording's navigation stream:
+    an `nmea` stream gives positions and true headings (PoseTrack.from_nmea), a `gpx` or
+    NavSatFix `bag` stream positions only; the stream's clock offset is applied. max_gap
+    (seconds) defaults to the recording's max_pose_gap. Pass it to `Replay` to attach the pose
+    at each item's time. Raises ValueError when there is no usable navigation stream.
+    """
+    gap = recording.max_pose_gap if max_gap is None else max_gap
+    if recording.navigation is None:
+        raise ValueError("recording: names no navigation stream ([recording] navigation = ...)")
+    spec = recording.stream(recording.navigation)
+    if spec.type == "nmea":
+        from usvfast.nav.nmea import read_nmea
+
+        assert spec.path is not None
+        return PoseTrack.from_nmea(
+            read_nmea(spec.path),
+            max_gap=gap,
+            position_offset=spec.clock_offset,
+            heading_offset=spec.clock_offset,
+        )
+    fixes = navigation_fixes(recording)
+    alt = fixes.alt_m if np.all(np.isfinite(fixes.alt_m)) else None
+    return PoseTrack(fixes.times, fixes.lat_deg, fixes.lon_deg, alt, max_gap=gap)

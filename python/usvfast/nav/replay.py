@@ -43,6 +43,9 @@ from itertools import count
 from pathlib import Path
 from typing import Any, Protocol
 
+import numpy as np
+
+from usvfast.frames import Mount
 from usvfast.nav._damage import DamagedRecordsWarning
 
 if sys.version_info >= (3, 11):
@@ -53,15 +56,6 @@ else:  # pragma: no cover - Python 3.10
 
 class RecordingError(ValueError):
     """A recording file is invalid; the message names the file, the stream and the key."""
-
-
-@dataclass(frozen=True)
-class MountSpec:
-    """Sensor mount on the vessel: lever_arm (3,) metres from the body origin in body FRD,
-    ypr_deg (3,) yaw, pitch, roll in degrees (ZYX convention, body <- sensor)."""
-
-    lever_arm: tuple[float, float, float]
-    ypr_deg: tuple[float, float, float]
 
 
 @dataclass(frozen=True)
@@ -76,7 +70,7 @@ class StreamSpec:
     topic: str | None = None
     clock_offset: float = 0.0
     sensor_id: int | str | None = None
-    mount: MountSpec | None = None
+    mount: Mount | None = None
     options: Mapping[str, Any] = field(default_factory=dict)
 
 
@@ -311,7 +305,7 @@ def _triple(where: str, key: str, value: Any) -> tuple[float, float, float]:
     return a, b, c
 
 
-def _mount(where: str, value: Any) -> MountSpec:
+def _mount(where: str, value: Any) -> Mount:
     if not isinstance(value, dict):
         raise RecordingError(f"{where}: key 'mount': expected a table, got {value!r}")
     unknown = set(value) - {"lever_arm", "ypr_deg"}
@@ -319,9 +313,14 @@ def _mount(where: str, value: Any) -> MountSpec:
         raise RecordingError(
             f"{where}: key 'mount.{sorted(unknown)[0]}': unknown (use lever_arm, ypr_deg)"
         )
-    return MountSpec(
-        _triple(where, "mount.lever_arm", value.get("lever_arm", [0.0, 0.0, 0.0])),
-        _triple(where, "mount.ypr_deg", value.get("ypr_deg", [0.0, 0.0, 0.0])),
+    yaw, pitch, roll = _triple(where, "mount.ypr_deg", value.get("ypr_deg", [0.0, 0.0, 0.0]))
+    return Mount(
+        lever_arm=np.array(
+            _triple(where, "mount.lever_arm", value.get("lever_arm", [0.0, 0.0, 0.0]))
+        ),
+        roll=math.radians(roll),
+        pitch=math.radians(pitch),
+        yaw=math.radians(yaw),
     )
 
 
@@ -379,13 +378,15 @@ def _stream(file: Path, i: int, raw: Any) -> StreamSpec:
 @dataclass(frozen=True)
 class Recording:
     """A recording: name, streams (in file order), navigation (id of the pose stream or
-    None), reorder_window (items re-sorted per stream), path of the TOML file (or None)."""
+    None), reorder_window (items re-sorted per stream), path of the TOML file (or None),
+    max_pose_gap (seconds: the pose track refuses to interpolate across longer gaps)."""
 
     name: str
     streams: tuple[StreamSpec, ...]
     navigation: str | None = None
     reorder_window: int = 16
     path: Path | None = None
+    max_pose_gap: float = 2.0
 
     def stream(self, stream_id: str) -> StreamSpec:
         """The stream with this id (KeyError naming it otherwise)."""
@@ -416,7 +417,7 @@ def load_recording(path: Path | str) -> Recording:
     head = data.get("recording", {})
     if not isinstance(head, dict):
         raise RecordingError(f"{file}: key 'recording': expected a table")
-    bad = set(head) - {"name", "navigation", "reorder_window"}
+    bad = set(head) - {"name", "navigation", "reorder_window", "max_pose_gap"}
     if bad:
         raise RecordingError(f"{file}: key 'recording.{sorted(bad)[0]}': unknown")
     raw_streams = data.get("stream")
@@ -437,15 +438,19 @@ def load_recording(path: Path | str) -> Recording:
         raise RecordingError(
             f"{file}: key 'recording.reorder_window': expected an int >= 0, got {window!r}"
         )
-    return Recording(str(head.get("name", file.stem)), streams, nav, window, file)
+    gap = _number(f"{file}", "recording.max_pose_gap", head.get("max_pose_gap", 2.0))
+    if gap <= 0:
+        raise RecordingError(f"{file}: key 'recording.max_pose_gap': must be > 0, got {gap}")
+    return Recording(str(head.get("name", file.stem)), streams, nav, window, file, gap)
 
 
 # --- replay ----------------------------------------------------------------------------------
 
 
 class PoseSource(Protocol):
-    """Anything with `pose_at(t)`: the vessel pose at UNIX time t, None or a ValueError when
-    t is outside its coverage (e.g. usvfast.nav.pose's track)."""
+    """Anything with `pose_at(t)` (the vessel pose at UNIX time t; None or a ValueError when t
+    is outside its coverage), or with `at(times)` as usvfast.nav.pose.PoseTrack (its Pose of
+    shape (1,) arrays; PoseGapError outside)."""
 
     def pose_at(self, t: float) -> Any: ...
 
@@ -459,7 +464,7 @@ class ReplayItem:
     time: float
     stream: str
     sensor_id: int | str | None
-    mount: MountSpec | None
+    mount: Mount | None
     data: Any
     pose: Any
     index: int
@@ -537,8 +542,14 @@ class Replay:
         self.end = math.inf if end is None else float(end)
         if self.start > self.end:
             raise ValueError(f"start, end: start {start} is after end {end}")
-        if pose_track is not None and not callable(getattr(pose_track, "pose_at", None)):
-            raise TypeError("pose_track: expected an object with a pose_at(t) method")
+        self._pose_at: Callable[[float], Any] | None = None
+        if pose_track is not None:
+            if callable(getattr(pose_track, "pose_at", None)):
+                self._pose_at = pose_track.pose_at
+            elif callable(getattr(pose_track, "at", None)):
+                self._pose_at = pose_track.at  # type: ignore[attr-defined]
+            else:
+                raise TypeError("pose_track: expected an object with pose_at(t) or at(times)")
         chosen = (
             list(recording.streams) if streams is None else [recording.stream(s) for s in streams]
         )
@@ -592,9 +603,9 @@ class Replay:
                 spec = self.specs[k]
                 counts = self.counts[spec.id]
                 pose = None
-                if self.pose_track is not None:
+                if self._pose_at is not None:
                     try:
-                        pose = self.pose_track.pose_at(t)
+                        pose = self._pose_at(t)
                     except ValueError:
                         pose = None
                     if pose is None:
