@@ -29,6 +29,7 @@ from usvfast.nav.replay import (
 
 VIDEO_SUFFIXES = frozenset({".avi", ".mp4", ".mkv", ".mov", ".m4v", ".webm"})
 BAG_SUFFIXES = frozenset({".bag", ".db3", ".mcap"})
+AIS_SUFFIXES = frozenset({".aivdm", ".aivdo", ".ais"})
 
 
 @dataclass(frozen=True)
@@ -144,9 +145,9 @@ def inspect_recording(recording: Recording, top_gaps: int = 3) -> Inspection:
 def recording_for_path(path: Path | str) -> Recording:
     """A Recording for `path`: a recording TOML file, or a single data file as a recording of
     its own (GPX; ROS1 `.bag` or ROS2 bag folder/`.db3`/`.mcap`: one stream per topic; video:
-    timed from the file's write time; anything else: NMEA text, one stream per kind of record
-    found: positions, headings, velocities, rates_of_turn). Raises ValueError naming the path
-    when it cannot be read."""
+    timed from the file's write time; `.aivdm`/`.ais`: AIS with receive times; anything else:
+    NMEA text, one stream per kind of record found: positions, headings, velocities,
+    rates_of_turn). Raises ValueError naming the path when it cannot be read."""
     from usvfast.nav.bags import bag_topics
 
     p = Path(path)
@@ -169,6 +170,8 @@ def recording_for_path(path: Path | str) -> Recording:
         return Recording(p.name, specs)
     if suffix in VIDEO_SUFFIXES:
         return Recording(p.name, (StreamSpec(p.stem, "video", p),))
+    if suffix in AIS_SUFFIXES:
+        return Recording(p.name, (StreamSpec(p.stem, "ais", p),))
     from usvfast.nav.nmea import read_nmea
 
     # NMEA text: one stream per kind of record the log holds.

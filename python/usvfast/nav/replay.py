@@ -281,7 +281,14 @@ def _open_nmea(spec: StreamSpec, decode: bool) -> Iterable[Any]:
     return _Records(it, lambda: log.n_damaged)
 
 
+def _open_ais(spec: StreamSpec, decode: bool) -> Iterable[Any]:
+    from usvfast.nav.ais_stream import open_ais_stream
+
+    return open_ais_stream(spec, decode)
+
+
 register_stream_type("gpx", _open_gpx)
+register_stream_type("ais", _open_ais)
 register_stream_type("nmea", _open_nmea, options=["records"])
 register_stream_type("bag", _open_bag, needs_topic=True, options=["time_source", "decode_images"])
 register_stream_type(
