@@ -53,3 +53,71 @@ def mean_shift(
     cluster_all: bool = True,
     max_iter: int = 300,
 ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.int64], int, bool]: ...
+# --- geodesy (rust/src/py/geodesy.rs) ---
+_F = npt.NDArray[np.float64]
+
+def geodetic_to_ecef(
+    lat: _F, lon: _F, h: _F, *, ellipsoid: tuple[float, float], deg: bool
+) -> tuple[_F, _F, _F]: ...
+def ecef_to_geodetic(
+    x: _F, y: _F, z: _F, *, ellipsoid: tuple[float, float], deg: bool
+) -> tuple[_F, _F, _F]: ...
+def geodetic_to_local(
+    frame: str,
+    u: _F,
+    v: _F,
+    w: _F,
+    lat0: _F,
+    lon0: _F,
+    h0: _F,
+    *,
+    ellipsoid: tuple[float, float],
+    deg: bool,
+) -> tuple[_F, _F, _F]: ...
+def local_to_geodetic(
+    frame: str,
+    u: _F,
+    v: _F,
+    w: _F,
+    lat0: _F,
+    lon0: _F,
+    h0: _F,
+    *,
+    ellipsoid: tuple[float, float],
+    deg: bool,
+) -> tuple[_F, _F, _F]: ...
+def ecef_to_local(
+    frame: str,
+    u: _F,
+    v: _F,
+    w: _F,
+    lat0: _F,
+    lon0: _F,
+    h0: _F,
+    *,
+    ellipsoid: tuple[float, float],
+    deg: bool,
+) -> tuple[_F, _F, _F]: ...
+def local_to_ecef(
+    frame: str,
+    u: _F,
+    v: _F,
+    w: _F,
+    lat0: _F,
+    lon0: _F,
+    h0: _F,
+    *,
+    ellipsoid: tuple[float, float],
+    deg: bool,
+) -> tuple[_F, _F, _F]: ...
+
+# --- frames (rust/src/py/frames.rs) ---
+def sensor_to_ned(
+    points: _F,
+    mount_rotation: _F,
+    mount_translation: _F,
+    roll: _F,
+    pitch: _F,
+    yaw: _F,
+    position: _F,
+) -> _F: ...

@@ -7,6 +7,7 @@ import typer
 from usvfast import __version__
 from usvfast.bearing.command import bearing_command, demo_command
 from usvfast.lidar.command import lidar_command
+from usvfast.nav.inspect import inspect_command
 
 app = typer.Typer(
     help="usvfast: fast maritime multi-sensor detection and tracking.",
@@ -24,6 +25,7 @@ def version() -> None:
 app.command("bearing")(bearing_command)
 app.command("demo")(demo_command)
 app.command("lidar")(lidar_command)
+app.command("inspect")(inspect_command)
 
 
 def main() -> None:

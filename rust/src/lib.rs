@@ -6,6 +6,9 @@
 //! state `[n, v_n, e, v_e]`.
 
 pub mod error;
+pub mod fastmath;
+pub mod frames;
+pub mod geodesy;
 pub mod kalman;
 pub mod line_of_sight;
 pub mod mean_shift;

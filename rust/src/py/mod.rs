@@ -4,6 +4,8 @@
 use pyo3::prelude::*;
 
 mod errors;
+mod frames;
+mod geodesy;
 mod kalman;
 mod lidar;
 
@@ -14,6 +16,8 @@ pub use errors::to_py_err;
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     errors::register(m)?;
+    frames::register(m)?;
+    geodesy::register(m)?;
     kalman::register(m)?;
     lidar::register(m)?;
     Ok(())

@@ -1,0 +1,639 @@
+"""Recordings: timestamped sensor streams described by a TOML file, replayed merged in time
+order with the vessel pose at each item's time (the thesis's generators + scheduler, section
+5.2.2, with the clock offsets of 5.2.3 made explicit).
+
+A recording file (paths relative to it)::
+
+    [recording]
+    name = "harbour run"
+    navigation = "gnss"        # optional: id of the stream the pose track comes from
+
+    [[stream]]
+    id = "gnss"                # unique
+    type = "gpx"               # a registered stream type (see STREAM_TYPES)
+    path = "track.gpx"
+    clock_offset = 0.0         # seconds added to every timestamp of the stream
+    sensor_id = 1              # optional, int or str
+
+    [[stream]]
+    id = "cam"
+    type = "video"
+    path = "cam.avi"
+    start_time = 1675159200.0  # type-specific options (see the opener)
+    fps = 4.0
+    [stream.mount]             # optional: body <- sensor mount
+    lever_arm = [1.2, 0.0, -0.8]   # metres, body FRD
+    ypr_deg = [90.0, 0.0, 0.0]     # yaw, pitch, roll (ZYX), degrees
+
+Replaying (`Replay`) merges the streams lazily with heapq (memory constant in the number of
+items): items come in non-decreasing time, ties broken by stream order in the file, then by
+order within the stream. A stream whose timestamps go back slightly is re-sorted within a
+bounded window (`reorder_window` items); an item still out of order is skipped and counted.
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+import sys
+import warnings
+from collections.abc import Callable, Iterable, Iterator, Mapping
+from dataclasses import dataclass, field
+from itertools import count
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+
+from usvfast.frames import Mount
+from usvfast.nav._damage import DamagedRecordsWarning
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+
+class RecordingError(ValueError):
+    """A recording file is invalid; the message names the file, the stream and the key."""
+
+
+@dataclass(frozen=True)
+class StreamSpec:
+    """One stream of a recording: id, type, path (absolute; None for types without a file),
+    topic (bag streams), clock_offset (s, added to every timestamp), sensor_id, mount, and
+    options (the remaining, type-specific keys)."""
+
+    id: str
+    type: str
+    path: Path | None
+    topic: str | None = None
+    clock_offset: float = 0.0
+    sensor_id: int | str | None = None
+    mount: Mount | None = None
+    options: Mapping[str, Any] = field(default_factory=dict)
+
+
+Opener = Callable[[StreamSpec, bool], Iterable[Any]]
+"""A stream reader: `opener(spec, decode)` returns an iterable of records, each an object with
+a `time` attribute (UNIX s, before the clock offset; the record itself is the item's data,
+or its `data` attribute when it has one) or a `(time, data)` tuple, in time order. decode=False
+asks for a fast scan (e.g. images undecoded). The iterable may expose `damaged` (int)."""
+
+
+@dataclass(frozen=True)
+class StreamType:
+    """A registered stream type: its opener, whether it needs `path`/`topic`, and its option
+    keys (None: any key is passed through)."""
+
+    opener: Opener
+    needs_path: bool = True
+    needs_topic: bool = False
+    options: frozenset[str] | None = frozenset()
+
+
+STREAM_TYPES: dict[str, StreamType] = {}
+"""Stream types by name; add one with `register_stream_type`."""
+
+
+def register_stream_type(
+    name: str,
+    opener: Opener,
+    *,
+    needs_path: bool = True,
+    needs_topic: bool = False,
+    options: Iterable[str] | None = (),
+) -> None:
+    """Register (or replace) a stream type, e.g. the LiDAR pcap reader:
+    `register_stream_type("lidar_pcap", open_pcap, options=["model"])`."""
+    if not isinstance(name, str) or not name:
+        raise ValueError(f"name: expected a non-empty string, got {name!r}")
+    if not callable(opener):
+        raise TypeError(f"opener: expected a callable, got {type(opener).__name__}")
+    STREAM_TYPES[name] = StreamType(
+        opener, needs_path, needs_topic, None if options is None else frozenset(options)
+    )
+
+
+# --- built-in stream types -------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class GeoPoint:
+    """A GPX track point: lat_deg, lon_deg (WGS84), ele_m (NaN when absent)."""
+
+    lat_deg: float
+    lon_deg: float
+    ele_m: float
+
+
+class _Records:
+    """Iterable adapter exposing the reader's damaged count."""
+
+    def __init__(self, it: Callable[[], Iterator[Any]], damaged: Callable[[], int]) -> None:
+        self._it = it
+        self._damaged = damaged
+
+    def __iter__(self) -> Iterator[Any]:
+        return self._it()
+
+    @property
+    def damaged(self) -> int:
+        return self._damaged()
+
+
+def _open_gpx(spec: StreamSpec, decode: bool) -> Iterable[Any]:
+    from usvfast.nav.gpx import read_gpx
+
+    assert spec.path is not None
+    track = read_gpx(spec.path)
+
+    def it() -> Iterator[tuple[float, GeoPoint]]:
+        for t, la, lo, el in zip(
+            track.times.tolist(),
+            track.lat_deg.tolist(),
+            track.lon_deg.tolist(),
+            track.ele_m.tolist(),
+            strict=True,
+        ):
+            yield t, GeoPoint(la, lo, el)
+
+    return _Records(it, lambda: track.skipped)
+
+
+def _open_bag(spec: StreamSpec, decode: bool) -> Iterable[Any]:
+    from usvfast.nav.bags import BagTopic
+
+    assert spec.path is not None and spec.topic is not None
+    return BagTopic(
+        spec.path,
+        spec.topic,
+        time_source=spec.options.get("time_source", "header"),
+        decode_images=bool(spec.options.get("decode_images", True)) and decode,
+    )
+
+
+class _VideoRecords:
+    def __init__(self, reader: Any, decode: bool) -> None:
+        self.reader, self.decode = reader, decode
+
+    def __iter__(self) -> Iterator[Any]:
+        return self.reader.frames(decode=self.decode)
+
+    @property
+    def damaged(self) -> int:
+        return self.reader.damaged
+
+
+def _open_video(spec: StreamSpec, decode: bool) -> Iterable[Any]:
+    from usvfast.nav.video import VideoReader
+
+    assert spec.path is not None
+    return _VideoRecords(VideoReader(spec.path, **dict(spec.options)), decode)
+
+
+@dataclass(frozen=True)
+class NmeaFix:
+    """An NMEA position fix (GGA/RMC/GLL): lat_deg, lon_deg (WGS84), altitude (m above mean
+    sea level, NaN unknown), fix_quality (GGA quality)."""
+
+    lat_deg: float
+    lon_deg: float
+    altitude: float
+    fix_quality: int
+
+
+@dataclass(frozen=True)
+class NmeaHeading:
+    """An NMEA true heading (HDT/THS): heading_deg clockwise from true north."""
+
+    heading_deg: float
+
+
+@dataclass(frozen=True)
+class NmeaVelocity:
+    """NMEA speed (m/s) and course over ground (course_deg, NaN when not given)."""
+
+    speed: float
+    course_deg: float
+
+
+@dataclass(frozen=True)
+class NmeaRateOfTurn:
+    """NMEA rate of turn (ROT): rate_deg_per_min (negative: to port), valid."""
+
+    rate_deg_per_min: float
+    valid: bool
+
+
+NMEA_RECORDS = ("positions", "headings", "velocities", "rates_of_turn")
+
+
+def _open_nmea(spec: StreamSpec, decode: bool) -> Iterable[Any]:
+    from usvfast.nav.nmea import read_nmea
+
+    assert spec.path is not None
+    kinds = spec.options.get("records", list(NMEA_RECORDS))
+    if not isinstance(kinds, list) or not set(kinds) <= set(NMEA_RECORDS) or not kinds:
+        raise RecordingError(
+            f"stream {spec.id!r}: key 'records': expected a list of {list(NMEA_RECORDS)}, "
+            f"got {kinds!r}"
+        )
+    log = read_nmea(spec.path)
+    p, h, v, r = log.positions, log.headings, log.velocities, log.rates_of_turn
+    parts = {
+        "positions": lambda: (
+            (t, NmeaFix(la, lo, al, q))
+            for t, la, lo, al, q in zip(
+                p.time.tolist(),
+                p.lat_deg.tolist(),
+                p.lon_deg.tolist(),
+                p.altitude.tolist(),
+                p.fix_quality.tolist(),
+                strict=True,
+            )
+        ),
+        "headings": lambda: (
+            (t, NmeaHeading(x))
+            for t, x in zip(h.time.tolist(), h.heading_deg.tolist(), strict=True)
+        ),
+        "velocities": lambda: (
+            (t, NmeaVelocity(s, c))
+            for t, s, c in zip(
+                v.time.tolist(), v.speed.tolist(), v.course_deg.tolist(), strict=True
+            )
+        ),
+        "rates_of_turn": lambda: (
+            (t, NmeaRateOfTurn(x, bool(ok)))
+            for t, x, ok in zip(
+                r.time.tolist(), r.rate_deg_per_min.tolist(), r.valid.tolist(), strict=True
+            )
+        ),
+    }
+    chosen = [parts[k] for k in NMEA_RECORDS if k in kinds]
+
+    def it() -> Iterator[tuple[float, Any]]:
+        # Each kind is in time order; ties keep the order positions, headings, velocities, ROT.
+        keyed = [((t, i, d) for t, d in part()) for i, part in enumerate(chosen)]
+        for t, _, d in heapq.merge(*keyed, key=lambda x: (x[0], x[1])):
+            yield t, d
+
+    return _Records(it, lambda: log.n_damaged)
+
+
+def _open_ais(spec: StreamSpec, decode: bool) -> Iterable[Any]:
+    from usvfast.nav.ais_stream import open_ais_stream
+
+    return open_ais_stream(spec, decode)
+
+
+register_stream_type("gpx", _open_gpx)
+register_stream_type("ais", _open_ais)
+register_stream_type("nmea", _open_nmea, options=["records"])
+register_stream_type("bag", _open_bag, needs_topic=True, options=["time_source", "decode_images"])
+register_stream_type(
+    "video", _open_video, options=["start_time", "end_time", "fps", "time_base", "skip_until"]
+)
+
+
+# --- loading ---------------------------------------------------------------------------------
+
+
+def _number(where: str, key: str, value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise RecordingError(f"{where}: key '{key}': expected a finite number, got {value!r}")
+    return float(value)
+
+
+def _triple(where: str, key: str, value: Any) -> tuple[float, float, float]:
+    if not isinstance(value, list) or len(value) != 3:
+        raise RecordingError(f"{where}: key '{key}': expected 3 numbers, got {value!r}")
+    a, b, c = (_number(where, key, v) for v in value)
+    return a, b, c
+
+
+def _mount(where: str, value: Any) -> Mount:
+    if not isinstance(value, dict):
+        raise RecordingError(f"{where}: key 'mount': expected a table, got {value!r}")
+    unknown = set(value) - {"lever_arm", "ypr_deg"}
+    if unknown:
+        raise RecordingError(
+            f"{where}: key 'mount.{sorted(unknown)[0]}': unknown (use lever_arm, ypr_deg)"
+        )
+    yaw, pitch, roll = _triple(where, "mount.ypr_deg", value.get("ypr_deg", [0.0, 0.0, 0.0]))
+    return Mount(
+        lever_arm=np.array(
+            _triple(where, "mount.lever_arm", value.get("lever_arm", [0.0, 0.0, 0.0]))
+        ),
+        roll=math.radians(roll),
+        pitch=math.radians(pitch),
+        yaw=math.radians(yaw),
+    )
+
+
+_COMMON_KEYS = {"id", "type", "path", "topic", "clock_offset", "sensor_id", "mount"}
+
+
+def _stream(file: Path, i: int, raw: Any) -> StreamSpec:
+    where = f"{file}: stream[{i}]"
+    if not isinstance(raw, dict):
+        raise RecordingError(f"{where}: expected a table")
+    sid = raw.get("id")
+    if not isinstance(sid, str) or not sid:
+        raise RecordingError(f"{where}: key 'id': expected a non-empty string, got {sid!r}")
+    where = f"{file}: stream[{i}] (id {sid!r})"
+    kind = raw.get("type")
+    if kind not in STREAM_TYPES:
+        raise RecordingError(
+            f"{where}: key 'type': {kind!r} is not a stream type (known: {sorted(STREAM_TYPES)})"
+        )
+    st = STREAM_TYPES[kind]
+    path = None
+    if st.needs_path or "path" in raw:
+        p = raw.get("path")
+        if not isinstance(p, str) or not p:
+            raise RecordingError(f"{where}: key 'path': expected a file path, got {p!r}")
+        path = Path(p) if Path(p).is_absolute() else file.parent / p
+    topic = raw.get("topic")
+    if st.needs_topic and (not isinstance(topic, str) or not topic):
+        raise RecordingError(f"{where}: key 'topic': expected a topic name, got {topic!r}")
+    sensor_id = raw.get("sensor_id")
+    if sensor_id is not None and (
+        isinstance(sensor_id, bool) or not isinstance(sensor_id, (int, str))
+    ):
+        raise RecordingError(f"{where}: key 'sensor_id': expected an int or str, got {sensor_id!r}")
+    options = {k: v for k, v in raw.items() if k not in _COMMON_KEYS}
+    if st.options is not None:
+        unknown = set(options) - st.options
+        if unknown:
+            raise RecordingError(
+                f"{where}: key '{sorted(unknown)[0]}': not an option of type {kind!r} "
+                f"(options: {sorted(st.options)})"
+            )
+    return StreamSpec(
+        id=sid,
+        type=kind,
+        path=path,
+        topic=topic,
+        clock_offset=_number(where, "clock_offset", raw.get("clock_offset", 0.0)),
+        sensor_id=sensor_id,
+        mount=_mount(where, raw["mount"]) if "mount" in raw else None,
+        options=options,
+    )
+
+
+@dataclass(frozen=True)
+class Recording:
+    """A recording: name, streams (in file order), navigation (id of the pose stream or
+    None), reorder_window (items re-sorted per stream), path of the TOML file (or None),
+    max_pose_gap (seconds: the pose track refuses to interpolate across longer gaps)."""
+
+    name: str
+    streams: tuple[StreamSpec, ...]
+    navigation: str | None = None
+    reorder_window: int = 16
+    path: Path | None = None
+    max_pose_gap: float = 2.0
+
+    def stream(self, stream_id: str) -> StreamSpec:
+        """The stream with this id (KeyError naming it otherwise)."""
+        for s in self.streams:
+            if s.id == stream_id:
+                return s
+        raise KeyError(f"stream_id: no stream {stream_id!r} in recording {self.name!r}")
+
+
+def load_recording(path: Path | str) -> Recording:
+    """Read a recording TOML file (see the module doc). Paths are relative to the file.
+
+    Raises RecordingError (a ValueError) naming the file, the stream and the key on any
+    invalid entry: unknown type or option, missing path/topic, duplicate id, bad numbers.
+    """
+    file = Path(path)
+    try:
+        data = tomllib.loads(file.read_text())
+    except OSError as exc:
+        raise RecordingError(f"recording: cannot read {file}: {exc.strerror}") from exc
+    except tomllib.TOMLDecodeError as exc:
+        raise RecordingError(f"{file}: not valid TOML: {exc}") from exc
+    unknown = set(data) - {"recording", "stream"}
+    if unknown:
+        raise RecordingError(
+            f"{file}: key '{sorted(unknown)[0]}': unknown (use [recording] and [[stream]])"
+        )
+    head = data.get("recording", {})
+    if not isinstance(head, dict):
+        raise RecordingError(f"{file}: key 'recording': expected a table")
+    bad = set(head) - {"name", "navigation", "reorder_window", "max_pose_gap"}
+    if bad:
+        raise RecordingError(f"{file}: key 'recording.{sorted(bad)[0]}': unknown")
+    raw_streams = data.get("stream")
+    if not isinstance(raw_streams, list) or not raw_streams:
+        raise RecordingError(f"{file}: key 'stream': expected at least one [[stream]] table")
+    streams = tuple(_stream(file, i, s) for i, s in enumerate(raw_streams))
+    ids = [s.id for s in streams]
+    dup = next((x for x in ids if ids.count(x) > 1), None)
+    if dup is not None:
+        raise RecordingError(f"{file}: key 'id': stream id {dup!r} is used twice")
+    nav = head.get("navigation")
+    if nav is not None and nav not in ids:
+        raise RecordingError(
+            f"{file}: key 'recording.navigation': {nav!r} is not a stream id (ids: {ids})"
+        )
+    window = head.get("reorder_window", 16)
+    if isinstance(window, bool) or not isinstance(window, int) or window < 0:
+        raise RecordingError(
+            f"{file}: key 'recording.reorder_window': expected an int >= 0, got {window!r}"
+        )
+    gap = _number(f"{file}", "recording.max_pose_gap", head.get("max_pose_gap", 2.0))
+    if gap <= 0:
+        raise RecordingError(f"{file}: key 'recording.max_pose_gap': must be > 0, got {gap}")
+    return Recording(str(head.get("name", file.stem)), streams, nav, window, file, gap)
+
+
+# --- replay ----------------------------------------------------------------------------------
+
+
+class PoseSource(Protocol):
+    """Anything with `pose_at(t)` (the vessel pose at UNIX time t; None or a ValueError when t
+    is outside its coverage), or with `at(times)` as usvfast.nav.pose.PoseTrack (its Pose of
+    shape (1,) arrays; PoseGapError outside)."""
+
+    def pose_at(self, t: float) -> Any: ...
+
+
+@dataclass(frozen=True)
+class ReplayItem:
+    """One replayed item: time (UNIX s, clock offset applied), stream (id), sensor_id, mount,
+    data (the reader's record), pose (the vessel pose at `time`, or None), index (position
+    of the record among the stream's good records, in reading order)."""
+
+    time: float
+    stream: str
+    sensor_id: int | str | None
+    mount: Mount | None
+    data: Any
+    pose: Any
+    index: int
+
+
+@dataclass
+class StreamCounts:
+    """Per-stream counts of a replay: yielded items, damaged records (from the reader, set
+    when the stream ends),
+    out_of_order (skipped: earlier than an item already emitted beyond the reorder window),
+    no_pose (items whose time the pose track does not cover)."""
+
+    yielded: int = 0
+    damaged: int = 0
+    out_of_order: int = 0
+    no_pose: int = 0
+
+
+def split_record(rec: Any) -> tuple[float, Any]:
+    """(time, data) of a stream record: a `(time, data)` tuple or an object with `.time`
+    (data: its `.data` attribute, or the object itself). Raises TypeError otherwise."""
+    if isinstance(rec, tuple) and len(rec) == 2:
+        return float(rec[0]), rec[1]
+    t = getattr(rec, "time", None)
+    if t is None:
+        raise TypeError(
+            "stream record: expected (time, data) or an object with .time, "
+            f"got {type(rec).__name__}"
+        )
+    return float(t), getattr(rec, "data", rec)
+
+
+def open_stream(spec: StreamSpec, decode: bool = True) -> Iterable[Any]:
+    """Open a stream with its registered reader (records before the clock offset).
+
+    Raises RecordingError naming the stream when the reader rejects the file or an option.
+    """
+    try:
+        st = STREAM_TYPES[spec.type]
+    except KeyError:
+        raise ValueError(f"type: {spec.type!r} is not a registered stream type") from None
+    try:
+        return st.opener(spec, decode)
+    except RecordingError:
+        raise
+    except (TypeError, ValueError) as exc:
+        raise RecordingError(f"stream {spec.id!r} ({spec.type}): {exc}") from exc
+
+
+class Replay:
+    """Lazy time-ordered merge of a recording's streams; iterate for ReplayItems.
+
+    pose_track: a PoseSource queried at each item's time (None: poses are None).
+    skip_without_pose: leave out items the pose track does not cover (counted either way).
+    streams: ids to replay (default all). decode: False for fast scans (images undecoded).
+    start, end: replay only items with start <= time <= end (UNIX s; the merge stops at end).
+    `counts` holds a StreamCounts per stream id, updated during iteration.
+    """
+
+    def __init__(
+        self,
+        recording: Recording,
+        pose_track: PoseSource | None = None,
+        *,
+        skip_without_pose: bool = False,
+        streams: Iterable[str] | None = None,
+        decode: bool = True,
+        start: float | None = None,
+        end: float | None = None,
+    ) -> None:
+        for name, v in (("start", start), ("end", end)):
+            if v is not None and (isinstance(v, bool) or not math.isfinite(v)):
+                raise ValueError(f"{name}: expected a finite UNIX time, got {v!r}")
+        self.start = -math.inf if start is None else float(start)
+        self.end = math.inf if end is None else float(end)
+        if self.start > self.end:
+            raise ValueError(f"start, end: start {start} is after end {end}")
+        self._pose_at: Callable[[float], Any] | None = None
+        if pose_track is not None:
+            if callable(getattr(pose_track, "pose_at", None)):
+                self._pose_at = pose_track.pose_at
+            elif callable(getattr(pose_track, "at", None)):
+                self._pose_at = pose_track.at  # type: ignore[attr-defined]
+            else:
+                raise TypeError("pose_track: expected an object with pose_at(t) or at(times)")
+        chosen = (
+            list(recording.streams) if streams is None else [recording.stream(s) for s in streams]
+        )
+        self.recording = recording
+        self.specs = chosen
+        self.pose_track = pose_track
+        self.skip_without_pose = skip_without_pose
+        self.decode = decode
+        self.counts: dict[str, StreamCounts] = {s.id: StreamCounts() for s in chosen}
+
+    def _stream(self, k: int, spec: StreamSpec) -> Iterator[tuple[float, int, int, Any]]:
+        counts = self.counts[spec.id]
+        source = open_stream(spec, self.decode)
+        window = self.recording.reorder_window
+        buf: list[tuple[float, int, Any]] = []  # heap of (time, seq, data)
+        last = -math.inf
+        seq = count()
+        off = spec.clock_offset
+        try:
+            for rec in source:
+                if type(rec) is tuple and len(rec) == 2:
+                    t, data = float(rec[0]), rec[1]
+                else:
+                    t, data = split_record(rec)
+                t += off
+                if t < last:
+                    counts.out_of_order += 1
+                    continue
+                item = (t, next(seq), data)
+                if len(buf) < window:
+                    heapq.heappush(buf, item)
+                    continue
+                # Full window: emit the earliest of the window and the new item.
+                t0, s0, d0 = heapq.heappushpop(buf, item) if buf else item
+                last = t0
+                yield t0, k, s0, d0
+            while buf:
+                yield _pop(buf, k)
+        finally:
+            counts.damaged = int(getattr(source, "damaged", 0))
+
+    def __iter__(self) -> Iterator[ReplayItem]:
+        gens = [self._stream(k, s) for k, s in enumerate(self.specs)]
+        try:
+            # (time, stream, seq) is unique: tuples never compare the data.
+            for t, k, seq, data in heapq.merge(*gens):
+                if t < self.start:
+                    continue
+                if t > self.end:
+                    break
+                spec = self.specs[k]
+                counts = self.counts[spec.id]
+                pose = None
+                if self._pose_at is not None:
+                    try:
+                        pose = self._pose_at(t)
+                    except ValueError:
+                        pose = None
+                    if pose is None:
+                        counts.no_pose += 1
+                        if self.skip_without_pose:
+                            continue
+                counts.yielded += 1
+                yield ReplayItem(t, spec.id, spec.sensor_id, spec.mount, data, pose, seq)
+        finally:
+            for g in gens:
+                g.close()
+            late = {sid: c.out_of_order for sid, c in self.counts.items() if c.out_of_order}
+            if late:
+                warnings.warn(
+                    f"replay: skipped items whose time went back beyond the reorder window "
+                    f"({late})",
+                    DamagedRecordsWarning,
+                    stacklevel=2,
+                )
+
+
+def _pop(buf: list[tuple[float, int, Any]], k: int) -> tuple[float, int, int, Any]:
+    t, s, d = heapq.heappop(buf)
+    return t, k, s, d
