@@ -16,7 +16,7 @@ import pynmea2
 
 from usvfast.nav.nmea import read_nmea
 
-LOG = Path("/work/shared/data/nmea/ublox-zed-f9p-nmea.log")
+LOG = Path(__file__).resolve().parents[2] / "shared" / "data" / "nmea" / "ublox-zed-f9p-nmea.log"
 
 
 def main() -> None:

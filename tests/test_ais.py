@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import math
-from pathlib import Path
 
 import numpy as np
 import pymap3d
@@ -14,7 +13,9 @@ import pytest
 from usvfast.nav.ais import AisPositions, dead_reckon, read_ais
 from usvfast.nav.nmea import KNOT, DamagedRecordsWarning
 
-DATA = Path("/work/shared/data/nmea")
+from conftest import SHARED_DATA
+
+DATA = SHARED_DATA / "nmea"
 
 
 def gpsd():

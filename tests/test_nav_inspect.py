@@ -14,7 +14,6 @@ import gpxpy
 import gpxpy.gpx
 import numpy as np
 import pytest
-from conftest import SHARED_DATA
 from rosbags.rosbag1 import Writer as Writer1
 from typer.testing import CliRunner
 
@@ -24,9 +23,10 @@ from usvfast.nav.bags import bag_typestore
 from usvfast.nav.inspect import inspect_recording, recording_for_path
 from usvfast.nav.replay import load_recording
 
+from conftest import SHARED_DATA
+
 T0 = 1_686_909_600.0
-# shared/ beside the clone (CI); from a git worktree under /work/wt, the workspace's copy.
-NMEA_DATA = (SHARED_DATA if SHARED_DATA.exists() else Path("/work/shared/data")) / "nmea"
+NMEA_DATA = SHARED_DATA / "nmea"
 GPX_T = [0.0, 1.2, 2.0, 5.0, 6.0, 6.5, 9.0]  # largest gaps: 3.0, 2.5, 1.2
 IMU_T = np.arange(30) * 0.1 + 2.0  # 2.0 .. 4.9 s
 

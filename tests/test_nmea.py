@@ -7,7 +7,6 @@ import datetime as dt
 import json
 import random
 import warnings
-from pathlib import Path
 
 import numpy as np
 import pynmea2
@@ -17,7 +16,9 @@ from hypothesis import strategies as st
 
 from usvfast.nav.nmea import DamagedRecordsWarning, read_nmea
 
-DATA = Path("/work/shared/data/nmea")
+from conftest import SHARED_DATA
+
+DATA = SHARED_DATA / "nmea"
 LOGS = ["ublox-zed-f9p-nmea.log", "saab-r4.log", "sirfstarv-nmea.log"]
 
 

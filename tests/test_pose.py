@@ -3,8 +3,6 @@ yaw-only rotations as the peer), gaps and spans as errors, clock offsets, NMEA i
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 from hypothesis import given
@@ -16,7 +14,9 @@ from usvfast import TimeOrderError
 from usvfast.nav.nmea import read_nmea
 from usvfast.nav.pose import PoseGapError, PoseTrack
 
-DATA = Path("/work/shared/data/nmea")
+from conftest import SHARED_DATA
+
+DATA = SHARED_DATA / "nmea"
 
 
 @given(

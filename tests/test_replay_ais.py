@@ -5,11 +5,9 @@ untimed and damaged lines counted. pyais decodes the same sentences as the refer
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import pyais
 import pytest
-from conftest import SHARED_DATA
 from typer.testing import CliRunner
 
 from usvfast.cli import app
@@ -17,7 +15,9 @@ from usvfast.nav._damage import DamagedRecordsWarning
 from usvfast.nav.ais_stream import AisReport, receive_time
 from usvfast.nav.replay import Replay, load_recording
 
-NMEA_DATA = (SHARED_DATA if SHARED_DATA.exists() else Path("/work/shared/data")) / "nmea"
+from conftest import SHARED_DATA
+
+NMEA_DATA = SHARED_DATA / "nmea"
 T0 = 1_686_909_600
 
 

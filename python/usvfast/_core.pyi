@@ -53,6 +53,7 @@ def mean_shift(
     cluster_all: bool = True,
     max_iter: int = 300,
 ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.int64], int, bool]: ...
+
 # --- geodesy (rust/src/py/geodesy.rs) ---
 _F = npt.NDArray[np.float64]
 
