@@ -6,8 +6,10 @@
 //! state `[n, v_n, e, v_e]`.
 
 pub mod error;
+pub mod georef;
 pub mod kalman;
 pub mod models;
+pub mod nms;
 
 #[cfg(feature = "python")]
 pub mod py;
