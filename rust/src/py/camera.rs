@@ -4,7 +4,10 @@ use super::to_py_err;
 use crate::error::Error;
 use crate::georef::{georeference, GeorefInput, GeorefNoise};
 use crate::nms::{batched_nms, nms};
-use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3};
+use numpy::{
+    PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3,
+    PyUntypedArrayMethods,
+};
 use pyo3::prelude::*;
 
 fn slice<'a, T: numpy::Element, D: numpy::ndarray::Dimension>(
@@ -96,7 +99,7 @@ fn georeference_rays<'py>(
             format!("{js:?}"),
         )));
     }
-    if r_body_cam.shape() != [3, 3] {
+    if r_body_cam.shape() != [3usize, 3] {
         return Err(to_py_err(Error::dim(
             "r_body_cam",
             "shape (3, 3)",
