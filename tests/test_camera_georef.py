@@ -54,7 +54,8 @@ def test_fov_equals_thesis_code_on_a_grid():
 
 def test_fov_section_7_2_4_worked_numbers():
     """Section 7.2.4: at 84 deg from vertical (6 deg below the centre) and h = 0.705 m, a +1 deg
-    tilt gives tan(85 deg) * 0.705 = 8.06 m; at h = 1.41 m and 78.2 deg, tan(79.2) * 1.41 = 7.39 m."""
+    tilt gives tan(85 deg) * 0.705 = 8.06 m; at h = 1.41 m and 78.2 deg,
+    tan(79.2) * 1.41 = 7.39 m."""
     v84 = 760 + 6.0 / 60 * 1520
     x0, _ = georeference_fov(1344.0, v84, image_size=SIZE, fov_deg=FOV, height=0.705)
     x1, _ = georeference_fov(

@@ -253,7 +253,9 @@ def calibrate(
             None,
         )
     else:
-        flags = cv2.fisheye.CALIB_RECOMPUTE_EXTRINSIC | cv2.fisheye.CALIB_FIX_SKEW
+        # OpenCV >= 5 moved the fisheye flags to the cv2 namespace.
+        ns = cv2.fisheye if hasattr(cv2.fisheye, "CALIB_FIX_SKEW") else cv2
+        flags = ns.CALIB_RECOMPUTE_EXTRINSIC | ns.CALIB_FIX_SKEW
         rms, k, d, rvecs, tvecs = cv2.fisheye.calibrate(
             [o.reshape(1, -1, 3) for o in obj_pts],
             [p.reshape(1, -1, 2) for p in img_pts],

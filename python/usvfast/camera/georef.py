@@ -24,8 +24,8 @@ from usvfast import _core
 from usvfast._validate import as_float_array
 
 #: Reason codes of :attr:`Georeferenced.reason`, index = code.
-REASONS = ("ok", "above_horizon", "beyond_max_range")
-OK, ABOVE_HORIZON, BEYOND_MAX_RANGE = 0, 1, 2
+REASONS = ("ok", "above_horizon", "beyond_max_range", "low_confidence", "own_vessel")
+OK, ABOVE_HORIZON, BEYOND_MAX_RANGE, LOW_CONFIDENCE, OWN_VESSEL = 0, 1, 2, 3, 4
 
 #: Rotation body <- camera of a camera looking straight ahead (cam z -> x, x -> y, y -> z).
 _R_AHEAD = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
