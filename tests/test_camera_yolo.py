@@ -4,6 +4,8 @@ camera pipeline's filters; the NMS against a straightforward reference (hypothes
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 import torch
@@ -122,7 +124,9 @@ def test_detector_end_to_end(layout, kind, tmp_path):
     model = net
     if kind == "torchscript":
         path = tmp_path / "net.pt"
-        torch.jit.trace(net, torch.zeros(2, 3, 640, 640)).save(str(path))
+        with warnings.catch_warnings():  # torch >= 2.10 deprecates TorchScript creation
+            warnings.simplefilter("ignore", FutureWarning)
+            torch.jit.trace(net, torch.zeros(2, 3, 640, 640)).save(str(path))
         model = path
     det = YoloDetector(model, conf_threshold=0.3, iou_threshold=0.5, device="cpu")
     out = det(frames())

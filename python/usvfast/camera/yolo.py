@@ -9,6 +9,7 @@ optional dependency (`pip install usvfast[yolo]`); it is imported only when a to
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -144,7 +145,7 @@ class YoloDetector:
     """A YOLO model as a callable: list of images (H, W, 3 uint8, BGR as OpenCV reads them) ->
     list of :class:`Detections` in original pixels.
 
-    `model`: a TorchScript file path, a `torch.nn.Module`, or an Ultralytics `YOLO` object
+    `model`: a TorchScript file path (or a `torch.export` `.pt2` file), a `torch.nn.Module`, or an Ultralytics `YOLO` object
     (its own pre/post-processing is used, with our thresholds). `input_size` (width, height) of
     the network; `layout` "auto" | "v5" | "v8"; `conf_threshold`, `iou_threshold`, `classes`
     (keep only these ids), `agnostic` (class-agnostic NMS), `max_det` per image; `device`
@@ -181,14 +182,23 @@ class YoloDetector:
         self.bgr = bgr
         self._ultralytics = type(model).__module__.startswith("ultralytics")
         if isinstance(model, str | Path):
-            model = torch.jit.load(str(model), map_location=self.device)
+            if str(model).endswith(".pt2"):
+                model = torch.export.load(str(model)).module()
+            else:
+                # TorchScript is deprecated upstream (FutureWarning) but is what most exported
+                # YOLO weights are; load it quietly.
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore", FutureWarning)
+                    model = torch.jit.load(str(model), map_location=self.device)
         elif not self._ultralytics and not isinstance(model, torch.nn.Module):
             raise TypeError(
                 "model: expected a TorchScript path, a torch.nn.Module or an Ultralytics model, "
                 f"got {type(model).__name__}"
             )
-        if not self._ultralytics:
-            model = model.to(self.device).eval()
+        if not self._ultralytics and isinstance(model, torch.nn.Module):
+            model = model.to(self.device)
+            if hasattr(model, "eval"):
+                model = model.eval()
             if half:
                 model = model.half()
         self.model = model
