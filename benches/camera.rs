@@ -36,7 +36,9 @@ fn bench(c: &mut Criterion) {
     let normalized: Vec<f64> = (0..n)
         .flat_map(|_| [rng.random_range(-0.6..0.6), rng.random_range(0.02..0.4)])
         .collect();
-    let jacobian: Vec<f64> = (0..n).flat_map(|_| [1.0 / 900.0, 0.0, 0.0, 1.0 / 900.0]).collect();
+    let jacobian: Vec<f64> = (0..n)
+        .flat_map(|_| [1.0 / 900.0, 0.0, 0.0, 1.0 / 900.0])
+        .collect();
     let roll: Vec<f64> = (0..n).map(|_| rng.random_range(-0.05..0.05)).collect();
     let pitch: Vec<f64> = (0..n).map(|_| rng.random_range(-0.05..0.05)).collect();
     let height = vec![2.5; n];

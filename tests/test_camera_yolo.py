@@ -45,7 +45,7 @@ def random_boxes(rng, n):
     return np.hstack([xy, xy + wh]), rng.integers(0, 20, n) / 20.0, rng.integers(0, 3, n)
 
 
-@given(st.integers(0, 2**32 - 1), st.integers(0, 60), st.floats(0.0, 1.0))
+@given(st.integers(0, 2**32 - 1), st.integers(0, 300), st.floats(0.0, 1.0))
 def test_nms_equals_reference(seed, n, thr):
     boxes, scores, cls = random_boxes(np.random.default_rng(seed), n)
     np.testing.assert_array_equal(nms(boxes, scores, thr), ref_nms(boxes, scores, thr))

@@ -145,8 +145,9 @@ class YoloDetector:
     """A YOLO model as a callable: list of images (H, W, 3 uint8, BGR as OpenCV reads them) ->
     list of :class:`Detections` in original pixels.
 
-    `model`: a TorchScript file path (or a `torch.export` `.pt2` file), a `torch.nn.Module`, or an Ultralytics `YOLO` object
-    (its own pre/post-processing is used, with our thresholds). `input_size` (width, height) of
+    `model`: a TorchScript file path (or a `torch.export` `.pt2` file), a `torch.nn.Module`,
+    or an Ultralytics `YOLO` object (its own pre/post-processing is used, with our thresholds).
+    `input_size` (width, height) of
     the network; `layout` "auto" | "v5" | "v8"; `conf_threshold`, `iou_threshold`, `classes`
     (keep only these ids), `agnostic` (class-agnostic NMS), `max_det` per image; `device`
     "cpu", "cuda", "cuda:0", ...; `half` runs the network in float16 (CUDA only).
