@@ -155,3 +155,18 @@ def test_undistort_points_matches_opencv_and_image():
     assert img.shape == (H, W, 3)
     with pytest.raises(ValueError, match="dist_coeffs"):
         CameraModel(K, np.zeros(3), (W, H))
+
+
+def test_pinhole_jacobian_matches_finite_differences():
+    cam = CameraModel(K, np.array([-0.25, 0.08, 0.001, -0.0007, 0.01]), (W, H))
+    px = np.array([[30.0, 20.0], [600.0, 400.0], [320.0, 240.0]])
+    _, jac = cam.normalized(px)
+    e = 0.01
+    num = np.stack(
+        [
+            (cam._undistort(px + [e, 0]) - cam._undistort(px - [e, 0])) / (2 * e),
+            (cam._undistort(px + [0, e]) - cam._undistort(px - [0, e])) / (2 * e),
+        ],
+        axis=2,
+    )
+    np.testing.assert_allclose(jac, num, rtol=1e-5, atol=1e-9)

@@ -65,9 +65,21 @@ class CameraModel:
 
     def normalized(self, pixels: Any, step: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
         """Undistorted normalised coordinates (n, 2) of `pixels` (n, 2) and their Jacobian
-        d(norm)/d(pixel) (n, 2, 2) by central differences of ± `step` pixels."""
+        d(norm)/d(pixel) (n, 2, 2).
+
+        Pinhole: the inverse of OpenCV's analytic projection Jacobian at the undistorted point
+        (`cv2.projectPoints`); fisheye: central differences of ± `step` pixels.
+        """
         px = as_float_array("pixels", pixels, ndim=2)
         n = len(px)
+        if self.model == "pinhole":
+            norm = self._undistort(px)
+            pts = np.hstack([norm, np.ones((n, 1))]).reshape(-1, 1, 3)
+            z = np.zeros(3)
+            _, jp = cv2.projectPoints(pts, z, z, self.camera_matrix, self.dist_coeffs)
+            # d(u, v)/d(t_x, t_y) at Z = 1 equals d(u, v)/d(x_n, y_n).
+            fwd = jp[:, 3:5].reshape(n, 2, 2)
+            return norm, np.linalg.inv(fwd)
         e = np.array([[0.0, 0.0], [step, 0.0], [-step, 0.0], [0.0, step], [0.0, -step]])
         allp = (px[None, :, :] + e[:, None, :]).reshape(-1, 2)
         und = self._undistort(allp).reshape(5, n, 2)
