@@ -274,3 +274,24 @@ def test_offset_and_mount_yaw():
         1500.0, 1100.0, image_size=SIZE, fov_deg=FOV, height=1.0, mount_ypr_deg=(90.0, 0.0, 0.0)
     )
     assert (float(x2), float(y2)) == pytest.approx((-float(y0), float(x0)))
+
+
+@pytest.mark.parametrize("cam", [CAM, PINHOLE], ids=["fov", "pinhole"])
+@pytest.mark.parametrize("roll,pitch", [(0.0, 0.0), (0.04, -0.06), (-0.05, 0.03)])
+def test_horizon_line_separates_valid_from_rejected(cam, roll, pitch):
+    from usvfast.camera import horizon_line
+
+    r = mount_rotation((0.0, -4.0, 0.0))
+    a, b = horizon_line(cam, mount_rotation=r, roll=roll, pitch=pitch, spread_deg=5.0)
+    w = cam.image_size[0]
+    u = np.linspace(0.4 * w, 0.6 * w, 7)
+    v = a * u + b
+    below = georeference(
+        np.stack([u, v + 3], 1), cam, height=2.0, mount_rotation=r, roll=roll, pitch=pitch
+    )
+    above = georeference(
+        np.stack([u, v - 3], 1), cam, height=2.0, mount_rotation=r, roll=roll, pitch=pitch
+    )
+    assert below.valid.all() and not above.valid.any()
+    if cam is CAM and roll == 0.0 and pitch == 0.0:
+        assert (a, b) == pytest.approx((0.0, 760.0 - 4.0 / 60.0 * 1520.0), abs=1e-9)

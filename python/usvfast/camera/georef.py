@@ -87,6 +87,16 @@ class FovCamera:
         jac[:, 1, 1] = fy / h / np.cos(phi) ** 2
         return norm, jac
 
+    def project(self, points: np.ndarray) -> np.ndarray:
+        """Camera-frame points (n, 3) (OpenCV axes, Z > 0) -> pixels (n, 2); inverse of
+        :meth:`normalized`."""
+        p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        w, h = (float(s) for s in self.image_size)
+        fx, fy = np.radians(np.asarray(self.fov_deg, dtype=np.float64))
+        u = w / 2.0 + np.arctan(p[:, 0] / p[:, 2]) / fx * w
+        v = h / 2.0 + np.arctan(p[:, 1] / p[:, 2]) / fy * h
+        return np.stack([u, v], axis=1)
+
 
 @dataclass(frozen=True)
 class Georeferenced:
@@ -204,6 +214,38 @@ def georeference(
         positions[far] = np.nan
         covariances[far] = np.nan
     return Georeferenced(positions, covariances, reason, "ned" if head is not None else "level")
+
+
+def horizon_line(
+    camera: Any,
+    *,
+    mount_rotation: Any = None,
+    roll: float = 0.0,
+    pitch: float = 0.0,
+    margin_deg: float = 0.0,
+    spread_deg: float = 10.0,
+) -> tuple[float, float]:
+    """The horizon in the image as a line `v = a·u + b` (pixels), from the camera's attitude.
+
+    Projects the two level-frame directions `margin_deg` below the horizontal at ± `spread_deg`
+    of azimuth around the optical axis (`camera` needs a `project` method: :class:`FovCamera`
+    or :class:`usvfast.camera.CameraModel`). Contact points with v <= a·u + b are at or above
+    it. With lens distortion the true horizon is curved; the line is exact at the two points.
+    """
+    r_bc = _R_AHEAD if mount_rotation is None else as_float_array("mount_rotation", mount_rotation)
+    r_lc = rotation_zyx(0.0, pitch, roll) @ r_bc
+    axis = r_lc[:, 2]
+    az = np.arctan2(axis[1], axis[0])
+    dz = np.tan(np.radians(margin_deg))
+    dirs = np.array(
+        [[np.cos(az + s), np.sin(az + s), dz] for s in np.radians([-spread_deg, spread_deg])]
+    )
+    cam_pts = dirs @ r_lc  # rows: R_lc^T d
+    if np.any(cam_pts[:, 2] <= 0):
+        raise ValueError("camera: the horizon is not in front of the camera for this attitude")
+    (u0, v0), (u1, v1) = camera.project(cam_pts)
+    a = (v1 - v0) / (u1 - u0)
+    return float(a), float(v0 - a * u0)
 
 
 def box_contact_points(boxes: Any) -> np.ndarray:

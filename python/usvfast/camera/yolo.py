@@ -303,7 +303,8 @@ class CameraPipeline:
     `detector`: :class:`YoloDetector` or any callable taking a list of images and returning,
     per image, :class:`Detections` or `(boxes (k, 4) xyxy, scores (k,)[, classes (k,)])`.
     `own_vessel_polygon` (m, 2) pixels: boxes whose contact point lies inside are dropped.
-    `horizon_line` (a, b): contact points with v <= a·u + b are above the horizon.
+    `horizon_line` (a, b): contact points with v <= a·u + b are above the horizon (a given
+    image line, or :func:`usvfast.camera.horizon_line` from the attitude).
     Other keywords are those of :func:`usvfast.camera.georeference`.
     """
 
