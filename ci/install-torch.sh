@@ -5,7 +5,7 @@
 # Only PyPI is reachable, and PyPI's Linux x86_64 torch wheel is a CUDA build whose shared
 # libraries are hard-linked against CUDA runtime libraries (libcudart, cuBLAS, cuDNN, NCCL, ...):
 # `pip install torch --no-deps` alone fails at `import torch`. A plain `pip install torch` pulls
-# ~5 GB (triton, cuda-bindings, cuSOLVER, CUPTI, ... as well). This script installs the torch
+# ~5 GB (triton, cuda-bindings, cuSOLVER, NVTX, ... as well). This script installs the torch
 # wheel without its dependency resolution, plus exactly the CUDA libraries its .so files link
 # against and its small pure-Python dependencies. CUDA is never initialised on a machine
 # without a GPU; everything runs on the CPU.
