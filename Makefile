@@ -7,7 +7,7 @@ export PATH := $(VIRTUAL_ENV)/bin:$(PATH)
 # Extras installed for development and CI (the peers we prove parity against).
 EXTRAS ?= test
 
-.PHONY: help dev lint fmt test test-rust test-python demo bench
+.PHONY: help dev torch lint fmt test test-rust test-python demo bench
 
 help: ## List the targets
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk 'BEGIN {FS = ":.*## "} {printf "  %-12s %s\n", $$1, $$2}'
@@ -19,6 +19,9 @@ $(VENV)/bin/maturin:
 
 dev: $(VENV)/bin/maturin ## Create .venv, build the Rust extension (release) and install it with its extras
 	maturin develop --release --extras $(EXTRAS)
+
+torch: dev ## Install the CPU-usable torch for the YOLO tests and benches (the `yolo` extra)
+	bash .ci/install-torch.sh $(VENV)/bin/python
 
 lint: dev ## cargo fmt/clippy, ruff check/format
 	cargo fmt --check
@@ -35,7 +38,7 @@ fmt: dev ## Format Rust and Python sources
 test-rust: ## Rust unit tests (no Python linked)
 	cargo test
 
-test-python: dev ## Python tests (parity with peers, real data, bad input)
+test-python: dev torch ## Python tests (parity with peers, real data, bad input)
 	python -m pytest -q
 
 test: lint test-rust test-python ## Everything CI runs: lint, Rust tests, Python tests
@@ -43,6 +46,6 @@ test: lint test-rust test-python ## Everything CI runs: lint, Rust tests, Python
 demo: dev ## Main job on bundled data: bearing fusion of visible + thermal cameras vs AIS
 	usvfast demo --out out/demo
 
-bench: dev ## Criterion benches and Python comparisons against the peers
+bench: dev torch ## Criterion benches and Python comparisons against the peers
 	cargo bench
 	python benches/run.py

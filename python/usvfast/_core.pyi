@@ -122,3 +122,28 @@ def sensor_to_ned(
     yaw: _F,
     position: _F,
 ) -> _F: ...
+
+# --- camera (rust/src/py/camera.rs) ---
+def nms_indices(
+    boxes: npt.NDArray[np.float64],
+    scores: npt.NDArray[np.float64],
+    iou_threshold: float,
+    classes: npt.NDArray[np.int64] | None = None,
+) -> npt.NDArray[np.int64]: ...
+def georeference_rays(
+    normalized: npt.NDArray[np.float64],
+    jacobian: npt.NDArray[np.float64],
+    roll: npt.NDArray[np.float64],
+    pitch: npt.NDArray[np.float64],
+    height: npt.NDArray[np.float64],
+    r_body_cam: npt.NDArray[np.float64],
+    cam_position: tuple[float, float, float],
+    *,
+    heading: npt.NDArray[np.float64] | None = None,
+    vessel_ne: npt.NDArray[np.float64] | None = None,
+    min_depression: float = 0.0,
+    sigma_px: tuple[float, float] = (0.0, 0.0),
+    sigma_roll_pitch: tuple[float, float] = (0.0, 0.0),
+    sigma_height: float = 0.0,
+    sigma_heading: float = 0.0,
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.uint8]]: ...

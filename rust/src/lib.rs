@@ -9,10 +9,12 @@ pub mod error;
 pub mod fastmath;
 pub mod frames;
 pub mod geodesy;
+pub mod georef;
 pub mod kalman;
 pub mod line_of_sight;
 pub mod mean_shift;
 pub mod models;
+pub mod nms;
 
 #[cfg(feature = "python")]
 pub mod py;

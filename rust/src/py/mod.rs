@@ -3,6 +3,7 @@
 
 use pyo3::prelude::*;
 
+mod camera;
 mod errors;
 mod frames;
 mod geodesy;
@@ -20,5 +21,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     geodesy::register(m)?;
     kalman::register(m)?;
     lidar::register(m)?;
+    camera::register(m)?;
     Ok(())
 }

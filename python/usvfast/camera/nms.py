@@ -1,0 +1,27 @@
+"""Non-maximum suppression of detection boxes (Rust core), per class or class-agnostic."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from usvfast import _core
+from usvfast._validate import as_float_array, as_index_array
+
+
+def nms(boxes: Any, scores: Any, iou_threshold: float = 0.45, classes: Any = None) -> np.ndarray:
+    """Indices of the boxes kept by greedy NMS, in descending score order (int64, (k,)).
+
+    `boxes` (n, 4) `[x1, y1, x2, y2]` pixels with x2 >= x1, y2 >= y1; `scores` (n,);
+    a box is dropped when its IoU with a kept higher-scoring box is strictly greater than
+    `iou_threshold` (torchvision semantics; equal scores keep the lower index first). With
+    `classes` (n,) integer ids, boxes of different classes never suppress each other
+    (`torchvision.ops.batched_nms`). Raises DimensionError / NonFiniteError / ValueError.
+    """
+    b = as_float_array("boxes", boxes, ndim=2)
+    if b.shape == (0,) or b.size == 0:
+        b = b.reshape(0, 4)
+    s = as_float_array("scores", scores, ndim=1)
+    c = None if classes is None else as_index_array("classes", classes, b.shape[0])
+    return _core.nms_indices(b, s, float(iou_threshold), c)
