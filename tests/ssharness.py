@@ -499,3 +499,63 @@ def compare_runs(ours: list[TrackRecord], ref: list[TrackRecord], atol: float = 
         b = ref[j]
         problems.append(f"reference track born at scan {b.born} (died {b.died}) is missing")
     return problems
+
+
+# --------------------------------------------------------------------------------------------
+# Joyride (real radar plots) through Stone Soup
+# --------------------------------------------------------------------------------------------
+
+
+def joyride_scans(rec, sigma: float) -> list[tuple[datetime, set]]:
+    """Joyride scans as Stone Soup detector output, times relative to the first scan (exact to
+    the microsecond), every plot with R = sigma² I (m²)."""
+    from stonesoup.models.measurement.linear import LinearGaussian
+    from stonesoup.types.detection import Detection
+
+    model = LinearGaussian(ndim_state=4, mapping=[0, 2], noise_covar=np.eye(2) * sigma**2)
+    out = []
+    for t, z in zip(rec.times - rec.times[0], rec.measurements, strict=True):
+        ts = to_datetime(t)
+        out.append(
+            (ts, {Detection(zi.reshape(2, 1), timestamp=ts, measurement_model=model) for zi in z})
+        )
+    return out
+
+
+def track_rows(tracks_per_scan: list[set]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Flatten per-scan Stone Soup track sets into (scan_index, track_ids, positions (N, 2)),
+    ids numbered in order of first appearance."""
+    ids: dict[int, int] = {}
+    scans, tids, pos = [], [], []
+    for k, tracks in enumerate(tracks_per_scan):
+        for tr, (n, e) in tracks:
+            scans.append(k)
+            tids.append(ids.setdefault(tr, len(ids)))
+            pos.append((n, e))
+    return np.array(scans, np.int64), np.array(tids, np.int64), np.array(pos, float).reshape(-1, 2)
+
+
+def snapshot(tracks) -> list[tuple[int, tuple[float, float]]]:
+    """(id(track), (north, east)) of each track's current state."""
+    return [(id(t), (float(t.state_vector[0, 0]), float(t.state_vector[2, 0]))) for t in tracks]
+
+
+# Stone Soup JPDA on Joyride with the anchor parameters of issue 3 (q = 2, sigma = 10 m,
+# P_D 0.8, clutter 7e-8 /m², 3-point initiation); the remaining knobs, which the issue does not
+# give, were picked from a small grid (prob_gate 0.95/0.99, deleter 3..20 steps, initiator
+# missed distance 2..5, prior velocity variance 25/100 m²/s²) as the setting that reproduces its
+# figures (21.1 m, 89 %, 5 fragments): this run gives 21.0 m, 89 %, 5 fragments.
+JOYRIDE_SIGMA = 10.0
+JOYRIDE_ANCHOR = Code57(
+    q=2.0,
+    clutter_density=7e-8,
+    prob_detect=0.8,
+    prob_gate=0.99,
+    min_points=3,
+    init_noise=JOYRIDE_SIGMA**2,
+    prior_velocity_var=100.0,
+    missed_distance=3.0,
+    init_steps=3,
+    delete_steps=8,
+    covar_trace=None,
+)
