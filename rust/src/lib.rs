@@ -5,9 +5,14 @@
 //! Conventions (see `DESIGN.md`): SI units, radians, NED world frame, 2-D constant-velocity
 //! state `[n, v_n, e, v_e]`.
 
+pub mod assign;
 pub mod error;
+pub mod gating;
+pub mod jpda;
 pub mod kalman;
 pub mod models;
+pub mod track;
+pub mod tracker;
 
 #[cfg(feature = "python")]
 pub mod py;
