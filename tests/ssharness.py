@@ -227,7 +227,8 @@ def clustered(n_targets: int = 20, seed: int = 0, duration: float = 20.0) -> Sce
 
 def two_sensors(seed: int = 0, duration: float = 30.0, clutter_rate: float = 1.0) -> Scenario:
     """Three targets seen by a LiDAR (R 0.25² m², 1 Hz) and a camera (R 0.5² m², every 1.5 s
-    from 0.5 s): asynchronous scans, some holding plots of both sensors."""
+    from 0.5 s): asynchronous scans, some holding plots of both sensors; one target leaves at
+    18 s."""
     x0 = np.array([[0.0, 0.1, 0.0, 0.15], [5.0, -0.1, 1.0, 0.1], [2.0, 0.0, 8.0, -0.15]])
     return simulate(
         "two_sensors",
@@ -236,6 +237,7 @@ def two_sensors(seed: int = 0, duration: float = 30.0, clutter_rate: float = 1.0
         duration=duration,
         seed=seed,
         clutter_rate=clutter_rate,
+        lifetimes=np.array([[0.0, np.inf], [0.0, 18.0], [0.0, np.inf]]),
     )
 
 

@@ -385,3 +385,478 @@ def read_components(
         delete_last_pred=bool(deleter.delete_last_pred),
         **init,
     )
+
+
+# --------------------------------------------------------------------------------------------
+# Mapping the read configuration onto the core
+# --------------------------------------------------------------------------------------------
+
+
+def _deleter_tuple(spec: DeleterSpec) -> tuple:
+    if spec.kind == "steps":
+        return ("steps", int(spec.value))
+    if spec.kind == "time":
+        return ("time", float(spec.value))
+    if spec.kind == "trace":
+        return ("trace", float(spec.value), None if spec.mapping is None else list(spec.mapping))
+    return ("all" if spec.intersect else "any", [_deleter_tuple(c) for c in spec.children])
+
+
+def _gnn_dict(spec: GnnSpec) -> dict[str, Any]:
+    return {
+        "measure": "squared_mahalanobis" if spec.squared else "mahalanobis",
+        "missed_distance": float(spec.missed_distance),
+        "include_all": bool(spec.include_all),
+    }
+
+
+def _core_kwargs(cfg: StoneSoupConfig, sensors: list[tuple]) -> dict[str, Any]:
+    """Arguments of `_core.TrackerCore` for the configuration and the sensors seen so far."""
+    if isinstance(cfg.association, JpdaSpec):
+        assoc: dict[str, Any] = {
+            "kind": "jpda",
+            "prob_detect": cfg.association.prob_detect,
+            "prob_gate": cfg.association.prob_gate,
+            "clutter_density": cfg.association.clutter_density,
+            "include_all": cfg.association.include_all,
+            "method": "ehm",
+        }
+    else:
+        assoc = {"kind": "gnn", **_gnn_dict(cfg.association)}
+    initiator = {
+        "prior_state": [float(v) for v in cfg.prior_state],
+        "prior_covariance": np.ascontiguousarray(cfg.prior_covariance),
+        "m_of_n": None,
+        "min_points": cfg.min_points,
+        "updates_only": cfg.updates_only,
+        "diag_load": 0.0,
+        "deleter": _deleter_tuple(cfg.init_deleter),
+        "motion_model": (
+            None
+            if cfg.init_motion_model == cfg.motion_model
+            else kalman.model_spec(cfg.init_motion_model)
+        ),
+        "use_joseph_cov": cfg.init_use_joseph_cov,
+        **_gnn_dict(cfg.init_gnn),
+    }
+    return dict(
+        motion_model=kalman.model_spec(cfg.motion_model),
+        sensors=sensors,
+        association=assoc,
+        deleter_spec=_deleter_tuple(cfg.deleter),
+        initiator=initiator,
+        use_joseph_cov=cfg.use_joseph_cov,
+        delete_last_prediction=cfg.delete_last_pred,
+        out_of_order="raise",
+        initiate_in_gates=True,
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# Building Stone Soup states quickly
+# --------------------------------------------------------------------------------------------
+
+
+class _StateFactory:
+    """Builds Stone Soup states. Stone Soup's `Base.__init__` costs tens of µs per object; when
+    the fast path builds objects whose attributes equal the slow path's (checked once on first
+    use), it fills `__dict__` directly."""
+
+    def __init__(self) -> None:
+        from stonesoup.types.array import CovarianceMatrix, StateVector
+        from stonesoup.types.prediction import GaussianStatePrediction
+        from stonesoup.types.update import GaussianStateUpdate
+
+        self._sv, self._cm = StateVector, CovarianceMatrix
+        self._pred, self._upd = GaussianStatePrediction, GaussianStateUpdate
+        self._fast = self._check_fast()
+
+    def _fast_new(self, cls: type, props: dict[str, Any]) -> Any:
+        obj = cls.__new__(cls)
+        obj.__dict__.update({f"_property_{k}": v for k, v in props.items()})
+        return obj
+
+    def _check_fast(self) -> bool:
+        from datetime import datetime
+
+        x, p, ts = np.arange(4.0).reshape(4, 1), np.eye(4), datetime(2024, 1, 1)
+        try:
+            for cls, extra in ((self._pred, {}), (self._upd, {"hypothesis": None})):
+                slow = cls(x, p, timestamp=ts, **extra)
+                fast = self.make(cls is self._upd, x, p, ts, extra.get("hypothesis"), fast=True)
+                if type(slow) is not type(fast) or vars(slow).keys() != vars(fast).keys():
+                    return False
+                for k, v in vars(slow).items():
+                    w = vars(fast)[k]
+                    if type(v) is not type(w) or (
+                        isinstance(v, np.ndarray) and not np.array_equal(v, w)
+                    ):
+                        return False
+        except Exception:  # any surprise: use the public constructors
+            return False
+        return True
+
+    def make(self, is_update: bool, x, p, ts, hypothesis=None, fast: bool | None = None):
+        """A GaussianStateUpdate (with `hypothesis`) or GaussianStatePrediction."""
+        fast = self._fast if fast is None else fast
+        if not fast:
+            if is_update:
+                return self._upd(x, p, hypothesis=hypothesis, timestamp=ts)
+            return self._pred(x, p, timestamp=ts)
+        sv = np.array(x, dtype=np.float64).reshape(-1, 1).view(self._sv)
+        cm = np.array(p, dtype=np.float64).view(self._cm)
+        if is_update:
+            return self._fast_new(
+                self._upd,
+                {"state_vector": sv, "covar": cm, "hypothesis": hypothesis, "timestamp": ts},
+            )
+        return self._fast_new(
+            self._pred,
+            {
+                "state_vector": sv,
+                "covar": cm,
+                "timestamp": ts,
+                "transition_model": None,
+                "prior": None,
+            },
+        )
+
+
+# --------------------------------------------------------------------------------------------
+# The trackers
+# --------------------------------------------------------------------------------------------
+
+
+class _DropInTracker:
+    """Shared machinery of the two drop-in trackers (see the module docstring)."""
+
+    _mixture = True
+
+    def __init__(
+        self,
+        initiator: Any,
+        deleter: Any,
+        detector: Any = None,
+        data_associator: Any = None,
+        updater: Any = None,
+        *,
+        hypotheses: bool = True,
+    ) -> None:
+        for name, value in (
+            ("initiator", initiator),
+            ("deleter", deleter),
+            ("data_associator", data_associator),
+            ("updater", updater),
+        ):
+            if value is None:
+                raise TypeError(f"{name}: a Stone Soup component is required")
+        self.initiator = initiator
+        self.deleter = deleter
+        self.detector = detector
+        self.data_associator = data_associator
+        self.updater = updater
+        self.hypotheses = bool(hypotheses)
+        self.config = read_components(
+            initiator=initiator,
+            deleter=deleter,
+            data_associator=data_associator,
+            updater=updater,
+            mixture=self._mixture,
+        )
+        self.detector_iter = None
+        self._states = _StateFactory()
+        self._core: Any = None
+        self._sensor_specs: list[tuple] = []  # (H, R, H_init, R_init) per core sensor
+        self._sensor_of_model: dict[int, int] = {}  # id(model) -> core sensor index
+        self._models: list[Any] = []  # keeps the models alive while their id() is used
+        self._replay: list[tuple[float, np.ndarray, np.ndarray]] = []
+        self._t0: Any = None
+        self._scan = 0
+        self._scan_time: list[Any] = []
+        self._scan_dets: list[list[Any]] = []
+        self._tracks: dict[int, Any] = {}
+        self._prev: dict[int, tuple[float, np.ndarray, np.ndarray]] = {}
+
+    # -- Stone Soup's Tracker protocol -------------------------------------------------------
+
+    @property
+    def tracks(self) -> set:
+        """The current confirmed tracks (set of stonesoup Track)."""
+        return set(self._tracks.values())
+
+    def __iter__(self):
+        if self.detector is None:
+            raise AttributeError(
+                "Detector has not been set. A detector attribute is required to iterate over a "
+                "tracker."
+            )
+        if self.detector_iter is None:
+            self.detector_iter = iter(self.detector)
+        return self
+
+    def __next__(self):
+        if self.detector_iter is None:
+            iter(self)
+        time, detections = next(self.detector_iter)
+        return self._step(time, detections)
+
+    def update_tracker(self, time: Any, detections: Any):
+        """Process one scan (datetime, set of Detection) without a detector; returns
+        (time, tracks) like iterating does."""
+        return self._step(time, detections)
+
+    # -- internals ---------------------------------------------------------------------------
+
+    def _sensor_index(self, model: Any) -> int:
+        key = id(model)
+        idx = self._sensor_of_model.get(key)
+        if idx is not None:
+            return idx
+        cfg = self.config
+        if model is None:
+            main, init = cfg.fallback_sensor, cfg.init_fallback_sensor
+            if main is None or init is None:
+                raise ValueError(
+                    "detections: a detection has no measurement_model and the updater or the "
+                    "initiator has none to fall back on"
+                )
+            upd = cfg.init_update_fallback_sensor
+            if upd is not None and not upd.same_as(main):
+                raise UnsupportedComponentError(
+                    "initiator.updater.measurement_model differs from updater.measurement_model:"
+                    " detections without a model would be updated with two different models"
+                )
+            spec = (main.matrix, main.noise, init.matrix, init.noise)
+        else:
+            s = _sensor(model, "detection.measurement_model")
+            assert s is not None
+            if s.matrix.shape[1] != len(cfg.prior_state):
+                raise ValueError(
+                    f"detection.measurement_model: ndim_state {s.matrix.shape[1]} differs from "
+                    f"the transition model's {len(cfg.prior_state)}"
+                )
+            spec = (s.matrix, s.noise, None, None)
+        for i, old in enumerate(self._sensor_specs):
+            if all(
+                (a is None and b is None)
+                or (a is not None and b is not None and np.array_equal(a, b))
+                for a, b in zip(old, spec, strict=True)
+            ):
+                idx = i
+                break
+        else:
+            idx = len(self._sensor_specs)
+            self._sensor_specs.append(spec)
+            self._add_core_sensor(spec)
+        self._sensor_of_model[key] = idx
+        self._models.append(model)
+        return idx
+
+    def _add_core_sensor(self, spec: tuple) -> None:
+        if self._core is None:
+            return
+        add = getattr(self._core, "add_sensor", None)
+        if add is not None:
+            add(*spec)
+            return
+        # No incremental API: rebuild and replay every scan so far (deterministic, so the
+        # rebuilt core holds exactly the same tracks with the same ids).
+        core = self._new_core()
+        for t, z, s in self._replay:
+            core.step(t, z, s)
+        self._core = core
+
+    def _new_core(self) -> Any:
+        from usvfast import _core
+
+        sensors = [
+            tuple(None if a is None else np.ascontiguousarray(a, dtype=np.float64) for a in s)
+            for s in self._sensor_specs
+        ]
+        return _core.TrackerCore(**_core_kwargs(self.config, sensors))
+
+    def _step(self, time: Any, detections: Any):
+        dets = list(detections)
+        for d in dets:
+            if d.timestamp != time:
+                raise ValueError(
+                    f"detections: a detection at {d.timestamp} in the scan at {time}; usvfast "
+                    "needs every detection of a scan to carry the scan time"
+                )
+        sids = np.fromiter(
+            (self._sensor_index(d.measurement_model) for d in dets), dtype=np.int64, count=len(dets)
+        )
+        m = self._sensor_specs[0][0].shape[0] if self._sensor_specs else 2
+        z = np.empty((len(dets), m))
+        for i, d in enumerate(dets):
+            sv = np.asarray(d.state_vector, dtype=np.float64).ravel()
+            if sv.shape != (m,):
+                raise ValueError(
+                    f"detections: state vector of length {sv.size}, expected {m} (all sensors "
+                    "must share the measurement dimension)"
+                )
+            z[i] = sv
+        if self._t0 is None:
+            self._t0 = time
+        t = (time - self._t0).total_seconds()
+        if self._core is None and self._sensor_specs:
+            # Built at the first scan with a detection; earlier (empty) scans are replayed so
+            # that the core's scan indices are the drop-in's.
+            self._core = self._new_core()
+            for args in self._replay:
+                self._core.step(*args)
+        if self._core is not None:
+            self._core.step(t, z, sids)
+        self._replay.append((t, z, sids))
+        self._scan_time.append(time)
+        self._scan_dets.append(dets)
+        self._scan += 1
+        if self._core is not None:
+            self._collect(time)
+        return time, self.tracks
+
+    def _collect(self, time: Any) -> None:
+        from stonesoup.types.track import Track
+
+        core = self._core
+        snap = core.snapshot()
+        alive = snap["ids"].tolist()
+        alive_set = set(alive)
+        # Deleted this scan: their final state(s) come from the core's history.
+        for tid in [k for k in self._tracks if k not in alive_set]:
+            tr = self._tracks.pop(tid)
+            hist = core.history(tid)
+            n_have = len(tr.states)
+            for j in range(n_have, len(hist["times"])):
+                tr.append(self._state_from_history(hist, j, tid))
+            self._prev.pop(tid, None)
+        for row, tid in enumerate(alive):
+            tr = self._tracks.get(tid)
+            if tr is None:
+                hist = core.history(tid)
+                states = [self._state_from_history(hist, j, tid) for j in range(len(hist["times"]))]
+                tr = Track(states)
+                self._tracks[tid] = tr
+                self._prev[tid] = (
+                    float(hist["times"][-1]),
+                    hist["states"][-1].copy(),
+                    hist["covariances"][-1].copy(),
+                )
+                continue
+            x, p, upd = snap["states"][row], snap["covariances"][row], bool(snap["is_update"][row])
+            hyp = self._hypothesis_for(tid, snap, row, upd) if (upd and self.hypotheses) else None
+            if upd and hyp is None:
+                hyp = self._placeholder(time)
+            tr.append(self._states.make(upd, x, p, time, hyp))
+            self._prev[tid] = (float(snap["times"][row]), x.copy(), p.copy())
+
+    def _placeholder(self, time: Any) -> Any:
+        from stonesoup.types.detection import MissedDetection
+        from stonesoup.types.hypothesis import SingleHypothesis
+
+        return SingleHypothesis(None, MissedDetection(timestamp=time))
+
+    def _prediction(self, tid: int, t: float, time: Any) -> Any:
+        prev = self._prev.get(tid)
+        if prev is None:
+            return None
+        t0, x0, p0 = prev
+        f, q = kalman.transition_matrices(self.config.motion_model, t - t0)
+        return self._states.make(False, f @ x0, f @ p0 @ f.T + q, time)
+
+    def _hypothesis_for(self, tid: int, snap: dict, row: int, upd: bool) -> Any:
+        # Association data of the newest entry: from the snapshot when the core provides it,
+        # else from the track's history.
+        if "assoc_offsets" in snap:
+            a, b = snap["assoc_offsets"][row], snap["assoc_offsets"][row + 1]
+            dets = snap["assoc_detection"][a:b]
+            probs = snap["assoc_probability"][a:b]
+            missed = float(snap["missed_probability"][row])
+            det = int(snap["detection"][row])
+        else:
+            hist = self._core.history(tid)
+            offs = hist["assoc_offsets"]
+            a, b = offs[-2], offs[-1]
+            dets = hist["assoc_detection"][a:b]
+            probs = hist["assoc_probability"][a:b]
+            missed = float(hist["missed_probability"][-1])
+            det = int(hist["detection"][-1])
+        time = self._scan_time[-1]
+        t = (time - self._t0).total_seconds()
+        pred = self._prediction(tid, t, time)
+        scan_dets = self._scan_dets[-1]
+        return self._make_hypothesis(pred, scan_dets, time, dets, probs, missed, det)
+
+    def _make_hypothesis(self, pred, scan_dets, time, dets, probs, missed, det) -> Any:
+        from stonesoup.types.detection import MissedDetection
+        from stonesoup.types.hypothesis import SingleHypothesis, SingleProbabilityHypothesis
+        from stonesoup.types.multihypothesis import MultipleHypothesis
+
+        if self._mixture and np.isfinite(missed):
+            hyps = [SingleProbabilityHypothesis(pred, MissedDetection(timestamp=time), missed)]
+            hyps += [
+                SingleProbabilityHypothesis(pred, scan_dets[int(j)], float(p))
+                for j, p in zip(dets, probs, strict=True)
+            ]
+            return MultipleHypothesis(hyps, normalise=False)
+        if det >= 0:
+            return SingleHypothesis(pred, scan_dets[det])
+        return None
+
+    def _state_from_history(self, hist: dict, j: int, tid: int) -> Any:
+        scan = int(hist["scan"][j])
+        time = self._scan_time[scan] if 0 <= scan < len(self._scan_time) else None
+        if time is None:
+            raise RuntimeError(f"usvfast.stonesoup: history entry of track {tid} at unknown scan")
+        upd = bool(hist["is_update"][j])
+        hyp = None
+        if upd:
+            det = int(hist["detection"][j])
+            scan_dets = self._scan_dets[scan]
+            if self.hypotheses:
+                from stonesoup.types.hypothesis import SingleHypothesis
+
+                if j == 0 and det >= 0:
+                    hyp = SingleHypothesis(None, scan_dets[det])
+                else:
+                    pred = None
+                    if j > 0:
+                        t_prev = float(hist["times"][j - 1])
+                        f, q = kalman.transition_matrices(
+                            self.config.init_motion_model, float(hist["times"][j]) - t_prev
+                        )
+                        x0, p0 = hist["states"][j - 1], hist["covariances"][j - 1]
+                        pred = self._states.make(False, f @ x0, f @ p0 @ f.T + q, time)
+                    a, b = hist["assoc_offsets"][j], hist["assoc_offsets"][j + 1]
+                    hyp = self._make_hypothesis(
+                        pred,
+                        scan_dets,
+                        time,
+                        hist["assoc_detection"][a:b],
+                        hist["assoc_probability"][a:b],
+                        float(hist["missed_probability"][j]),
+                        det,
+                    )
+            if hyp is None:
+                hyp = self._placeholder(time)
+        return self._states.make(upd, hist["states"][j], hist["covariances"][j], time, hyp)
+
+
+class MultiTargetMixtureTracker(_DropInTracker):
+    """Stone Soup's `MultiTargetMixtureTracker` (JPDA) run by the usvfast core.
+
+    Same keywords (`initiator`, `deleter`, `detector`, `data_associator`, `updater`), same
+    protocol: iterating yields `(datetime, set of Track)` per scan of `detector`;
+    `update_tracker(time, detections)` processes one scan. `hypotheses=False` skips building the
+    Stone Soup hypothesis objects attached to update states (faster). Raises
+    UnsupportedComponentError for components usvfast cannot reproduce exactly.
+    """
+
+    _mixture = True
+
+
+class MultiTargetTracker(_DropInTracker):
+    """Stone Soup's `MultiTargetTracker` (GNN: DistanceHypothesiser + GNNWith2DAssignment) run
+    by the usvfast core; same keywords and protocol as `MultiTargetMixtureTracker`."""
+
+    _mixture = False
