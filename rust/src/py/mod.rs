@@ -5,6 +5,7 @@ use pyo3::prelude::*;
 
 mod errors;
 mod kalman;
+mod tracker;
 
 pub use errors::to_py_err;
 
@@ -14,5 +15,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     errors::register(m)?;
     kalman::register(m)?;
+    tracker::register(m)?;
     Ok(())
 }
