@@ -392,58 +392,58 @@ def read_components(
 # --------------------------------------------------------------------------------------------
 
 
-def _deleter_tuple(spec: DeleterSpec) -> tuple:
+def _native_deleter(spec: DeleterSpec) -> Any:
+    from usvfast import tracking as tk
+
     if spec.kind == "steps":
-        return ("steps", int(spec.value))
+        return tk.StepsSinceUpdate(int(spec.value))
     if spec.kind == "time":
-        return ("time", float(spec.value))
+        return tk.TimeSinceUpdate(float(spec.value))
     if spec.kind == "trace":
-        return ("trace", float(spec.value), None if spec.mapping is None else list(spec.mapping))
-    return ("all" if spec.intersect else "any", [_deleter_tuple(c) for c in spec.children])
+        return tk.CovarianceTrace(float(spec.value), spec.mapping)
+    children = [_native_deleter(c) for c in spec.children]
+    return tk.AllOf(*children) if spec.intersect else tk.AnyOf(*children)
 
 
-def _gnn_dict(spec: GnnSpec) -> dict[str, Any]:
-    return {
-        "measure": "squared_mahalanobis" if spec.squared else "mahalanobis",
-        "missed_distance": float(spec.missed_distance),
-        "include_all": bool(spec.include_all),
-    }
+def build_native(cfg: StoneSoupConfig, sensors: list[Any]) -> Any:
+    """The `usvfast.tracking.Tracker` equal to a read Stone Soup configuration, with `sensors`
+    (list of `usvfast.tracking.Sensor`)."""
+    from usvfast import tracking as tk
 
-
-def _core_kwargs(cfg: StoneSoupConfig, sensors: list[tuple]) -> dict[str, Any]:
-    """Arguments of `_core.TrackerCore` for the configuration and the sensors seen so far."""
     if isinstance(cfg.association, JpdaSpec):
-        assoc: dict[str, Any] = {
-            "kind": "jpda",
-            "prob_detect": cfg.association.prob_detect,
-            "prob_gate": cfg.association.prob_gate,
-            "clutter_density": cfg.association.clutter_density,
-            "include_all": cfg.association.include_all,
-            "method": "ehm",
-        }
+        a = cfg.association
+        association: Any = tk.JPDA(
+            prob_detect=a.prob_detect,
+            prob_gate=a.prob_gate,
+            clutter_density=a.clutter_density,
+            include_all=a.include_all,
+            method="ehm",
+        )
     else:
-        assoc = {"kind": "gnn", **_gnn_dict(cfg.association)}
-    initiator = {
-        "prior_state": [float(v) for v in cfg.prior_state],
-        "prior_covariance": np.ascontiguousarray(cfg.prior_covariance),
-        "m_of_n": None,
-        "min_points": cfg.min_points,
-        "updates_only": cfg.updates_only,
-        "diag_load": 0.0,
-        "deleter": _deleter_tuple(cfg.init_deleter),
-        "motion_model": (
-            None
-            if cfg.init_motion_model == cfg.motion_model
-            else kalman.model_spec(cfg.init_motion_model)
-        ),
-        "use_joseph_cov": cfg.init_use_joseph_cov,
-        **_gnn_dict(cfg.init_gnn),
-    }
-    return dict(
-        motion_model=kalman.model_spec(cfg.motion_model),
+        g = cfg.association
+        association = tk.GNN(
+            missed_distance=g.missed_distance,
+            measure="squared_mahalanobis" if g.squared else "mahalanobis",
+            include_all=g.include_all,
+        )
+    ig = cfg.init_gnn
+    initiator = tk.MultiMeasurementInitiator(
+        prior_state=cfg.prior_state,
+        prior_covariance=cfg.prior_covariance,
+        min_points=cfg.min_points,
+        deleter=_native_deleter(cfg.init_deleter),
+        missed_distance=ig.missed_distance,
+        measure="squared_mahalanobis" if ig.squared else "mahalanobis",
+        include_all=ig.include_all,
+        updates_only=cfg.updates_only,
+        motion_model=None if cfg.init_motion_model == cfg.motion_model else cfg.init_motion_model,
+        use_joseph_cov=cfg.init_use_joseph_cov,
+    )
+    return tk.Tracker(
+        motion_model=cfg.motion_model,
         sensors=sensors,
-        association=assoc,
-        deleter_spec=_deleter_tuple(cfg.deleter),
+        association=association,
+        deleter=_native_deleter(cfg.deleter),
         initiator=initiator,
         use_joseph_cov=cfg.use_joseph_cov,
         delete_last_prediction=cfg.delete_last_pred,
@@ -655,25 +655,18 @@ class _DropInTracker:
     def _add_core_sensor(self, spec: tuple) -> None:
         if self._core is None:
             return
-        add = getattr(self._core, "add_sensor", None)
-        if add is not None:
-            add(*spec)
-            return
-        # No incremental API: rebuild and replay every scan so far (deterministic, so the
-        # rebuilt core holds exactly the same tracks with the same ids).
+        # The core's sensor list is fixed at construction: rebuild it and replay every scan
+        # so far (deterministic, so the rebuilt core holds exactly the same tracks and ids).
         core = self._new_core()
         for t, z, s in self._replay:
             core.step(t, z, s)
         self._core = core
 
     def _new_core(self) -> Any:
-        from usvfast import _core
+        from usvfast import tracking as tk
 
-        sensors = [
-            tuple(None if a is None else np.ascontiguousarray(a, dtype=np.float64) for a in s)
-            for s in self._sensor_specs
-        ]
-        return _core.TrackerCore(**_core_kwargs(self.config, sensors))
+        sensors = [tk.Sensor(*spec) for spec in self._sensor_specs]
+        return build_native(self.config, sensors)
 
     def _step(self, time: Any, detections: Any):
         dets = list(detections)
@@ -719,13 +712,13 @@ class _DropInTracker:
         from stonesoup.types.track import Track
 
         core = self._core
-        snap = core.snapshot()
-        alive = snap["ids"].tolist()
+        snap = core.tracks
+        alive = snap.ids.tolist()
         alive_set = set(alive)
         # Deleted this scan: their final state(s) come from the core's history.
         for tid in [k for k in self._tracks if k not in alive_set]:
             tr = self._tracks.pop(tid)
-            hist = core.history(tid)
+            hist = vars(core.history(tid))
             n_have = len(tr.states)
             for j in range(n_have, len(hist["times"])):
                 tr.append(self._state_from_history(hist, j, tid))
@@ -733,7 +726,7 @@ class _DropInTracker:
         for row, tid in enumerate(alive):
             tr = self._tracks.get(tid)
             if tr is None:
-                hist = core.history(tid)
+                hist = vars(core.history(tid))
                 states = [self._state_from_history(hist, j, tid) for j in range(len(hist["times"]))]
                 tr = Track(states)
                 self._tracks[tid] = tr
@@ -743,12 +736,12 @@ class _DropInTracker:
                     hist["covariances"][-1].copy(),
                 )
                 continue
-            x, p, upd = snap["states"][row], snap["covariances"][row], bool(snap["is_update"][row])
+            x, p, upd = snap.states[row], snap.covariances[row], bool(snap.is_update[row])
             hyp = self._hypothesis_for(tid, snap, row, upd) if (upd and self.hypotheses) else None
             if upd and hyp is None:
                 hyp = self._placeholder(time)
             tr.append(self._states.make(upd, x, p, time, hyp))
-            self._prev[tid] = (float(snap["times"][row]), x.copy(), p.copy())
+            self._prev[tid] = (float(snap.times[row]), x.copy(), p.copy())
 
     def _placeholder(self, time: Any) -> Any:
         from stonesoup.types.detection import MissedDetection
@@ -764,23 +757,15 @@ class _DropInTracker:
         f, q = kalman.transition_matrices(self.config.motion_model, t - t0)
         return self._states.make(False, f @ x0, f @ p0 @ f.T + q, time)
 
-    def _hypothesis_for(self, tid: int, snap: dict, row: int, upd: bool) -> Any:
-        # Association data of the newest entry: from the snapshot when the core provides it,
-        # else from the track's history.
-        if "assoc_offsets" in snap:
-            a, b = snap["assoc_offsets"][row], snap["assoc_offsets"][row + 1]
-            dets = snap["assoc_detection"][a:b]
-            probs = snap["assoc_probability"][a:b]
-            missed = float(snap["missed_probability"][row])
-            det = int(snap["detection"][row])
-        else:
-            hist = self._core.history(tid)
-            offs = hist["assoc_offsets"]
-            a, b = offs[-2], offs[-1]
-            dets = hist["assoc_detection"][a:b]
-            probs = hist["assoc_probability"][a:b]
-            missed = float(hist["missed_probability"][-1])
-            det = int(hist["detection"][-1])
+    def _hypothesis_for(self, tid: int, snap: Any, row: int, upd: bool) -> Any:
+        # Association data of the newest entry (the core gives it per track history).
+        hist = vars(self._core.history(tid))
+        offs = hist["assoc_offsets"]
+        a, b = offs[-2], offs[-1]
+        dets = hist["assoc_detection"][a:b]
+        probs = hist["assoc_probability"][a:b]
+        missed = float(hist["missed_probability"][-1])
+        det = int(hist["detection"][-1])
         time = self._scan_time[-1]
         t = (time - self._t0).total_seconds()
         pred = self._prediction(tid, t, time)
