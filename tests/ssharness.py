@@ -561,3 +561,73 @@ JOYRIDE_ANCHOR = Code57(
     delete_steps=8,
     covar_trace=None,
 )
+
+
+# The native-API parameters chosen for Joyride (see tests/test_joyride_tracking.py and the
+# README): JPDA with a constant-velocity model.
+JOYRIDE_NATIVE = dict(
+    q=5.0,
+    sigma=25.0,
+    prob_detect=0.8,
+    clutter_density=5e-7,
+    prob_gate=0.999,
+    delete_steps=50,
+    init_steps=3,
+    missed_distance=5.0,
+    min_points=2,
+    prior_velocity_var=100.0,
+    initiate_in_gates=False,
+)
+
+
+def joyride_native(
+    q: float,
+    sigma: float,
+    prob_detect: float,
+    clutter_density: float,
+    prob_gate: float,
+    delete_steps: int,
+    init_steps: int,
+    missed_distance: float,
+    min_points: int,
+    prior_velocity_var: float,
+    initiate_in_gates: bool,
+):
+    """A `usvfast.tracking.Tracker` for Joyride (one radar, R = sigma² I)."""
+    from usvfast import tracking as tk
+    from usvfast.kalman import constant_velocity_2d
+
+    return tk.Tracker(
+        motion_model=constant_velocity_2d(q),
+        sensors=[tk.Sensor.position(noise_std=sigma)],
+        association=tk.JPDA(
+            prob_detect=prob_detect, prob_gate=prob_gate, clutter_density=clutter_density
+        ),
+        deleter=tk.StepsSinceUpdate(delete_steps),
+        initiator=tk.MultiMeasurementInitiator(
+            prior_state=np.zeros(4),
+            prior_covariance=np.diag([0, prior_velocity_var, 0, prior_velocity_var]),
+            min_points=min_points,
+            deleter=tk.StepsSinceUpdate(init_steps),
+            missed_distance=missed_distance,
+        ),
+        initiate_in_gates=initiate_in_gates,
+    )
+
+
+def joyride_anchor_native_kwargs() -> dict:
+    """JOYRIDE_ANCHOR (Stone Soup's configuration) in `joyride_native` terms."""
+    c = JOYRIDE_ANCHOR
+    return dict(
+        q=c.q,
+        sigma=JOYRIDE_SIGMA,
+        prob_detect=c.prob_detect,
+        clutter_density=c.clutter_density,
+        prob_gate=c.prob_gate,
+        delete_steps=c.delete_steps,
+        init_steps=c.init_steps,
+        missed_distance=c.missed_distance,
+        min_points=c.min_points,
+        prior_velocity_var=c.prior_velocity_var,
+        initiate_in_gates=True,
+    )

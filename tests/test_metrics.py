@@ -1,5 +1,5 @@
 """Joyride reader and track-quality metrics: facts of the data, hand-checked cases, CLEAR MOT
-against py-motmetrics, and the issue's Stone Soup anchor figures on the real recording."""
+against py-motmetrics (the Stone Soup anchor run on Joyride is in test_joyride_tracking.py)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,6 @@ from pathlib import Path
 import hypothesis.strategies as st
 import numpy as np
 import pytest
-import ssharness as H
 from hypothesis import given
 
 from usvfast import DimensionError, NonFiniteError
@@ -155,20 +154,3 @@ def test_clear_mot_equals_motmetrics(n_scans, rows):
     # every scan covered by clear_mot is covered by track_quality and vice versa
     q = track_quality(truth, scans, ids, pos, gate=50.0)
     assert round(q.coverage * n_scans) == ours.matches + ours.switches
-
-
-def test_stonesoup_jpda_on_joyride_reproduces_the_issue_anchor(joyride):
-    """Stone Soup JPDA with the issue's anchor parameters gives roughly its figures
-    (21.1 m, 89 %, 5 fragments): this validates the reader and the metrics."""
-    tracker, _ = H.build_stonesoup(
-        H.JOYRIDE_ANCHOR, detector=H.joyride_scans(joyride, H.JOYRIDE_SIGMA)
-    )
-    snaps = [H.snapshot(tracks) for _, tracks in tracker]
-    scans, ids, pos = H.track_rows(snaps)
-    q = track_quality(joyride.target[:, [0, 2]], scans, ids, pos, gate=50.0)
-    assert 20.0 < q.rmse < 22.5
-    assert 0.86 < q.coverage < 0.92
-    assert 3 <= q.fragments <= 7
-    mot = clear_mot(joyride.target[:, [0, 2]], scans, ids, pos, gate=50.0)
-    ref = _motmetrics(joyride.target[:, [0, 2]], scans, ids, pos, 50.0)
-    assert mot.mota == pytest.approx(ref.mota) and mot.motp == pytest.approx(ref.motp)
