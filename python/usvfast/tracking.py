@@ -50,8 +50,10 @@ are allowed; an empty scan only predicts.
 
 Differences from Stone Soup to know: all sensors share one measurement dimension; detections
 of a scan have the scan's time; GNN is distance-based only (Mahalanobis or squared). The
-native option ``initiate_in_gates=False`` withholds from the initiator every detection inside
-a confirmed track's gate, which avoids Stone Soup's duplicate tracks on one target.
+native option ``initiate_in_gates=False`` avoids Stone Soup's duplicate tracks on one target:
+it withholds from the initiator every detection inside a confirmed track's gate, and drops a
+tentative track about to be confirmed when its position lies inside the gate of a confirmed
+track (or of one confirmed before it in the same scan).
 """
 
 from __future__ import annotations

@@ -191,8 +191,10 @@ pub struct TrackerConfig {
     pub initiator: InitiatorConfig,
     pub out_of_order: OutOfOrder,
     /// Stone Soup passes detections to the initiator unless some track's marginal for them
-    /// exceeds its missed marginal. With `false`, detections inside any confirmed track's gate
-    /// are withheld too, which avoids duplicate tracks on a target (native option).
+    /// exceeds its missed marginal (`true`). With `false` (native option against duplicate
+    /// tracks on one target): detections inside any confirmed track's gate are withheld too,
+    /// and a tentative track about to be confirmed is dropped when its position lies inside the
+    /// gate of a confirmed track or of a track confirmed before it in the same scan.
     pub initiate_in_gates: bool,
 }
 
@@ -805,7 +807,8 @@ impl Tracker {
                 used[d] = true;
             }
             let mut keep = Vec::with_capacity(self.tentative.len());
-            for mut tr in std::mem::take(&mut self.tentative) {
+            let mut confirmed = Vec::new();
+            for tr in std::mem::take(&mut self.tentative) {
                 let (confirm, drop) = match init.confirmation {
                     Confirmation::MinPoints {
                         min_points,
@@ -824,13 +827,19 @@ impl Tracker {
                     }
                 };
                 if confirm {
-                    tr.id = self.next_id;
-                    self.next_id += 1;
-                    tr.confirmed_time = t;
-                    self.tracks.push(tr);
+                    confirmed.push(tr);
                 } else if !drop {
                     keep.push(tr);
                 }
+            }
+            if !self.cfg.initiate_in_gates {
+                confirmed = self.without_duplicates(confirmed)?;
+            }
+            for mut tr in confirmed {
+                tr.id = self.next_id;
+                self.next_id += 1;
+                tr.confirmed_time = t;
+                self.tracks.push(tr);
             }
             if matches!(init.confirmation, Confirmation::MinPoints { .. }) {
                 keep.retain(|tr| !init.deleter.check(tr));
@@ -885,6 +894,105 @@ impl Tracker {
             ));
         }
         Ok(())
+    }
+}
+
+impl Tracker {
+    /// Drops tentative tracks about to be confirmed whose position falls inside the gate of a
+    /// confirmed track or of a candidate accepted before them (native duplicate suppression).
+    fn without_duplicates(&self, cands: Vec<Track>) -> Result<Vec<Track>> {
+        if cands.is_empty() {
+            return Ok(cands);
+        }
+        let m = self.m;
+        let gate = match &self.cfg.association {
+            Association::Jpda(_) => self.gate,
+            Association::Gnn(g) => match g.measure {
+                Measure::Mahalanobis => g.missed_distance * g.missed_distance,
+                Measure::SquaredMahalanobis => g.missed_distance,
+            },
+        };
+        let gate = if gate.is_finite() {
+            gate
+        } else {
+            chi2_quantile(0.95, m)?
+        };
+        // Each candidate as a pseudo-detection H x from the sensor of its last update.
+        let sens: Vec<usize> = cands
+            .iter()
+            .map(|c| {
+                let s = *c.history.sensor.last().unwrap_or(&0);
+                if s >= 0 {
+                    s as usize
+                } else {
+                    0
+                }
+            })
+            .collect();
+        let z: Vec<f64> = cands
+            .iter()
+            .zip(&sens)
+            .flat_map(|(c, &s)| {
+                (&self.cfg.sensors[s].h * &c.x)
+                    .iter()
+                    .copied()
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        let all: Vec<usize> = (0..cands.len()).collect();
+        let ns = self.cfg.sensors.len();
+        let existing: Vec<(DVector<f64>, DMatrix<f64>)> = self
+            .tracks
+            .iter()
+            .map(|t| (t.x.clone(), t.p.clone()))
+            .collect();
+        let mut innov: Vec<Vec<Option<Innovation>>> = (0..existing.len())
+            .map(|_| (0..ns).map(|_| None).collect())
+            .collect();
+        let mut reject = vec![false; cands.len()];
+        for (_, d, _) in gate_pairs(
+            &existing,
+            &self.cfg.sensors,
+            &z,
+            m,
+            &sens,
+            &all,
+            gate,
+            &mut innov,
+        )? {
+            reject[d] = true;
+        }
+        let own: Vec<(DVector<f64>, DMatrix<f64>)> =
+            cands.iter().map(|t| (t.x.clone(), t.p.clone())).collect();
+        let mut innov: Vec<Vec<Option<Innovation>>> = (0..own.len())
+            .map(|_| (0..ns).map(|_| None).collect())
+            .collect();
+        let mut gated_by: Vec<Vec<usize>> = vec![Vec::new(); cands.len()];
+        for (i, d, _) in gate_pairs(
+            &own,
+            &self.cfg.sensors,
+            &z,
+            m,
+            &sens,
+            &all,
+            gate,
+            &mut innov,
+        )? {
+            if i != d {
+                gated_by[d].push(i);
+            }
+        }
+        let mut accepted = vec![false; cands.len()];
+        for c in 0..cands.len() {
+            if !reject[c] && !gated_by[c].iter().any(|&i| accepted[i]) {
+                accepted[c] = true;
+            }
+        }
+        Ok(cands
+            .into_iter()
+            .zip(accepted)
+            .filter_map(|(c, a)| a.then_some(c))
+            .collect())
     }
 }
 
