@@ -259,3 +259,15 @@ def test_unsupported_components_are_named():
         t.data_associator = t.initiator.data_associator
 
     _refuse(gnn_in_mixture, r"data_associator: .*GNNWith2DAssignment")
+
+
+def test_readme_example_runs():
+    from pathlib import Path
+
+    text = (Path(__file__).parents[1] / "README.md").read_text()
+    start = text.index("## Stone Soup drop-in")
+    block = text[text.index("```python", start) + len("```python") : text.index("```\n", start + 10)]
+    assert "from usvfast.stonesoup import MultiTargetMixtureTracker" in block
+    scope: dict = {}
+    exec(compile(block, "README.md", "exec"), scope)
+    assert len(scope["tracks"]) == 2

@@ -405,9 +405,13 @@ def _native_deleter(spec: DeleterSpec) -> Any:
     return tk.AllOf(*children) if spec.intersect else tk.AnyOf(*children)
 
 
-def build_native(cfg: StoneSoupConfig, sensors: list[Any]) -> Any:
+def build_native(
+    cfg: StoneSoupConfig, sensors: list[Any], *, initiate_in_gates: bool = True
+) -> Any:
     """The `usvfast.tracking.Tracker` equal to a read Stone Soup configuration, with `sensors`
-    (list of `usvfast.tracking.Sensor`)."""
+    (list of `usvfast.tracking.Sensor`). initiate_in_gates=False switches on the native
+    option that withholds detections inside confirmed tracks' gates from the initiator (no
+    duplicate tracks; no longer Stone Soup's behaviour)."""
     from usvfast import tracking as tk
 
     if isinstance(cfg.association, JpdaSpec):
@@ -448,7 +452,7 @@ def build_native(cfg: StoneSoupConfig, sensors: list[Any]) -> Any:
         use_joseph_cov=cfg.use_joseph_cov,
         delete_last_prediction=cfg.delete_last_pred,
         out_of_order="raise",
-        initiate_in_gates=True,
+        initiate_in_gates=initiate_in_gates,
     )
 
 
