@@ -266,7 +266,9 @@ def test_readme_example_runs():
 
     text = (Path(__file__).parents[1] / "README.md").read_text()
     start = text.index("## Stone Soup drop-in")
-    block = text[text.index("```python", start) + len("```python") : text.index("```\n", start + 10)]
+    block = text[
+        text.index("```python", start) + len("```python") : text.index("```\n", start + 10)
+    ]
     assert "from usvfast.stonesoup import MultiTargetMixtureTracker" in block
     scope: dict = {}
     exec(compile(block, "README.md", "exec"), scope)
