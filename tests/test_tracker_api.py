@@ -118,10 +118,13 @@ def stonesoup_run(scans, gnn):
     def detector():
         for t, z, s in scans:
             ts = epoch + timedelta(seconds=t)
-            yield ts, {
-                Detection(zz.reshape(2, 1), timestamp=ts, measurement_model=models[k])
-                for zz, k in zip(z, s)
-            }
+            yield (
+                ts,
+                {
+                    Detection(zz.reshape(2, 1), timestamp=ts, measurement_model=models[k])
+                    for zz, k in zip(z, s, strict=True)
+                },
+            )
 
     cls = MultiTargetTracker if gnn else MultiTargetMixtureTracker
     tracker = cls(
@@ -143,7 +146,7 @@ def test_whole_run_equals_stonesoup(seed, gnn):
     scans = scenario(seed)
     want = stonesoup_run(scans, gnn)
     tracker = code57(T.GNN(missed_distance=3) if gnn else T.JPDA(0.85, 0.95, 0.125))
-    for (t, z, s), w in zip(scans, want):
+    for (t, z, s), w in zip(scans, want, strict=True):
         got = tracker.step(t, z, s)
         assert len(got) == len(w)
         np.testing.assert_allclose(
@@ -160,7 +163,7 @@ def test_batch_run_equals_steps_and_histories_are_consistent():
     rows = []
     for i, (t, z, s) in enumerate(scans):
         k = a.step(t, z, s)
-        rows += [(i, tid, *x) for tid, x in zip(k.ids, k.states)]
+        rows += [(i, tid, *x) for tid, x in zip(k.ids, k.states, strict=True)]
     b = code57(T.JPDA(0.85, 0.95, 0.125))
     times = np.array([t for t, _, _ in scans])
     z = np.concatenate([z for _, z, _ in scans])

@@ -72,20 +72,23 @@ def ours(association, xs, covs, z, sensors, dt):
         deleter=T.NeverDelete(),
         initiator=T.MultiMeasurementInitiator(np.zeros(4), np.diag([0, 1.0, 0, 1.0])),
     )
-    ids = [tracker.add_track(x, p, 0.0) for x, p in zip(xs, covs)]
+    ids = [tracker.add_track(x, p, 0.0) for x, p in zip(xs, covs, strict=True)]
     tracker.step(dt, z.reshape(-1, 2), sensors)
     return tracker, ids
 
 
 def ss_tracks(xs, covs):
-    return [Track([GaussianState(x.reshape(4, 1), p, timestamp=EPOCH)]) for x, p in zip(xs, covs)]
+    return [
+        Track([GaussianState(x.reshape(4, 1), p, timestamp=EPOCH)])
+        for x, p in zip(xs, covs, strict=True)
+    ]
 
 
 def ss_detections(z, sensors, models, dt):
     ts = EPOCH + timedelta(seconds=dt)
     return [
         Detection(zz.reshape(2, 1), timestamp=ts, measurement_model=models[s])
-        for zz, s in zip(z, sensors)
+        for zz, s in zip(z, sensors, strict=True)
     ], ts
 
 
@@ -137,7 +140,7 @@ def test_single_scan_jpda_posterior_equals_stonesoup(seed, n_tracks, n_dets):
     assoc = SSJPDA(hyp).associate(set(tracks), set(dets), ts)
 
     tracker, ids = ours(T.JPDA(0.9, 0.95, 0.02), xs, covs, z, sensors, dt)
-    for track, tid in zip(tracks, ids):
+    for track, tid in zip(tracks, ids, strict=True):
         mh = assoc[track]
         mean, cov, is_update = mixture_posterior(mh, updater)
         h = tracker.history(tid)
@@ -150,9 +153,7 @@ def test_single_scan_jpda_posterior_equals_stonesoup(seed, n_tracks, n_dets):
                 assert got[dets.index(sh.measurement)] == pytest.approx(
                     float(sh.probability), rel=1e-9, abs=1e-13
                 )
-        np.testing.assert_allclose(
-            h.missed_probability[1] + sum(got.values()), 1.0, rtol=1e-12
-        )
+        np.testing.assert_allclose(h.missed_probability[1] + sum(got.values()), 1.0, rtol=1e-12)
 
 
 @given(seed=st.integers(0, 2**31), n_tracks=st.integers(1, 5), n_dets=st.integers(0, 7))
@@ -165,7 +166,7 @@ def test_single_scan_gnn_equals_stonesoup(seed, n_tracks, n_dets):
     assoc = GNNWith2DAssignment(hyp).associate(set(tracks), set(dets), ts)
 
     tracker, ids = ours(T.GNN(missed_distance=2.5), xs, covs, z, sensors, dt)
-    for track, tid in zip(tracks, ids):
+    for track, tid in zip(tracks, ids, strict=True):
         h = tracker.history(tid)
         sh = assoc[track]
         state = updater.update(sh) if sh else sh.prediction

@@ -350,7 +350,11 @@ class TrackHistory:
         """{detection row: probability} hypothesised at entry i."""
         a, b = self.assoc_offsets[i], self.assoc_offsets[i + 1]
         return dict(
-            zip(self.assoc_detection[a:b].tolist(), self.assoc_probability[a:b].tolist())
+            zip(
+                self.assoc_detection[a:b].tolist(),
+                self.assoc_probability[a:b].tolist(),
+                strict=True,
+            )
         )
 
 

@@ -142,8 +142,8 @@ pub fn gnn_assign(
         }
     }
     let mut groups: std::collections::BTreeMap<usize, Vec<usize>> = Default::default();
-    for t in 0..n {
-        if !hyps[t].is_empty() {
+    for (t, h) in hyps.iter().enumerate() {
+        if !h.is_empty() {
             let r = find(&mut parent, t);
             groups.entry(r).or_default().push(t);
         }

@@ -161,15 +161,88 @@ pub fn marginals_brute_force(cluster: &[TrackHypotheses]) -> Result<Vec<Marginal
     Ok(out)
 }
 
-type Key = Vec<u64>;
-
-fn set_bit(k: &mut Key, b: usize) {
-    k[b / 64] |= 1 << (b % 64);
+/// A set of local detection indices, as a bit set (inline for clusters of up to 128
+/// detections, heap words beyond).
+trait BitKey: Clone + Eq + std::hash::Hash {
+    fn empty(n_bits: usize) -> Self;
+    fn set(&mut self, b: usize);
+    fn has(&self, b: usize) -> bool;
+    fn and(&mut self, other: &Self);
 }
 
-fn has_bit(k: &Key, b: usize) -> bool {
-    k[b / 64] & (1 << (b % 64)) != 0
+impl BitKey for u64 {
+    fn empty(_: usize) -> Self {
+        0
+    }
+    fn set(&mut self, b: usize) {
+        *self |= 1 << b;
+    }
+    fn has(&self, b: usize) -> bool {
+        *self & (1 << b) != 0
+    }
+    fn and(&mut self, other: &Self) {
+        *self &= other;
+    }
 }
+
+impl BitKey for u128 {
+    fn empty(_: usize) -> Self {
+        0
+    }
+    fn set(&mut self, b: usize) {
+        *self |= 1 << b;
+    }
+    fn has(&self, b: usize) -> bool {
+        *self & (1 << b) != 0
+    }
+    fn and(&mut self, other: &Self) {
+        *self &= other;
+    }
+}
+
+impl BitKey for Vec<u64> {
+    fn empty(n_bits: usize) -> Self {
+        vec![0; n_bits.div_ceil(64).max(1)]
+    }
+    fn set(&mut self, b: usize) {
+        self[b / 64] |= 1 << (b % 64);
+    }
+    fn has(&self, b: usize) -> bool {
+        self[b / 64] & (1 << (b % 64)) != 0
+    }
+    fn and(&mut self, other: &Self) {
+        for (w, o) in self.iter_mut().zip(other) {
+            *w &= o;
+        }
+    }
+}
+
+/// A multiplicative hasher for the integer keys of EHM nodes (no DoS concern here).
+#[derive(Default, Clone, Copy)]
+struct FastHasher(u64);
+
+impl std::hash::Hasher for FastHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u64(b as u64);
+        }
+    }
+    fn write_u64(&mut self, v: u64) {
+        self.0 = (self.0.rotate_left(5) ^ v).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
+    }
+    fn write_u128(&mut self, v: u128) {
+        self.write_u64(v as u64);
+        self.write_u64((v >> 64) as u64);
+    }
+    fn write_usize(&mut self, v: usize) {
+        self.write_u64(v as u64);
+    }
+}
+
+type FastMap<K, V> = HashMap<K, V, std::hash::BuildHasherDefault<FastHasher>>;
 
 /// Exact marginals by Efficient Hypothesis Management: tracks are processed in the order
 /// given; a node of level `i` is the set of already-used detections that tracks `i..` could
@@ -177,8 +250,6 @@ fn has_bit(k: &Key, b: usize) -> bool {
 /// detection is shared by tracks close in the order (order tracks spatially).
 pub fn marginals_ehm(cluster: &[TrackHypotheses]) -> Result<Vec<Marginals>> {
     check(cluster)?;
-    let n = cluster.len();
-    // Local detection indices.
     let mut local: HashMap<usize, usize> = HashMap::new();
     let hyps: Vec<Vec<(usize, f64)>> = cluster
         .iter()
@@ -192,57 +263,63 @@ pub fn marginals_ehm(cluster: &[TrackHypotheses]) -> Result<Vec<Marginals>> {
                 .collect()
         })
         .collect();
-    let words = local.len().div_ceil(64).max(1);
+    match local.len() {
+        0..=64 => ehm::<u64>(cluster, &hyps, local.len()),
+        65..=128 => ehm::<u128>(cluster, &hyps, local.len()),
+        _ => ehm::<Vec<u64>>(cluster, &hyps, local.len()),
+    }
+}
+
+fn ehm<K: BitKey>(
+    cluster: &[TrackHypotheses],
+    hyps: &[Vec<(usize, f64)>],
+    n_bits: usize,
+) -> Result<Vec<Marginals>> {
+    let n = cluster.len();
     // acc[i]: detections of tracks i.. (as a bit set); acc[n] = ∅.
-    let mut acc: Vec<Key> = vec![vec![0; words]; n + 1];
+    let mut acc: Vec<K> = vec![K::empty(n_bits); n + 1];
     for i in (0..n).rev() {
         let mut k = acc[i + 1].clone();
         for &(d, _) in &hyps[i] {
-            set_bit(&mut k, d);
+            k.set(d);
         }
         acc[i] = k;
     }
-    let restrict = |mut k: Key, level: usize| -> Key {
-        for (w, a) in k.iter_mut().zip(&acc[level]) {
-            *w &= a;
-        }
-        k
-    };
-    // Forward pass: nodes of each level with forward weights, and the edges to the next level.
-    let mut nodes: Vec<Vec<Key>> = vec![Vec::new(); n + 1];
+    // Forward pass: nodes of each level with forward weights, and the edges to the next level
+    // (hypothesis index, or usize::MAX for missed; child node).
+    let mut nodes: Vec<Vec<K>> = vec![Vec::new(); n + 1];
     let mut fw: Vec<Vec<f64>> = vec![Vec::new(); n + 1];
-    // edges[i][node] = list of (hypothesis index or usize::MAX for missed, child node).
     let mut edges: Vec<Vec<Vec<(usize, usize)>>> = vec![Vec::new(); n];
-    nodes[0].push(vec![0; words]);
+    nodes[0].push(K::empty(n_bits));
     fw[0].push(1.0);
     for i in 0..n {
-        let mut index: HashMap<Key, usize> = HashMap::new();
-        let mut next_nodes: Vec<Key> = Vec::new();
+        let mut index: FastMap<K, usize> = FastMap::default();
+        let mut next_nodes: Vec<K> = Vec::new();
         let mut next_fw: Vec<f64> = Vec::new();
         let mut level_edges = Vec::with_capacity(nodes[i].len());
         for (ni, key) in nodes[i].iter().enumerate() {
             let f = fw[i][ni];
             let mut e = Vec::with_capacity(hyps[i].len() + 1);
-            let mut push = |child: Key, h: usize, w: f64, e: &mut Vec<(usize, usize)>| {
-                let c = *index.entry(child.clone()).or_insert_with(|| {
-                    next_nodes.push(child);
-                    next_fw.push(0.0);
-                    next_fw.len() - 1
-                });
+            let mut push = |mut child: K, h: usize, w: f64, e: &mut Vec<(usize, usize)>| {
+                child.and(&acc[i + 1]);
+                let c = match index.get(&child) {
+                    Some(&c) => c,
+                    None => {
+                        index.insert(child.clone(), next_nodes.len());
+                        next_nodes.push(child);
+                        next_fw.push(0.0);
+                        next_fw.len() - 1
+                    }
+                };
                 next_fw[c] += f * w;
                 e.push((h, c));
             };
-            push(
-                restrict(key.clone(), i + 1),
-                usize::MAX,
-                cluster[i].missed,
-                &mut e,
-            );
+            push(key.clone(), usize::MAX, cluster[i].missed, &mut e);
             for (h, &(d, w)) in hyps[i].iter().enumerate() {
-                if !has_bit(key, d) {
+                if !key.has(d) {
                     let mut child = key.clone();
-                    set_bit(&mut child, d);
-                    push(restrict(child, i + 1), h, w, &mut e);
+                    child.set(d);
+                    push(child, h, w, &mut e);
                 }
             }
             level_edges.push(e);
@@ -317,10 +394,10 @@ mod tests {
                 .map(|_| TrackHypotheses {
                     missed: rng.random_range(0.01..1.0),
                     detections: (0..nd)
-                        .filter_map(|d| {
-                            rng.random_bool(0.5)
-                                .then(|| (d, rng.random_range(0.0..5.0)))
-                        })
+                        .filter(|_| rng.random_bool(0.5))
+                        .collect::<Vec<_>>()
+                        .into_iter()
+                        .map(|d| (d, rng.random_range(0.0..5.0)))
                         .collect(),
                 })
                 .collect();

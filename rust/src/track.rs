@@ -57,6 +57,22 @@ impl History {
         self.times.is_empty()
     }
 
+    /// Reserves room for `k` more entries of an `n`-state track.
+    pub fn reserve(&mut self, k: usize, n: usize) {
+        self.times.reserve(k);
+        self.states.reserve(k * n);
+        self.covariances.reserve(k * n * n);
+        self.is_update.reserve(k);
+        self.scan.reserve(k);
+        self.sensor.reserve(k);
+        self.detection.reserve(k);
+        self.nis.reserve(k);
+        self.missed_probability.reserve(k);
+        self.assoc_offsets.reserve(k);
+        self.assoc_detection.reserve(4 * k);
+        self.assoc_probability.reserve(4 * k);
+    }
+
     fn push(&mut self, e: Entry, x: &DVector<f64>, p: &DMatrix<f64>) {
         if self.assoc_offsets.is_empty() {
             self.assoc_offsets.push(0);

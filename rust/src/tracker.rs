@@ -276,7 +276,7 @@ impl TrackerConfig {
             return Err(Error::param("diag_load", "must be finite and >= 0"));
         }
         match init.confirmation {
-            Confirmation::MinPoints { min_points, .. } if min_points == 0 => {
+            Confirmation::MinPoints { min_points: 0, .. } => {
                 return Err(Error::param("min_points", "must be >= 1"));
             }
             Confirmation::MOfN { m, n } if m == 0 || n < m => {
@@ -355,6 +355,7 @@ fn predict(
     (xp, pp)
 }
 
+#[allow(clippy::too_many_arguments)]
 /// Candidate `(track, detection, squared Mahalanobis)` pairs within `gate` (squared), for
 /// predictions `preds[t] = (x⁻, P⁻)`; `innov[t][s]` is filled lazily per sensor.
 fn gate_pairs(
@@ -484,6 +485,14 @@ impl Tracker {
     /// The configuration.
     pub fn config(&self) -> &TrackerConfig {
         &self.cfg
+    }
+
+    /// Reserves room for `entries` more history entries on every track (clones shrink
+    /// capacity to fit; benchmarks of one scan on a cloned tracker use this).
+    pub fn reserve_history(&mut self, entries: usize) {
+        for t in self.tracks.iter_mut().chain(self.tentative.iter_mut()) {
+            t.history.reserve(entries, t.x.len());
+        }
     }
 
     /// Measurement dimension shared by all sensors.
