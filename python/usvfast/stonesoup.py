@@ -836,9 +836,17 @@ class MultiTargetMixtureTracker(_DropInTracker):
 
     Same keywords (`initiator`, `deleter`, `detector`, `data_associator`, `updater`), same
     protocol: iterating yields `(datetime, set of Track)` per scan of `detector`;
-    `update_tracker(time, detections)` processes one scan. `hypotheses=False` skips building the
-    Stone Soup hypothesis objects attached to update states (faster). Raises
-    UnsupportedComponentError for components usvfast cannot reproduce exactly.
+    `update_tracker(time, detections)` processes one scan. Update states carry a
+    `MultipleHypothesis` of `SingleProbabilityHypothesis` (prediction, detection or
+    MissedDetection, JPDA probability; `measurement_prediction` is None). `hypotheses=False`
+    skips building them (2-3x faster): update states then carry a placeholder
+    `SingleHypothesis(None, MissedDetection)`, so do not feed such tracks to Stone Soup
+    deleters. Raises UnsupportedComponentError for components usvfast cannot reproduce
+    exactly, ValueError for detections off the scan time or of another dimension.
+
+    Memory: every scan's detections are kept (the history of a track confirmed later refers
+    to them), and so is every scan's measurement array (to rebuild the core when a detection
+    brings a new measurement model, since the core's sensor list is fixed at construction).
     """
 
     _mixture = True
