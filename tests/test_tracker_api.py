@@ -183,6 +183,9 @@ def test_batch_run_equals_steps_and_histories_are_consistent():
         assert h.is_update[0]  # tentative phase starts with a detection
         np.testing.assert_allclose(h.states[-1], res.state[res.track_id == tid][-1])
         assert np.all(h.nis[h.is_update & (h.detection >= 0)][1:] >= 0)
+        df = h.to_dataframe()
+        assert len(df) == len(h.times)
+        np.testing.assert_array_equal(df["x2"].to_numpy(), h.states[:, 2])
 
 
 @settings(max_examples=15)
