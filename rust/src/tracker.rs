@@ -908,7 +908,8 @@ impl Tracker {
 
 impl Tracker {
     /// Drops tentative tracks about to be confirmed whose position falls inside the gate of a
-    /// confirmed track or of a candidate accepted before them (native duplicate suppression).
+    /// confirmed track or of a candidate accepted before them (native duplicate suppression;
+    /// the gate is the association gate widened to at least χ²_m(0.9999)).
     fn without_duplicates(&self, cands: Vec<Track>) -> Result<Vec<Track>> {
         if cands.is_empty() {
             return Ok(cands);
@@ -921,10 +922,12 @@ impl Tracker {
                 Measure::SquaredMahalanobis => g.missed_distance,
             },
         };
+        // A generous gate: a candidate is a duplicate unless clearly outside (P = 0.9999).
+        let wide = chi2_quantile(0.9999, m)?;
         let gate = if gate.is_finite() {
-            gate
+            gate.max(wide)
         } else {
-            chi2_quantile(0.95, m)?
+            wide
         };
         // Each candidate as a pseudo-detection H x from the sensor of its last update.
         let sens: Vec<usize> = cands
