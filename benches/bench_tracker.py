@@ -1,247 +1,151 @@
-"""Tracker speed: usvfast vs Stone Soup on the same scenarios, in the same process.
+"""Per-scan time of the usvfast tracker vs Stone Soup (same scenario, same process).
 
-The thesis's Code 5.7 configuration (CV q = 0.001, PDA P_D 0.85 / P_G 0.95, clutter 0.125,
-multi-measurement initiator with a 0.3 Mahalanobis gate, 35-step / trace-1.5 deleters) is
-built once in Stone Soup; usvfast's native tracker is built from those very components
-(`usvfast.stonesoup.read_components` + `build_native`), and the drop-in wraps them too.
-Reported: ms per scan in steady state (median over the second half of the scans), the ratio to
-Stone Soup, and the final number of tracks (Stone Soup leaves duplicate tracks on some targets;
-the drop-in reproduces them; the native option `initiate_in_gates=False` avoids them).
-
-Cases: (a) 5 separated targets with clutter; (b) 20 separated targets (plain Stone Soup JPDA
-enumerates all tracks jointly: capped); (c) 8 targets 0.3 m apart moving in parallel, and 20
-clustered targets; (d) usvfast alone on 10 ... 10,000 separated targets.
-
-    PYTHONPATH=python python benches/bench_tracker.py          # quick (a few minutes)
-    PYTHONPATH=python python benches/bench_tracker.py --full   # longer runs, 10k targets
+Code 5.7 configuration (CV q = 0.001, JPDA P_D 0.85 / P_G 0.95 / λ 0.125, GNN initiator with
+missed distance 0.3, covariance-trace + steps deleters), one position sensor σ = 0.25 m:
+(a) 5 well-separated targets with clutter, (b) 20 separated targets, (c) 8 targets in parallel
+0.3 m apart (inside each other's gates), (d) scaling 10 … 10,000 separated targets (ours; Stone
+Soup's EHM up to 100). Stone Soup runs JPDA (where it finishes) and JPDAwithEHM (pyehm's
+algorithm in Stone Soup). Run: `python benches/bench_tracker.py [--scans N] [--full]`.
 """
 
 from __future__ import annotations
 
 import argparse
-import signal
-import sys
 import time
-from pathlib import Path
+from datetime import datetime, timedelta
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from usvfast import tracking as T
+from usvfast.kalman import constant_velocity_2d
 
-import ssharness as H
-
-from usvfast import stonesoup as us
-
-
-class Timeout(Exception):
-    pass
+SIGMA = 0.25
 
 
-def _alarm(signum, frame):
-    raise Timeout
+def scenario(n, spacing, n_scans, clutter=0.0, seed=0):
+    """Targets on a grid (or in a row when spacing < 1 m) at (0, 0.2) m/s, scans 1 s apart."""
+    rng = np.random.default_rng(seed)
+    side = int(np.ceil(np.sqrt(n)))
+    if spacing < 1:
+        pos = np.column_stack([np.arange(n) * spacing, np.zeros(n)])
+    else:
+        pos = np.column_stack([np.arange(n) % side, np.arange(n) // side]) * spacing
+    extent = pos.max(axis=0) + 10
+    scans = []
+    for k in range(1, n_scans + 1):
+        truth = pos + np.array([0.0, 0.2 * k])
+        seen = rng.random(n) < 0.95
+        z = truth[seen] + rng.normal(0, SIGMA, (seen.sum(), 2))
+        c = rng.uniform([-10.0, -10.0], extent, (rng.poisson(clutter), 2))
+        z = np.concatenate([z, c]) if len(c) else z
+        scans.append((float(k), z))
+    return scans
 
 
-def steady(per_scan: list[float]) -> float:
-    """Median ms per scan over the second half of the scans (the machine is shared: the
-    median ignores the odd descheduled scan)."""
-    a = np.asarray(per_scan)
-    return float(np.median(a[len(a) // 2 :]) * 1e3) if len(a) else float("nan")
-
-
-def duplicates(positions: np.ndarray, scenario) -> int:
-    """Tracks beyond the first on the same target at the last scan: each track goes to its
-    nearest live target within 1 m; duplicates = such tracks - distinct targets they hit.
-    Meaningful for separated targets only (in a 0.5 m cluster "nearest" is ambiguous)."""
-    truth = scenario.truth[-1]
-    live = ~np.isnan(truth[:, 0])
-    if not len(positions) or not live.any():
-        return 0
-    tpos = truth[live][:, [0, 2]]
-    d = np.linalg.norm(positions[:, None, :] - tpos[None, :, :], axis=2)
-    near = d.min(axis=1) <= 1.0
-    hit = d.argmin(axis=1)[near]
-    return int(near.sum() - len(set(hit.tolist())))
-
-
-def _positions(tracks) -> np.ndarray:
-    return np.array(
-        [[float(t.state_vector[0, 0]), float(t.state_vector[2, 0])] for t in tracks]
-    ).reshape(-1, 2)
-
-
-def time_stonesoup(scenario, cfg: H.Code57, budget: float) -> dict:
-    """Run Stone Soup scan by scan; stop when the budget (s) is spent, even mid-scan."""
-    tracker, _ = H.build_stonesoup(cfg, detector=H.stonesoup_scans(scenario))
-    it = iter(tracker)
-    per, n_tracks = [], 0
-    signal.signal(signal.SIGALRM, _alarm)
-    t_start = time.perf_counter()
-    signal.setitimer(signal.ITIMER_REAL, budget)
-    aborted = None
-    try:
-        for _ in range(scenario.n_scans):
-            t0 = time.perf_counter()
-            _, tracks = next(it)
-            per.append(time.perf_counter() - t0)
-            n_tracks = len(tracks)
-    except Timeout:
-        aborted = (len(per), time.perf_counter() - t0, len(tracker.tracks))
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-    return {
-        "ms": steady(per),
-        "scans": len(per),
-        "tracks": n_tracks,
-        "dups": duplicates(_positions(tracker.tracks), scenario) if aborted is None else 0,
-        "aborted": aborted,
-        "total": time.perf_counter() - t_start,
-    }
-
-
-def native_tracker(cfg: H.Code57, scenario, initiate_in_gates: bool = True):
-    """usvfast's native tracker built from the Stone Soup components of `cfg`."""
-    from usvfast import tracking as tk
-
-    tracker, _ = H.build_stonesoup(cfg)
-    read = us.read_components(
-        initiator=tracker.initiator,
-        deleter=tracker.deleter,
-        data_associator=tracker.data_associator,
-        updater=tracker.updater,
-        mixture=cfg.associator != "gnn",
+def ours(scans):
+    tracker = T.Tracker(
+        motion_model=constant_velocity_2d(0.001),
+        sensors=[T.Sensor.position(SIGMA)],
+        association=T.JPDA(0.85, 0.95, 0.125),
+        deleter=T.AnyOf(T.CovarianceTrace(1.5), T.StepsSinceUpdate(35)),
+        initiator=T.MultiMeasurementInitiator(
+            np.zeros(4),
+            np.diag([0, 0.3, 0, 0.3]),
+            min_points=2,
+            deleter=T.StepsSinceUpdate(3),
+            missed_distance=0.3,
+        ),
     )
-    h = np.array([[1.0, 0, 0, 0], [0, 0, 1.0, 0]])
-    sensors = [tk.Sensor(h, s.noise) for s in scenario.sensors]
-    return us.build_native(read, sensors, initiate_in_gates=initiate_in_gates)
-
-
-def time_native(scenario, cfg: H.Code57, initiate_in_gates: bool = True) -> dict:
-    tr = native_tracker(cfg, scenario, initiate_in_gates)
-    per = []
-    for t, z, s in scenario.scans():
-        t0 = time.perf_counter()
-        tr.step(t, z, s)
-        per.append(time.perf_counter() - t0)
-    final = tr.tracks
-    return {
-        "ms": steady(per),
-        "tracks": len(final),
-        "dups": duplicates(final.states[:, [0, 2]], scenario),
-        "total": sum(per),
-    }
-
-
-def time_batch(scenario, cfg: H.Code57) -> float:
-    """ms per scan of one `Tracker.run` call over the whole recording."""
-    tr = native_tracker(cfg, scenario)
-    counts = [len(z) for z in scenario.measurements]
-    z = np.concatenate(scenario.measurements)
-    s = np.concatenate(scenario.sensor_ids)
-    idx = np.repeat(np.arange(scenario.n_scans), counts)
     t0 = time.perf_counter()
-    tr.run(scenario.times, z, s, idx)
-    return (time.perf_counter() - t0) / scenario.n_scans * 1e3
+    for t, z in scans:
+        out = tracker.step(t, z, np.zeros(len(z), dtype=np.int64))
+    return (time.perf_counter() - t0) / len(scans), len(out)
 
 
-def time_dropin(scenario, cfg: H.Code57, hypotheses: bool = True) -> dict:
-    tracker, _ = H.build_stonesoup(cfg)
-    cls = us.MultiTargetTracker if cfg.associator == "gnn" else us.MultiTargetMixtureTracker
-    d = cls(
-        initiator=tracker.initiator,
-        deleter=tracker.deleter,
-        detector=H.stonesoup_scans(scenario),
-        data_associator=tracker.data_associator,
-        updater=tracker.updater,
-        hypotheses=hypotheses,
+def stonesoup(scans, ehm):
+    from stonesoup.dataassociator.neighbour import GNNWith2DAssignment
+    from stonesoup.dataassociator.probability import JPDA, JPDAwithEHM
+    from stonesoup.deleter.error import CovarianceBasedDeleter
+    from stonesoup.deleter.multi import CompositeDeleter
+    from stonesoup.deleter.time import UpdateTimeStepsDeleter
+    from stonesoup.hypothesiser.distance import DistanceHypothesiser
+    from stonesoup.hypothesiser.probability import PDAHypothesiser
+    from stonesoup.initiator.simple import MultiMeasurementInitiator
+    from stonesoup.measures import Mahalanobis
+    from stonesoup.models.measurement.linear import LinearGaussian
+    from stonesoup.models.transition.linear import (
+        CombinedLinearGaussianTransitionModel,
+        ConstantVelocity,
     )
-    per, n = [], 0
-    it = iter(d)
-    for _ in range(scenario.n_scans):
-        t0 = time.perf_counter()
-        _, tracks = next(it)
-        per.append(time.perf_counter() - t0)
-        n = len(tracks)
-    return {"ms": steady(per), "tracks": n, "dups": duplicates(_positions(d.tracks), scenario)}
+    from stonesoup.predictor.kalman import KalmanPredictor
+    from stonesoup.tracker.simple import MultiTargetMixtureTracker
+    from stonesoup.types.detection import Detection
+    from stonesoup.types.state import GaussianState
+    from stonesoup.updater.kalman import KalmanUpdater
 
-
-def fmt_ss(r: dict) -> str:
-    if r["aborted"] is not None:
-        k, dt, n = r["aborted"]
-        head = f"{r['ms']:9.2f} ms" if r["scans"] > 1 else "     (n/a)"
-        return f"{head}  ABORTED in scan {k} after {dt:.1f} s with {n} tracks"
-    return f"{r['ms']:9.2f} ms  ({r['tracks']} tracks, {r['dups']} duplicates)"
-
-
-def case(name: str, scenario, budget: float, plain: bool = True) -> None:
-    cfg = H.Code57()
-    print(
-        f"\n({name}) {scenario.name}: {scenario.truth.shape[1]} targets, {scenario.n_scans} scans"
+    epoch = datetime(2024, 1, 1)
+    model = LinearGaussian(4, [0, 2], np.eye(2) * SIGMA**2)
+    predictor = KalmanPredictor(
+        CombinedLinearGaussianTransitionModel([ConstantVelocity(0.001), ConstantVelocity(0.001)])
     )
-    ours = time_native(scenario, cfg)
-    ours_ng = time_native(scenario, cfg, initiate_in_gates=False)
-    batch = time_batch(scenario, cfg)
-    drop = time_dropin(scenario, cfg)
-    drop_nh = time_dropin(scenario, cfg, hypotheses=False)
-    rows = []
-    refs = {}
-    for label, assoc in (("Stone Soup JPDA", "jpda"), ("Stone Soup JPDAwithEHM", "ehm")):
-        if assoc == "jpda" and not plain:
-            print(f"  {label:32s}  skipped (brute-force enumeration cannot finish)")
-            continue
-        r = time_stonesoup(scenario, cfg.with_(associator=assoc), budget)
-        refs[label] = r
-        rows.append((label, r))
-    for label, r in rows:
-        print(f"  {label:32s} {fmt_ss(r)}")
-    print(
-        f"  {'usvfast native step()':32s} {ours['ms']:9.3f} ms  ({ours['tracks']} tracks, "
-        f"{ours['dups']} duplicates)"
-    )
-    print(f"  {'usvfast native run() batch':32s} {batch:9.3f} ms")
-    print(
-        f"  {'usvfast native, initiate_in_gates=False':32s} {ours_ng['ms']:9.3f} ms  "
-        f"({ours_ng['tracks']} tracks, {ours_ng['dups']} duplicates)"
-    )
-    print(
-        f"  {'usvfast.stonesoup drop-in':32s} {drop['ms']:9.3f} ms  ({drop['tracks']} tracks, "
-        f"{drop['dups']} duplicates)"
-    )
-    print(f"  {'drop-in, hypotheses=False':32s} {drop_nh['ms']:9.3f} ms")
-    for label, r in refs.items():
-        if r["aborted"] is None and np.isfinite(r["ms"]):
-            print(
-                f"  ratio {label} / native: {r['ms'] / ours['ms']:8.0f}x   "
-                f"/ drop-in: {r['ms'] / drop['ms']:6.1f}x   tracks SS {r['tracks']} = drop-in "
-                f"{drop['tracks']}: {r['tracks'] == drop['tracks']}"
+    updater = KalmanUpdater(model)
+    assoc_cls = JPDAwithEHM if ehm else JPDA
+    tracker = MultiTargetMixtureTracker(
+        initiator=MultiMeasurementInitiator(
+            prior_state=GaussianState(np.zeros((4, 1)), np.diag([0, 0.3, 0, 0.3])),
+            measurement_model=model,
+            deleter=UpdateTimeStepsDeleter(3),
+            data_associator=GNNWith2DAssignment(
+                DistanceHypothesiser(predictor, updater, Mahalanobis(), missed_distance=0.3)
+            ),
+            updater=updater,
+            min_points=2,
+        ),
+        deleter=CompositeDeleter(
+            [CovarianceBasedDeleter(covar_trace_thresh=1.5), UpdateTimeStepsDeleter(35)],
+            intersect=False,
+        ),
+        detector=(
+            (
+                epoch + timedelta(seconds=t),
+                {Detection(zz.reshape(2, 1), timestamp=epoch + timedelta(seconds=t)) for zz in z},
             )
+            for t, z in scans
+        ),
+        data_associator=assoc_cls(
+            PDAHypothesiser(predictor, updater, clutter_spatial_density=0.125)
+        ),
+        updater=updater,
+    )
+    t0 = time.perf_counter()
+    tracks = set()
+    for _, tracks in tracker:  # noqa: B007 (the last set is the result)
+        pass
+    return (time.perf_counter() - t0) / len(scans), len(tracks)
 
 
-def scaling(sizes: list[int]) -> None:
-    print("\n(d) usvfast native, separated targets (20 m grid), 2 clutter plots per scan")
-    prev = None
-    for n in sizes:
-        sc = H.separated(n, seed=0, duration=10.0, clutter_rate=2.0)
-        r = time_native(sc, H.Code57())
-        per_target = r["ms"] / n * 1e3
-        growth = "" if prev is None else f"  x{r['ms'] / prev:.1f} for x10 targets"
-        prev = r["ms"]
-        print(
-            f"  {n:6d} targets: {r['ms']:9.3f} ms per scan ({per_target:6.2f} µs per target), "
-            f"{r['tracks']} tracks{growth}"
-        )
+def row(name, scans, peers):
+    t_ours, n_ours = ours(scans)
+    line = f"{name:<32} ours {t_ours * 1e3:9.3f} ms/scan ({n_ours} tracks)"
+    for label, ehm in peers:
+        t_ss, n_ss = stonesoup(scans, ehm)
+        line += f" | {label} {t_ss * 1e3:8.2f} ms ({n_ss}) x{t_ss / t_ours:,.0f}"
+    print(line, flush=True)
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--full", action="store_true", help="longer scenarios and 10k targets")
-    args = ap.parse_args()
-    dur = 80.0 if args.full else 40.0
-    budget = 120.0 if args.full else 30.0
-    case("a", H.separated(5, seed=0, duration=dur, clutter_rate=3.0), budget)
-    case("b", H.separated(20, seed=0, duration=dur, clutter_rate=3.0), budget)
-    case("c", H.parallel(8, spacing=0.3, seed=0, duration=dur), budget)
-    case("c", H.clustered(20, seed=0, duration=dur), budget, plain=False)
-    scaling([10, 100, 1000, 10000] if args.full else [10, 100, 1000])
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scans", type=int, default=15)
+    ap.add_argument("--full", action="store_true", help="also 10,000 targets")
+    a = ap.parse_args()
+    both = [("SS JPDA", False), ("SS EHM", True)]
+    row("(a) 5 separated + clutter", scenario(5, 100, a.scans, 3.0), both)
+    row("(b) 20 separated", scenario(20, 100, a.scans, 0.0), [("SS EHM", True)])
+    row("(c) 8 parallel 0.3 m", scenario(8, 0.3, a.scans, 0.0), both)
+    row("(c') 20 parallel 0.3 m", scenario(20, 0.3, a.scans, 0.0), [])
+    for n in [10, 100, 1000] + ([10_000] if a.full else []):
+        peers = [("SS EHM", True)] if n <= 100 else []
+        row(f"(d) {n} separated", scenario(n, 100, max(5, a.scans // (1 + n // 1000))), peers)
 
 
 if __name__ == "__main__":

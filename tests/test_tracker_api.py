@@ -183,6 +183,9 @@ def test_batch_run_equals_steps_and_histories_are_consistent():
         assert h.is_update[0]  # tentative phase starts with a detection
         np.testing.assert_allclose(h.states[-1], res.state[res.track_id == tid][-1])
         assert np.all(h.nis[h.is_update & (h.detection >= 0)][1:] >= 0)
+        df = h.to_dataframe()
+        assert len(df) == len(h.times)
+        np.testing.assert_array_equal(df["x2"].to_numpy(), h.states[:, 2])
 
 
 @settings(max_examples=15)
@@ -253,24 +256,32 @@ def test_m_of_n_confirmation():
 
 
 def test_initiate_outside_gates_avoids_duplicate_tracks():
-    # Two sensors see each target at once: Stone Soup's rule lets the weaker detection start
-    # a second track; withholding gated detections does not.
+    # Two sensors see each of 20 targets at once: Stone Soup's rule (detections whose marginal
+    # does not beat the missed one go to the initiator) starts duplicate tracks; withholding
+    # gated detections and checking new tracks against confirmed ones does not.
     rng = np.random.default_rng(3)
-    targets = np.array([[0.0, 0.0], [30.0, 0.0], [0.0, 30.0]])
+    n = 20
+    targets = np.column_stack([np.arange(n) % 5 * 30.0, np.arange(n) // 5 * 30.0])
     scans = []
-    for k in range(30):
+    for k in range(40):
         z = np.concatenate(
-            [targets + rng.normal(0, 0.25, (3, 2)), targets + rng.normal(0, 0.5, (3, 2))]
+            [targets + rng.normal(0, 0.25, (n, 2)), targets + rng.normal(0, 0.5, (n, 2))]
         )
-        scans.append((float(k), z, np.array([0, 0, 0, 1, 1, 1])))
+        scans.append((float(k), z, np.r_[np.zeros(n, int), np.ones(n, int)]))
     counts = {}
     for flag in (True, False):
         tracker = code57(T.JPDA(0.85, 0.95, 0.125), initiate_in_gates=flag)
         for t, z, s in scans:
             tracker.step(t, z, s)
         counts[flag] = len(tracker.tracks)
-    assert counts[False] == 3
-    assert counts[True] >= counts[False]
+        if not flag:
+            # One track per target, each near its target.
+            d = np.linalg.norm(tracker.tracks.states[:, None, [0, 2]] - targets[None], axis=2).min(
+                axis=0
+            )
+            assert np.all(d < 1.0)
+    assert counts[False] == n
+    assert counts[True] > n
 
 
 def test_time_order_and_dropping():

@@ -346,6 +346,33 @@ class TrackHistory:
     confirmed_time: float
     deleted_time: float
 
+    def to_dataframe(self) -> Any:
+        """The history as a pandas DataFrame, one row per entry: time, scan, is_update, sensor,
+        detection, nis, missed_probability, state columns x0..x{n-1} and the covariance
+        diagonal var0..var{n-1}. Needs pandas."""
+        try:
+            import pandas as pd
+        except ImportError as exc:  # pragma: no cover - depends on the environment
+            raise ImportError(
+                "TrackHistory.to_dataframe needs pandas (pip install pandas)"
+            ) from exc
+        cols: dict[str, Any] = {
+            "track_id": np.full(len(self.times), self.id),
+            "time": self.times,
+            "scan": self.scan,
+            "is_update": self.is_update,
+            "sensor": self.sensor,
+            "detection": self.detection,
+            "nis": self.nis,
+            "missed_probability": self.missed_probability,
+        }
+        diag = np.diagonal(self.covariances, axis1=1, axis2=2)
+        for i in range(self.states.shape[1]):
+            cols[f"x{i}"] = self.states[:, i]
+        for i in range(self.states.shape[1]):
+            cols[f"var{i}"] = diag[:, i]
+        return pd.DataFrame(cols)
+
     def association_probabilities(self, i: int) -> dict[int, float]:
         """{detection row: probability} hypothesised at entry i."""
         a, b = self.assoc_offsets[i], self.assoc_offsets[i + 1]

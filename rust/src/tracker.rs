@@ -343,16 +343,35 @@ fn posterior_cov(
     }
 }
 
-fn predict(
-    model: &MotionModel,
-    x: &DVector<f64>,
-    p: &DMatrix<f64>,
-    dt: f64,
-) -> (DVector<f64>, DMatrix<f64>) {
-    let (f, q) = model.matrices(dt);
-    let xp = &f * x;
-    let pp = &f * p * f.transpose() + q;
-    (xp, pp)
+/// Predicts every track to `t` (`x⁻ = F x`, `P⁻ = F P Fᵀ + Q`), computing `F`, `Q` once per
+/// distinct time step.
+fn predict_all(model: &MotionModel, tracks: &[Track], t: f64) -> Vec<(DVector<f64>, DMatrix<f64>)> {
+    // (dt bits, F, Fᵀ, Q)
+    type Step = (u64, DMatrix<f64>, DMatrix<f64>, DMatrix<f64>);
+    let mut cache: Vec<Step> = Vec::new();
+    tracks
+        .iter()
+        .map(|tr| {
+            let dt = t - tr.t;
+            let key = dt.to_bits();
+            let k = match cache.iter().position(|c| c.0 == key) {
+                Some(k) => k,
+                None if cache.len() >= 8 => {
+                    // Many distinct steps (tracks at scattered times): no caching.
+                    let (f, q) = model.matrices(dt);
+                    return (&f * &tr.x, &f * &tr.p * f.transpose() + q);
+                }
+                None => {
+                    let (f, q) = model.matrices(dt);
+                    let ft = f.transpose();
+                    cache.push((key, f, ft, q));
+                    cache.len() - 1
+                }
+            };
+            let (_, f, ft, q) = &cache[k];
+            (f * &tr.x, f * &tr.p * ft + q)
+        })
+        .collect()
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -615,11 +634,7 @@ impl Tracker {
         let m = self.m;
         let k = det_sensor.len();
         let ns = self.cfg.sensors.len();
-        let preds: Vec<(DVector<f64>, DMatrix<f64>)> = self
-            .tracks
-            .iter()
-            .map(|tr| predict(&self.cfg.motion_model, &tr.x, &tr.p, t - tr.t))
-            .collect();
+        let preds = predict_all(&self.cfg.motion_model, &self.tracks, t);
         let mut innov: Vec<Vec<Option<Innovation>>> = (0..preds.len())
             .map(|_| (0..ns).map(|_| None).collect())
             .collect();
@@ -908,7 +923,8 @@ impl Tracker {
 
 impl Tracker {
     /// Drops tentative tracks about to be confirmed whose position falls inside the gate of a
-    /// confirmed track or of a candidate accepted before them (native duplicate suppression).
+    /// confirmed track or of a candidate accepted before them (native duplicate suppression;
+    /// the gate is the association gate widened to at least χ²_m(0.9999)).
     fn without_duplicates(&self, cands: Vec<Track>) -> Result<Vec<Track>> {
         if cands.is_empty() {
             return Ok(cands);
@@ -921,10 +937,12 @@ impl Tracker {
                 Measure::SquaredMahalanobis => g.missed_distance,
             },
         };
+        // A generous gate: a candidate is a duplicate unless clearly outside (P = 0.9999).
+        let wide = chi2_quantile(0.9999, m)?;
         let gate = if gate.is_finite() {
-            gate
+            gate.max(wide)
         } else {
-            chi2_quantile(0.95, m)?
+            wide
         };
         // Each candidate as a pseudo-detection H x from the sensor of its last update.
         let sens: Vec<usize> = cands
@@ -1039,10 +1057,7 @@ fn gnn_step(
     dets: &[usize],
     scan: i64,
 ) -> Result<Vec<Option<usize>>> {
-    let preds: Vec<(DVector<f64>, DMatrix<f64>)> = tracks
-        .iter()
-        .map(|tr| predict(model, &tr.x, &tr.p, t - tr.t))
-        .collect();
+    let preds = predict_all(model, tracks, t);
     let mut innov: Vec<Vec<Option<Innovation>>> = (0..preds.len())
         .map(|_| (0..sensors.len()).map(|_| None).collect())
         .collect();
