@@ -231,6 +231,55 @@ def scaling(sizes: list[int]) -> None:
         )
 
 
+def joyride(path: str = "/work/shared/data/joyride/joyride.mat") -> None:
+    """Real radar (238 scans): Stone Soup JPDA with the issue's anchor parameters vs the same
+    configuration through the drop-in and the native run(), and the chosen native parameters."""
+    from usvfast.datasets import load_joyride
+
+    if not Path(path).is_file():
+        print(f"\n(joyride) skipped: {path} not found")
+        return
+    rec = load_joyride(path)
+    print(f"\n(joyride) real radar plots, {rec.n_scans} scans, 1-7 plots per scan")
+
+    def per_scan(it) -> float:
+        per = []
+        it = iter(it)
+        for _ in range(rec.n_scans):
+            t0 = time.perf_counter()
+            next(it)
+            per.append(time.perf_counter() - t0)
+        return float(np.mean(per) * 1e3)
+
+    ss, _ = H.build_stonesoup(H.JOYRIDE_ANCHOR, detector=H.joyride_scans(rec, H.JOYRIDE_SIGMA))
+    t_ss = per_scan(ss)
+    comp, _ = H.build_stonesoup(H.JOYRIDE_ANCHOR)
+    drop = us.MultiTargetMixtureTracker(
+        initiator=comp.initiator,
+        deleter=comp.deleter,
+        detector=H.joyride_scans(rec, H.JOYRIDE_SIGMA),
+        data_associator=comp.data_associator,
+        updater=comp.updater,
+    )
+    t_drop = per_scan(drop)
+    idx, plots = rec.scan_arrays()
+    times = rec.times - rec.times[0]
+    out = {}
+    for label, params in (
+        ("anchor", H.joyride_anchor_native_kwargs()),
+        ("chosen", H.JOYRIDE_NATIVE),
+    ):
+        tr = H.joyride_native(**params)
+        t0 = time.perf_counter()
+        tr.run(times, plots, np.zeros(len(plots), np.int64), idx)
+        out[label] = (time.perf_counter() - t0) / rec.n_scans * 1e3
+    print(f"  {'Stone Soup JPDA (anchor)':32s} {t_ss:9.3f} ms per scan (mean)")
+    print(f"  {'usvfast drop-in (anchor)':32s} {t_drop:9.3f} ms   {t_ss / t_drop:6.0f}x")
+    for label in ("anchor", "chosen"):
+        ms = out[label]
+        print(f"  {f'usvfast native run() ({label})':32s} {ms:9.4f} ms   {t_ss / ms:6.0f}x")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--full", action="store_true", help="longer scenarios and 10k targets")
@@ -241,6 +290,7 @@ def main() -> None:
     case("b", H.separated(20, seed=0, duration=dur, clutter_rate=3.0), budget)
     case("c", H.parallel(8, spacing=0.3, seed=0, duration=dur), budget)
     case("c", H.clustered(20, seed=0, duration=dur), budget, plain=False)
+    joyride()
     scaling([10, 100, 1000, 10000] if args.full else [10, 100, 1000])
 
 
