@@ -5,16 +5,21 @@
 //! Conventions (see `DESIGN.md`): SI units, radians, NED world frame, 2-D constant-velocity
 //! state `[n, v_n, e, v_e]`.
 
+pub mod assign;
 pub mod error;
 pub mod fastmath;
 pub mod frames;
+pub mod gating;
 pub mod geodesy;
 pub mod georef;
+pub mod jpda;
 pub mod kalman;
 pub mod line_of_sight;
 pub mod mean_shift;
 pub mod models;
 pub mod nms;
+pub mod track;
+pub mod tracker;
 
 #[cfg(feature = "python")]
 pub mod py;

@@ -9,6 +9,7 @@ mod frames;
 mod geodesy;
 mod kalman;
 mod lidar;
+mod tracker;
 
 pub use errors::to_py_err;
 
@@ -22,5 +23,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     kalman::register(m)?;
     lidar::register(m)?;
     camera::register(m)?;
+    tracker::register(m)?;
     Ok(())
 }

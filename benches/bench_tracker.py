@@ -1,0 +1,152 @@
+"""Per-scan time of the usvfast tracker vs Stone Soup (same scenario, same process).
+
+Code 5.7 configuration (CV q = 0.001, JPDA P_D 0.85 / P_G 0.95 / λ 0.125, GNN initiator with
+missed distance 0.3, covariance-trace + steps deleters), one position sensor σ = 0.25 m:
+(a) 5 well-separated targets with clutter, (b) 20 separated targets, (c) 8 targets in parallel
+0.3 m apart (inside each other's gates), (d) scaling 10 … 10,000 separated targets (ours; Stone
+Soup's EHM up to 100). Stone Soup runs JPDA (where it finishes) and JPDAwithEHM (pyehm's
+algorithm in Stone Soup). Run: `python benches/bench_tracker.py [--scans N] [--full]`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from datetime import datetime, timedelta
+
+import numpy as np
+
+from usvfast import tracking as T
+from usvfast.kalman import constant_velocity_2d
+
+SIGMA = 0.25
+
+
+def scenario(n, spacing, n_scans, clutter=0.0, seed=0):
+    """Targets on a grid (or in a row when spacing < 1 m) at (0, 0.2) m/s, scans 1 s apart."""
+    rng = np.random.default_rng(seed)
+    side = int(np.ceil(np.sqrt(n)))
+    if spacing < 1:
+        pos = np.column_stack([np.arange(n) * spacing, np.zeros(n)])
+    else:
+        pos = np.column_stack([np.arange(n) % side, np.arange(n) // side]) * spacing
+    extent = pos.max(axis=0) + 10
+    scans = []
+    for k in range(1, n_scans + 1):
+        truth = pos + np.array([0.0, 0.2 * k])
+        seen = rng.random(n) < 0.95
+        z = truth[seen] + rng.normal(0, SIGMA, (seen.sum(), 2))
+        c = rng.uniform([-10.0, -10.0], extent, (rng.poisson(clutter), 2))
+        z = np.concatenate([z, c]) if len(c) else z
+        scans.append((float(k), z))
+    return scans
+
+
+def ours(scans):
+    tracker = T.Tracker(
+        motion_model=constant_velocity_2d(0.001),
+        sensors=[T.Sensor.position(SIGMA)],
+        association=T.JPDA(0.85, 0.95, 0.125),
+        deleter=T.AnyOf(T.CovarianceTrace(1.5), T.StepsSinceUpdate(35)),
+        initiator=T.MultiMeasurementInitiator(
+            np.zeros(4),
+            np.diag([0, 0.3, 0, 0.3]),
+            min_points=2,
+            deleter=T.StepsSinceUpdate(3),
+            missed_distance=0.3,
+        ),
+    )
+    t0 = time.perf_counter()
+    for t, z in scans:
+        out = tracker.step(t, z, np.zeros(len(z), dtype=np.int64))
+    return (time.perf_counter() - t0) / len(scans), len(out)
+
+
+def stonesoup(scans, ehm):
+    from stonesoup.dataassociator.neighbour import GNNWith2DAssignment
+    from stonesoup.dataassociator.probability import JPDA, JPDAwithEHM
+    from stonesoup.deleter.error import CovarianceBasedDeleter
+    from stonesoup.deleter.multi import CompositeDeleter
+    from stonesoup.deleter.time import UpdateTimeStepsDeleter
+    from stonesoup.hypothesiser.distance import DistanceHypothesiser
+    from stonesoup.hypothesiser.probability import PDAHypothesiser
+    from stonesoup.initiator.simple import MultiMeasurementInitiator
+    from stonesoup.measures import Mahalanobis
+    from stonesoup.models.measurement.linear import LinearGaussian
+    from stonesoup.models.transition.linear import (
+        CombinedLinearGaussianTransitionModel,
+        ConstantVelocity,
+    )
+    from stonesoup.predictor.kalman import KalmanPredictor
+    from stonesoup.tracker.simple import MultiTargetMixtureTracker
+    from stonesoup.types.detection import Detection
+    from stonesoup.types.state import GaussianState
+    from stonesoup.updater.kalman import KalmanUpdater
+
+    epoch = datetime(2024, 1, 1)
+    model = LinearGaussian(4, [0, 2], np.eye(2) * SIGMA**2)
+    predictor = KalmanPredictor(
+        CombinedLinearGaussianTransitionModel([ConstantVelocity(0.001), ConstantVelocity(0.001)])
+    )
+    updater = KalmanUpdater(model)
+    assoc_cls = JPDAwithEHM if ehm else JPDA
+    tracker = MultiTargetMixtureTracker(
+        initiator=MultiMeasurementInitiator(
+            prior_state=GaussianState(np.zeros((4, 1)), np.diag([0, 0.3, 0, 0.3])),
+            measurement_model=model,
+            deleter=UpdateTimeStepsDeleter(3),
+            data_associator=GNNWith2DAssignment(
+                DistanceHypothesiser(predictor, updater, Mahalanobis(), missed_distance=0.3)
+            ),
+            updater=updater,
+            min_points=2,
+        ),
+        deleter=CompositeDeleter(
+            [CovarianceBasedDeleter(covar_trace_thresh=1.5), UpdateTimeStepsDeleter(35)],
+            intersect=False,
+        ),
+        detector=(
+            (
+                epoch + timedelta(seconds=t),
+                {Detection(zz.reshape(2, 1), timestamp=epoch + timedelta(seconds=t)) for zz in z},
+            )
+            for t, z in scans
+        ),
+        data_associator=assoc_cls(
+            PDAHypothesiser(predictor, updater, clutter_spatial_density=0.125)
+        ),
+        updater=updater,
+    )
+    t0 = time.perf_counter()
+    tracks = set()
+    for _, tracks in tracker:  # noqa: B007 (the last set is the result)
+        pass
+    return (time.perf_counter() - t0) / len(scans), len(tracks)
+
+
+def row(name, scans, peers):
+    t_ours, n_ours = ours(scans)
+    line = f"{name:<32} ours {t_ours * 1e3:9.3f} ms/scan ({n_ours} tracks)"
+    for label, ehm in peers:
+        t_ss, n_ss = stonesoup(scans, ehm)
+        line += f" | {label} {t_ss * 1e3:8.2f} ms ({n_ss}) x{t_ss / t_ours:,.0f}"
+    print(line, flush=True)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scans", type=int, default=15)
+    ap.add_argument("--full", action="store_true", help="also 10,000 targets")
+    a = ap.parse_args()
+    both = [("SS JPDA", False), ("SS EHM", True)]
+    row("(a) 5 separated + clutter", scenario(5, 100, a.scans, 3.0), both)
+    row("(b) 20 separated", scenario(20, 100, a.scans, 0.0), [("SS EHM", True)])
+    row("(c) 8 parallel 0.3 m", scenario(8, 0.3, a.scans, 0.0), both)
+    row("(c') 20 parallel 0.3 m", scenario(20, 0.3, a.scans, 0.0), [])
+    for n in [10, 100, 1000] + ([10_000] if a.full else []):
+        peers = [("SS EHM", True)] if n <= 100 else []
+        row(f"(d) {n} separated", scenario(n, 100, max(5, a.scans // (1 + n // 1000))), peers)
+
+
+if __name__ == "__main__":
+    main()

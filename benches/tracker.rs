@@ -1,0 +1,194 @@
+//! Criterion benchmark of one tracker scan in steady state (Code 5.7 configuration: CV
+//! q = 0.001, position sensor σ = 0.25 m, JPDA P_D 0.85, P_G 0.95, λ = 0.125, EHM):
+//! separated targets (5, 20, and 10 … 10,000 for scaling — time must grow about linearly) and
+//! targets moving in parallel 0.3 m apart, inside each other's gates (8 and 20).
+use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
+use nalgebra::{DMatrix, DVector};
+use std::hint::black_box;
+use usvfast_core::jpda::Method;
+use usvfast_core::models::MotionModel;
+use usvfast_core::track::Deleter;
+use usvfast_core::tracker::{
+    Association, Confirmation, GnnParams, InitiatorConfig, JpdaParams, Measure, OutOfOrder, Sensor,
+    Tracker, TrackerConfig,
+};
+
+struct Lcg(u64);
+impl Lcg {
+    fn uniform(&mut self) -> f64 {
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (self.0 >> 11) as f64 / (1u64 << 53) as f64
+    }
+    fn normal(&mut self) -> f64 {
+        let (u, v) = (self.uniform().max(1e-300), self.uniform());
+        (-2.0 * u.ln()).sqrt() * (2.0 * std::f64::consts::PI * v).cos()
+    }
+}
+
+fn config() -> TrackerConfig {
+    let h = DMatrix::from_row_slice(2, 4, &[1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0]);
+    let r = DMatrix::identity(2, 2) * 0.0625;
+    TrackerConfig {
+        motion_model: MotionModel::constant_velocity_2d(0.001).unwrap(),
+        sensors: vec![Sensor::new(h, r, None, 4, "sensors[0]").unwrap()],
+        association: Association::Jpda(JpdaParams {
+            prob_detect: 0.85,
+            prob_gate: 0.95,
+            clutter_density: Some(0.125),
+            include_all: false,
+            method: Method::Ehm,
+        }),
+        use_joseph_cov: false,
+        deleter: Deleter::Composite {
+            deleters: vec![
+                Deleter::CovarianceTrace {
+                    threshold: 1.5,
+                    mapping: None,
+                },
+                Deleter::StepsSinceUpdate(35),
+            ],
+            intersect: false,
+        },
+        delete_last_prediction: false,
+        initiator: InitiatorConfig {
+            prior_state: DVector::zeros(4),
+            prior_covariance: DMatrix::from_diagonal(&DVector::from_vec(vec![0.0, 0.3, 0.0, 0.3])),
+            diag_load: 0.0,
+            confirmation: Confirmation::MinPoints {
+                min_points: 2,
+                updates_only: true,
+            },
+            deleter: Deleter::StepsSinceUpdate(3),
+            gnn: GnnParams {
+                measure: Measure::Mahalanobis,
+                missed_distance: 0.3,
+                include_all: false,
+            },
+            motion_model: None,
+            use_joseph_cov: false,
+        },
+        out_of_order: OutOfOrder::Raise,
+        initiate_in_gates: true,
+    }
+}
+
+/// Targets (on a grid `spacing` metres apart, or in a row when `spacing` < 1 m) moving at
+/// (0, 0.2) m/s, and a tracker holding one confirmed track per target.
+struct Scene {
+    tracker: Tracker,
+    pos: Vec<(f64, f64)>,
+    noise: Vec<f64>,
+    t: f64,
+    k: usize,
+    z: Vec<f64>,
+    s: Vec<usize>,
+}
+
+const NOISE_SCANS: usize = 64;
+const VEL: (f64, f64) = (0.0, 0.2);
+
+impl Scene {
+    fn new(n: usize, spacing: f64) -> Self {
+        let mut rng = Lcg(42);
+        let side = (n as f64).sqrt().ceil() as usize;
+        let pos: Vec<(f64, f64)> = (0..n)
+            .map(|i| {
+                if spacing < 1.0 {
+                    (i as f64 * spacing, 0.0)
+                } else {
+                    ((i % side) as f64 * spacing, (i / side) as f64 * spacing)
+                }
+            })
+            .collect();
+        let mut tracker = Tracker::new(config()).unwrap();
+        let p0 = [
+            0.05, 0.0, 0.0, 0.0, 0.0, 0.01, 0.0, 0.0, 0.0, 0.0, 0.05, 0.0, 0.0, 0.0, 0.0, 0.01,
+        ];
+        for &(x, y) in &pos {
+            tracker.add_track(&[x, VEL.0, y, VEL.1], &p0, 0.0).unwrap();
+        }
+        let noise = (0..NOISE_SCANS * n * 2)
+            .map(|_| 0.25 * rng.normal())
+            .collect();
+        let mut scene = Scene {
+            tracker,
+            pos,
+            noise,
+            t: 0.0,
+            k: 0,
+            z: Vec::with_capacity(2 * n),
+            s: vec![0; n],
+        };
+        for _ in 0..5 {
+            scene.step();
+        }
+        scene
+    }
+
+    /// The next scan: one detection per target, 1 s later.
+    fn step(&mut self) {
+        self.t += 1.0;
+        let n = self.pos.len();
+        let off = (self.k % NOISE_SCANS) * n * 2;
+        self.k += 1;
+        self.z.clear();
+        for (i, &(x, y)) in self.pos.iter().enumerate() {
+            self.z.push(x + VEL.0 * self.t + self.noise[off + 2 * i]);
+            self.z
+                .push(y + VEL.1 * self.t + self.noise[off + 2 * i + 1]);
+        }
+        self.tracker
+            .step(self.t, black_box(&self.z), &self.s)
+            .unwrap();
+    }
+}
+
+fn bench_scan(c: &mut Criterion) {
+    let mut g = c.benchmark_group("tracker_scan");
+    g.sample_size(10);
+    let cases: Vec<(&str, usize, f64)> = vec![
+        ("separated_5", 5, 100.0),
+        ("separated_20", 20, 100.0),
+        ("parallel_0.3m_8", 8, 0.3),
+        ("parallel_0.3m_20", 20, 0.3),
+        ("scaling_10", 10, 100.0),
+        ("scaling_100", 100, 100.0),
+        ("scaling_1000", 1000, 100.0),
+        ("scaling_10000", 10_000, 100.0),
+    ];
+    for (name, n, spacing) in cases {
+        // Five scans from tracks started at the truth, then time the sixth scan on a fresh
+        // copy each iteration (steady state without the slow coalescence of tracks that stay
+        // inside each other's gates for hundreds of scans).
+        let scene = Scene::new(n, spacing);
+        g.bench_function(name, |b| {
+            b.iter_batched(
+                || {
+                    let mut s = Scene {
+                        tracker: scene.tracker.clone(),
+                        pos: scene.pos.clone(),
+                        noise: scene.noise.clone(),
+                        t: scene.t,
+                        k: scene.k,
+                        z: scene.z.clone(),
+                        s: scene.s.clone(),
+                    };
+                    s.tracker.reserve_history(8);
+                    s
+                },
+                |mut s| {
+                    s.step();
+                    s
+                },
+                BatchSize::LargeInput,
+            )
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, bench_scan);
+criterion_main!(benches);

@@ -1,0 +1,565 @@
+"""Multi-target tracking (JPDA or GNN) with a multi-measurement initiator, in one Rust core.
+
+The tracker reproduces Stone Soup's ``MultiTargetMixtureTracker`` + ``JPDA`` (or
+``JPDAwithEHM``) + ``PDAHypothesiser`` and ``MultiTargetTracker`` + ``GNNWith2DAssignment`` +
+``DistanceHypothesiser``, with ``MultiMeasurementInitiator`` and the Stone Soup deleters, step
+for step (same births, deaths and states), only much faster. Each step at scan time ``t``:
+
+1. predict every confirmed track to ``t``;
+2. JPDA: gate each (track, detection) pair with the detection's own sensor model,
+   ``yᵀ S⁻¹ y <= chi2.ppf(prob_gate, m)``; PDA weights ``1 − P_D P_G`` (missed) and
+   ``N(z; H x⁻, S) P_D / λ`` (detections); exact joint marginals per cluster of tracks sharing
+   detections (EHM, or brute force); moment-matched mixture of the prediction and the Kalman
+   updates. The new state counts as an update when some detection's marginal beats the missed
+   one, and those detections are not offered to the initiator.
+   GNN: Mahalanobis distances, detections beyond ``missed_distance`` dropped, an optimal
+   assignment in which a miss costs ``missed_distance``;
+3. delete confirmed tracks (``deleter``);
+4. the initiator GNN-associates its tentative tracks with the detections left, confirms those
+   with ``min_points`` updates (or M of N), drops those its own deleter deletes, and starts a
+   tentative track on every detection still left.
+
+Native API (stable; the Stone Soup drop-in builds on it)::
+
+    import numpy as np
+    from usvfast.kalman import constant_velocity_2d
+    from usvfast.tracking import (JPDA, MultiMeasurementInitiator, Sensor, StepsSinceUpdate,
+                                  CovarianceTrace, AnyOf, Tracker)
+
+    lidar = Sensor.position(noise_std=0.25)          # H maps [n, v_n, e, v_e] -> [n, e]
+    camera = Sensor.position(noise_std=0.5)
+    tracker = Tracker(
+        motion_model=constant_velocity_2d(0.001),
+        sensors=[lidar, camera],
+        association=JPDA(prob_detect=0.85, prob_gate=0.95, clutter_density=0.125),
+        deleter=AnyOf(CovarianceTrace(1.5), StepsSinceUpdate(35)),
+        initiator=MultiMeasurementInitiator(
+            prior_state=np.zeros(4), prior_covariance=np.diag([0, 0.3, 0, 0.3]),
+            min_points=2, deleter=StepsSinceUpdate(3), missed_distance=0.3),
+    )
+    tracks = tracker.step(t, measurements, sensor_ids)   # (k, 2) metres, (k,) ints
+    tracks.ids, tracks.states, tracks.covariances
+    tracker.history(tracks.ids[0]).states               # every state, incl. tentative phase
+    result = tracker.run(times, measurements, sensor_ids, scan_index)   # whole recording
+
+Units SI, state ``[n, v_n, e, v_e]`` (NED metres, m/s) for the 2-D model; times float seconds
+(use times relative to a recent epoch for sub-microsecond ``dt``). All detections of a scan
+share the scan time and are associated jointly. Scans must come in time order: an older scan
+raises ``TimeOrderError`` (or is dropped and counted with ``out_of_order="drop"``); equal times
+are allowed; an empty scan only predicts.
+
+Differences from Stone Soup to know: all sensors share one measurement dimension; detections
+of a scan have the scan's time; GNN is distance-based only (Mahalanobis or squared). The
+native option ``initiate_in_gates=False`` avoids Stone Soup's duplicate tracks on one target:
+it withholds from the initiator every detection inside a confirmed track's gate, and drops a
+tentative track about to be confirmed when its position lies inside the gate of a confirmed
+track (or of one confirmed before it in the same scan).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+
+from usvfast import _core
+from usvfast._validate import as_float_array
+from usvfast.kalman import MotionModel, model_spec
+
+__all__ = [
+    "GNN",
+    "JPDA",
+    "AllOf",
+    "AnyOf",
+    "CovarianceTrace",
+    "MultiMeasurementInitiator",
+    "NeverDelete",
+    "RunResult",
+    "Sensor",
+    "StepsSinceUpdate",
+    "TimeSinceUpdate",
+    "TrackHistory",
+    "Tracker",
+    "Tracks",
+]
+
+
+@dataclass(frozen=True)
+class Sensor:
+    """A linear-Gaussian sensor: z = H x + w, w ~ N(0, R).
+
+    measurement_matrix H: (m, ndim); measurement_noise R: (m, m), symmetric positive definite,
+    in measurement units squared. `initiation_matrix`/`initiation_noise` (default: the same)
+    are the model the initiator uses to start tracks from this sensor's detections (Stone
+    Soup's initiator `measurement_model` for detections without their own model).
+    """
+
+    measurement_matrix: Any
+    measurement_noise: Any
+    initiation_matrix: Any = None
+    initiation_noise: Any = None
+
+    @classmethod
+    def position(
+        cls,
+        noise_std: float | Sequence[float],
+        *,
+        ndim_state: int = 4,
+        mapping: Sequence[int] = (0, 2),
+    ) -> Sensor:
+        """A position sensor measuring the `mapping` entries of the state (default [n, e] of
+        [n, v_n, e, v_e]) with standard deviation `noise_std` (scalar or one per axis)."""
+        std = np.broadcast_to(np.asarray(noise_std, dtype=float), (len(mapping),))
+        h = np.zeros((len(mapping), ndim_state))
+        h[np.arange(len(mapping)), list(mapping)] = 1.0
+        return cls(h, np.diag(std**2))
+
+
+@dataclass(frozen=True)
+class JPDA:
+    """JPDA association with PDA hypotheses (Stone Soup `PDAHypothesiser` + `JPDA`).
+
+    prob_detect P_D and prob_gate P_G in (0, 1]; clutter_density λ > 0 per unit measurement
+    volume (m⁻² for 2-D positions), or None for Stone Soup's estimate from the gate volume;
+    include_all keeps detections outside the gate (needs clutter_density); method "ehm"
+    (exact, fast) or "brute_force" (exact, exponential).
+    """
+
+    prob_detect: float = 0.85
+    prob_gate: float = 0.95
+    clutter_density: float | None = None
+    include_all: bool = False
+    method: Literal["ehm", "brute_force"] = "ehm"
+
+    def _spec(self) -> dict[str, Any]:
+        return {
+            "kind": "jpda",
+            "prob_detect": float(self.prob_detect),
+            "prob_gate": float(self.prob_gate),
+            "clutter_density": None
+            if self.clutter_density is None
+            else float(self.clutter_density),
+            "include_all": bool(self.include_all),
+            "method": self.method,
+        }
+
+
+@dataclass(frozen=True)
+class GNN:
+    """Global nearest neighbour with an optimal assignment (Stone Soup `DistanceHypothesiser`
+    + `GNNWith2DAssignment`): detections at distance >= missed_distance are not hypothesised
+    (unless include_all) and a missed detection costs missed_distance. measure
+    "mahalanobis" or "squared_mahalanobis"."""
+
+    missed_distance: float = float("inf")
+    measure: Literal["mahalanobis", "squared_mahalanobis"] = "mahalanobis"
+    include_all: bool = False
+
+    def _spec(self) -> dict[str, Any]:
+        return {
+            "kind": "gnn",
+            "measure": self.measure,
+            "missed_distance": float(self.missed_distance),
+            "include_all": bool(self.include_all),
+        }
+
+
+@dataclass(frozen=True)
+class StepsSinceUpdate:
+    """Delete after more than `steps` distinct timestamps without an update
+    (Stone Soup `UpdateTimeStepsDeleter(time_steps_since_update=steps)`)."""
+
+    steps: int
+
+    def _spec(self) -> tuple:
+        if int(self.steps) < 0:
+            raise ValueError(f"steps: must be >= 0, got {self.steps}")
+        return ("steps", int(self.steps))
+
+
+@dataclass(frozen=True)
+class TimeSinceUpdate:
+    """Delete when no update lies within `seconds` of the newest state
+    (Stone Soup `UpdateTimeDeleter`)."""
+
+    seconds: float
+
+    def _spec(self) -> tuple:
+        return ("time", float(self.seconds))
+
+
+@dataclass(frozen=True)
+class CovarianceTrace:
+    """Delete when the covariance trace (over `mapping` indices, default all) exceeds
+    `threshold` (Stone Soup `CovarianceBasedDeleter`)."""
+
+    threshold: float
+    mapping: Sequence[int] | None = None
+
+    def _spec(self) -> tuple:
+        m = None if self.mapping is None else [int(i) for i in self.mapping]
+        return ("trace", float(self.threshold), m)
+
+
+@dataclass(frozen=True, init=False)
+class AnyOf:
+    """Delete when any of the deleters would (CompositeDeleter(intersect=False))."""
+
+    deleters: tuple
+
+    def __init__(self, *deleters: Any) -> None:
+        object.__setattr__(self, "deleters", tuple(deleters))
+
+    def _spec(self) -> tuple:
+        return ("any", [_deleter_spec(d) for d in self.deleters])
+
+
+@dataclass(frozen=True, init=False)
+class AllOf:
+    """Delete when all of the deleters would (CompositeDeleter(intersect=True))."""
+
+    deleters: tuple
+
+    def __init__(self, *deleters: Any) -> None:
+        object.__setattr__(self, "deleters", tuple(deleters))
+
+    def _spec(self) -> tuple:
+        return ("all", [_deleter_spec(d) for d in self.deleters])
+
+
+@dataclass(frozen=True)
+class NeverDelete:
+    """Never delete."""
+
+    def _spec(self) -> tuple:
+        return ("never",)
+
+
+Deleter = StepsSinceUpdate | TimeSinceUpdate | CovarianceTrace | AnyOf | AllOf | NeverDelete
+
+
+def _deleter_spec(d: Any) -> tuple:
+    if not isinstance(
+        d, StepsSinceUpdate | TimeSinceUpdate | CovarianceTrace | AnyOf | AllOf | NeverDelete
+    ):
+        raise TypeError(f"deleter: unsupported deleter {d!r}")
+    return d._spec()
+
+
+@dataclass(frozen=True)
+class MultiMeasurementInitiator:
+    """Tentative tracks, GNN-associated with their own gate, confirmed after `min_points`
+    updates (Stone Soup `MultiMeasurementInitiator`), or M of their first N states with
+    `m_of_n=(M, N)`.
+
+    prior_state (ndim,) and prior_covariance (ndim, ndim): the entries a sensor measures are
+    replaced by H⁺ z and H⁺ R H⁺ᵀ. deleter drops tentative tracks (ignored with m_of_n).
+    missed_distance/measure/include_all: the tentative tracks' `DistanceHypothesiser`.
+    motion_model: the initiator predictor's model (default: the tracker's).
+    """
+
+    prior_state: Any
+    prior_covariance: Any
+    min_points: int = 2
+    deleter: Any = field(default_factory=lambda: StepsSinceUpdate(3))
+    missed_distance: float = float("inf")
+    measure: Literal["mahalanobis", "squared_mahalanobis"] = "mahalanobis"
+    include_all: bool = False
+    updates_only: bool = True
+    diag_load: float = 0.0
+    m_of_n: tuple[int, int] | None = None
+    motion_model: MotionModel | None = None
+    use_joseph_cov: bool = False
+
+    def _spec(self) -> dict[str, Any]:
+        pc = as_float_array("prior_covariance", self.prior_covariance, ndim=2)
+        return {
+            "prior_state": [
+                float(v) for v in as_float_array("prior_state", self.prior_state).ravel()
+            ],
+            "prior_covariance": pc,
+            "min_points": _non_negative_int("min_points", self.min_points),
+            "updates_only": bool(self.updates_only),
+            "deleter": _deleter_spec(self.deleter),
+            "missed_distance": float(self.missed_distance),
+            "measure": self.measure,
+            "include_all": bool(self.include_all),
+            "diag_load": float(self.diag_load),
+            "m_of_n": None
+            if self.m_of_n is None
+            else tuple(_non_negative_int("m_of_n", v) for v in self.m_of_n),
+            "motion_model": None if self.motion_model is None else model_spec(self.motion_model),
+            "use_joseph_cov": bool(self.use_joseph_cov),
+        }
+
+
+def _non_negative_int(name: str, v: Any) -> int:
+    if isinstance(v, bool) or int(v) != v or int(v) < 0:
+        raise ValueError(f"{name}: must be a non-negative integer, got {v!r}")
+    return int(v)
+
+
+@dataclass(frozen=True)
+class Tracks:
+    """Confirmed tracks after a step: ids (k,), times (k,) of the current states, states
+    (k, ndim), covariances (k, ndim, ndim), is_update (k,) whether the last state was an
+    update, n_updates (k,)."""
+
+    ids: np.ndarray
+    times: np.ndarray
+    states: np.ndarray
+    covariances: np.ndarray
+    is_update: np.ndarray
+    n_updates: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+
+@dataclass(frozen=True)
+class TrackHistory:
+    """Every state of one track (k entries, the tentative phase included).
+
+    times (k,); states (k, ndim); covariances (k, ndim, ndim); is_update (k,); scan (k,) the
+    0-based count of processed steps; sensor (k,) and detection (k,) of the most probable
+    detection of an update (row in its scan's measurements), −1 otherwise; nis (k,) of that
+    detection, NaN otherwise; missed_probability (k,); association probabilities of the
+    hypothesised detections of entry i: assoc_detection/assoc_probability[
+    assoc_offsets[i]:assoc_offsets[i+1]]. confirmed_time / deleted_time (NaN if alive).
+    """
+
+    id: int
+    times: np.ndarray
+    states: np.ndarray
+    covariances: np.ndarray
+    is_update: np.ndarray
+    scan: np.ndarray
+    sensor: np.ndarray
+    detection: np.ndarray
+    nis: np.ndarray
+    missed_probability: np.ndarray
+    assoc_offsets: np.ndarray
+    assoc_detection: np.ndarray
+    assoc_probability: np.ndarray
+    confirmed_time: float
+    deleted_time: float
+
+    def to_dataframe(self) -> Any:
+        """The history as a pandas DataFrame, one row per entry: time, scan, is_update, sensor,
+        detection, nis, missed_probability, state columns x0..x{n-1} and the covariance
+        diagonal var0..var{n-1}. Needs pandas."""
+        try:
+            import pandas as pd
+        except ImportError as exc:  # pragma: no cover - depends on the environment
+            raise ImportError(
+                "TrackHistory.to_dataframe needs pandas (pip install pandas)"
+            ) from exc
+        cols: dict[str, Any] = {
+            "track_id": np.full(len(self.times), self.id),
+            "time": self.times,
+            "scan": self.scan,
+            "is_update": self.is_update,
+            "sensor": self.sensor,
+            "detection": self.detection,
+            "nis": self.nis,
+            "missed_probability": self.missed_probability,
+        }
+        diag = np.diagonal(self.covariances, axis1=1, axis2=2)
+        for i in range(self.states.shape[1]):
+            cols[f"x{i}"] = self.states[:, i]
+        for i in range(self.states.shape[1]):
+            cols[f"var{i}"] = diag[:, i]
+        return pd.DataFrame(cols)
+
+    def association_probabilities(self, i: int) -> dict[int, float]:
+        """{detection row: probability} hypothesised at entry i."""
+        a, b = self.assoc_offsets[i], self.assoc_offsets[i + 1]
+        return dict(
+            zip(
+                self.assoc_detection[a:b].tolist(),
+                self.assoc_probability[a:b].tolist(),
+                strict=True,
+            )
+        )
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """Confirmed tracks after every scan of a batch run, one row per (scan, track):
+    scan (r,), track_id (r,), time (r,), state (r, ndim), covariance (r, ndim, ndim),
+    is_update (r,); dropped_scans: indices of scans dropped as out of order."""
+
+    scan: np.ndarray
+    track_id: np.ndarray
+    time: np.ndarray
+    state: np.ndarray
+    covariance: np.ndarray
+    is_update: np.ndarray
+    dropped_scans: np.ndarray
+
+
+class Tracker:
+    """Multi-target tracker (see the module docstring for the step and the parameters).
+
+    motion_model: usvfast.kalman components (e.g. constant_velocity_2d(q)); sensors: list of
+    `Sensor` (all with the same measurement dimension); association: `JPDA(...)` or `GNN(...)`;
+    deleter of confirmed tracks; initiator: `MultiMeasurementInitiator`; use_joseph_cov:
+    Joseph-form covariance update (Stone Soup's default is P − K S Kᵀ); delete_last_prediction:
+    Stone Soup's `delete_last_pred`; out_of_order: "raise" (TimeOrderError) or "drop";
+    initiate_in_gates: see the module docstring.
+
+    Raises ValueError subclasses naming the argument on bad shapes (DimensionError), NaN/inf
+    (NonFiniteError), non-positive-definite noise (NotPositiveDefiniteError) or probabilities
+    outside (0, 1] (ValueError).
+    """
+
+    def __init__(
+        self,
+        *,
+        motion_model: MotionModel,
+        sensors: Sequence[Sensor],
+        association: JPDA | GNN,
+        deleter: Any,
+        initiator: MultiMeasurementInitiator,
+        use_joseph_cov: bool = False,
+        delete_last_prediction: bool = False,
+        out_of_order: Literal["raise", "drop"] = "raise",
+        initiate_in_gates: bool = True,
+    ) -> None:
+        if not isinstance(association, JPDA | GNN):
+            raise TypeError(f"association: expected JPDA or GNN, got {association!r}")
+        if not isinstance(initiator, MultiMeasurementInitiator):
+            raise TypeError(f"initiator: expected MultiMeasurementInitiator, got {initiator!r}")
+        if isinstance(sensors, Sensor):
+            sensors = [sensors]
+        specs = []
+        for i, s in enumerate(sensors):
+            if not isinstance(s, Sensor):
+                raise TypeError(f"sensors[{i}]: expected Sensor, got {s!r}")
+            opt = [
+                None if a is None else as_float_array(f"sensors[{i}].{name}", a, ndim=2)
+                for name, a in (
+                    ("initiation_matrix", s.initiation_matrix),
+                    ("initiation_noise", s.initiation_noise),
+                )
+            ]
+            specs.append(
+                (
+                    as_float_array(f"sensors[{i}].measurement_matrix", s.measurement_matrix, 2),
+                    as_float_array(f"sensors[{i}].measurement_noise", s.measurement_noise, 2),
+                    *opt,
+                )
+            )
+        self.sensors = tuple(sensors)
+        self._ndim = sum(
+            {"random_walk": 1, "constant_velocity": 2, "constant_acceleration": 3}[k]
+            for k, _ in model_spec(motion_model)
+        )
+        self._m = specs[0][0].shape[0] if specs else 0
+        self._core = _core.TrackerCore(
+            model_spec(motion_model),
+            specs,
+            association._spec(),
+            _deleter_spec(deleter),
+            initiator._spec(),
+            use_joseph_cov=bool(use_joseph_cov),
+            delete_last_prediction=bool(delete_last_prediction),
+            out_of_order=out_of_order,
+            initiate_in_gates=bool(initiate_in_gates),
+        )
+
+    def _detections(self, measurements: Any, sensor_ids: Any) -> tuple[np.ndarray, np.ndarray]:
+        z = as_float_array("measurements", measurements)
+        if z.size == 0:
+            z = z.reshape(0, self._m)
+        if z.ndim == 1 and self._m == 1:
+            z = z.reshape(-1, 1)
+        if z.ndim != 2 or z.shape[1] != self._m:
+            raise _core.DimensionError(
+                f"measurements: expected shape (k, {self._m}), got {z.shape}"
+            )
+        if sensor_ids is None:
+            ids = np.zeros(len(z), dtype=np.int64)
+        else:
+            ids = np.asarray(sensor_ids)
+            if ids.ndim == 0:
+                ids = np.full(len(z), int(ids), dtype=np.int64)
+            if ids.size == 0:
+                ids = ids.astype(np.int64)
+            if ids.dtype.kind not in "iu":
+                raise TypeError(f"sensor_ids: expected integers, got dtype {ids.dtype}")
+            ids = np.ascontiguousarray(ids, dtype=np.int64)
+            if ids.shape != (len(z),):
+                raise _core.DimensionError(
+                    f"sensor_ids: expected shape ({len(z)},), got {ids.shape}"
+                )
+        return z, ids
+
+    def step(self, t: float, measurements: Any = (), sensor_ids: Any = None) -> Tracks:
+        """Process the scan at time `t` (seconds): measurements (k, m), sensor_ids (k,) ints
+        (default: all sensor 0; a scalar applies to all). Returns the confirmed tracks."""
+        z, ids = self._detections(measurements, sensor_ids)
+        self._core.step(float(t), z, ids)
+        return self.tracks
+
+    def run(
+        self, times: Any, measurements: Any, sensor_ids: Any = None, scan_index: Any = None
+    ) -> RunResult:
+        """Run a whole recording in one Rust call: scan i at times[i] (s,) holds the rows of
+        measurements (d, m) whose scan_index (d,) is i; sensor_ids (d,). Returns the confirmed
+        tracks after every scan."""
+        t = as_float_array("times", times, ndim=1)
+        z, ids = self._detections(measurements, sensor_ids)
+        if scan_index is None:
+            raise TypeError("scan_index: required, one scan number per measurement row")
+        si = np.asarray(scan_index)
+        if si.size == 0:
+            si = si.astype(np.int64)
+        if si.dtype.kind not in "iu":
+            raise TypeError(f"scan_index: expected integers, got dtype {si.dtype}")
+        si = np.ascontiguousarray(si, dtype=np.int64)
+        if si.shape != (len(z),):
+            raise _core.DimensionError(f"scan_index: expected shape ({len(z)},), got {si.shape}")
+        out = self._core.run(t, z, ids, si)
+        out.pop("detection_order")
+        return RunResult(**out)
+
+    def add_track(self, state: Any, covariance: Any, time: float) -> int:
+        """Add a confirmed track (state (ndim,), covariance (ndim, ndim) at `time`); its first
+        state is a prior, not an update. Returns its id."""
+        return self._core.add_track(
+            as_float_array("state", state, ndim=1),
+            as_float_array("covariance", covariance, ndim=2),
+            float(time),
+        )
+
+    @property
+    def tracks(self) -> Tracks:
+        """The confirmed, alive tracks."""
+        return Tracks(**self._core.snapshot())
+
+    @property
+    def tentative_tracks(self) -> Tracks:
+        """The initiator's tentative tracks (their ids are a separate counter)."""
+        return Tracks(**self._core.snapshot(tentative=True))
+
+    @property
+    def deleted_track_ids(self) -> np.ndarray:
+        """Ids of deleted confirmed tracks, in order of deletion."""
+        return self._core.track_ids()[1]
+
+    def history(self, track_id: int) -> TrackHistory:
+        """Every state of a confirmed track, alive or deleted."""
+        return TrackHistory(**self._core.history(int(track_id)))
+
+    @property
+    def dropped_scans(self) -> int:
+        """Number of scans dropped as out of order (out_of_order="drop")."""
+        return self._core.dropped_scans
+
+    @property
+    def last_time(self) -> float | None:
+        """Time of the last processed scan."""
+        return self._core.last_time

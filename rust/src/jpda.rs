@@ -1,0 +1,426 @@
+//! Joint probabilistic data association: exact marginal association probabilities of a
+//! cluster of tracks, by brute-force enumeration of the joint hypotheses or by Efficient
+//! Hypothesis Management (Maskell, Briers & Wright, "Fast mutual exclusion", 2004), plus the
+//! split of a scan into independent clusters (tracks connected by shared gated detections).
+//!
+//! A joint hypothesis assigns each track its missed detection or one of its gated detections,
+//! no detection used twice; its weight is the product of the single-track weights. The
+//! marginal of (track, hypothesis) is the normalised sum of the weights of the joint
+//! hypotheses containing it — exactly what Stone Soup's `JPDA` and `JPDAwithEHM` compute.
+
+use crate::error::{Error, Result};
+use std::collections::HashMap;
+
+/// Single-track hypotheses of one track: the missed-detection weight and the weights of its
+/// gated detections (linear scale, any common factor per track is irrelevant).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct TrackHypotheses {
+    /// Weight of "no detection of this track".
+    pub missed: f64,
+    /// `(detection index, weight)` of each gated detection, detections distinct.
+    pub detections: Vec<(usize, f64)>,
+}
+
+/// Marginal probabilities of one track: missed first, then one per entry of
+/// [`TrackHypotheses::detections`] in the same order. They sum to 1.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Marginals {
+    pub missed: f64,
+    pub detections: Vec<f64>,
+}
+
+/// Which exact method computes the marginals of a cluster.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Method {
+    /// Enumerate every joint hypothesis (exponential; reference implementation).
+    BruteForce,
+    /// Efficient Hypothesis Management (exact, polynomial when clusters are chain-like).
+    Ehm,
+}
+
+/// Groups track indices into clusters connected by shared detections (union-find). Tracks
+/// without detections are singleton clusters. Clusters come out ordered by their first track.
+pub fn clusters(tracks: &[TrackHypotheses], n_detections: usize) -> Vec<Vec<usize>> {
+    let n = tracks.len();
+    let mut parent: Vec<usize> = (0..n).collect();
+    fn find(p: &mut [usize], mut x: usize) -> usize {
+        while p[x] != x {
+            p[x] = p[p[x]];
+            x = p[x];
+        }
+        x
+    }
+    let mut owner = vec![usize::MAX; n_detections];
+    for (t, h) in tracks.iter().enumerate() {
+        for &(d, _) in &h.detections {
+            if owner[d] == usize::MAX {
+                owner[d] = t;
+            } else {
+                let (a, b) = (find(&mut parent, owner[d]), find(&mut parent, t));
+                if a != b {
+                    parent[a.max(b)] = a.min(b);
+                }
+            }
+        }
+    }
+    let mut index: HashMap<usize, usize> = HashMap::new();
+    let mut out: Vec<Vec<usize>> = Vec::new();
+    for t in 0..n {
+        let r = find(&mut parent, t);
+        let k = *index.entry(r).or_insert_with(|| {
+            out.push(Vec::new());
+            out.len() - 1
+        });
+        out[k].push(t);
+    }
+    out
+}
+
+fn check(cluster: &[TrackHypotheses]) -> Result<()> {
+    for (t, h) in cluster.iter().enumerate() {
+        let ok = |w: f64| w.is_finite() && w >= 0.0;
+        if !ok(h.missed) || h.detections.iter().any(|&(_, w)| !ok(w)) {
+            return Err(Error::param(
+                "likelihoods",
+                format!("weights of track {t} must be finite and >= 0"),
+            ));
+        }
+    }
+    Ok(())
+}
+
+fn normalise(m: &mut [Marginals], total: f64) -> Result<()> {
+    if !(total > 0.0 && total.is_finite()) {
+        return Err(Error::param(
+            "likelihoods",
+            "every joint hypothesis has zero weight (no track can be missed or detected)",
+        ));
+    }
+    for t in m.iter_mut() {
+        t.missed /= total;
+        t.detections.iter_mut().for_each(|p| *p /= total);
+    }
+    Ok(())
+}
+
+/// Exact marginals by enumerating all joint hypotheses of the cluster.
+pub fn marginals_brute_force(cluster: &[TrackHypotheses]) -> Result<Vec<Marginals>> {
+    check(cluster)?;
+    let mut out: Vec<Marginals> = cluster
+        .iter()
+        .map(|h| Marginals {
+            missed: 0.0,
+            detections: vec![0.0; h.detections.len()],
+        })
+        .collect();
+    let mut choice = vec![usize::MAX; cluster.len()];
+    let mut used: Vec<usize> = Vec::new();
+    let mut total = 0.0;
+    #[allow(clippy::too_many_arguments)]
+    fn rec(
+        c: &[TrackHypotheses],
+        i: usize,
+        w: f64,
+        choice: &mut [usize],
+        used: &mut Vec<usize>,
+        out: &mut [Marginals],
+        total: &mut f64,
+    ) {
+        if i == c.len() {
+            *total += w;
+            for (t, &k) in choice.iter().enumerate() {
+                if k == usize::MAX {
+                    out[t].missed += w;
+                } else {
+                    out[t].detections[k] += w;
+                }
+            }
+            return;
+        }
+        choice[i] = usize::MAX;
+        rec(c, i + 1, w * c[i].missed, choice, used, out, total);
+        for (k, &(d, wd)) in c[i].detections.iter().enumerate() {
+            if !used.contains(&d) {
+                used.push(d);
+                choice[i] = k;
+                rec(c, i + 1, w * wd, choice, used, out, total);
+                used.pop();
+            }
+        }
+    }
+    rec(
+        cluster,
+        0,
+        1.0,
+        &mut choice,
+        &mut used,
+        &mut out,
+        &mut total,
+    );
+    normalise(&mut out, total)?;
+    Ok(out)
+}
+
+/// A set of local detection indices, as a bit set (inline for clusters of up to 128
+/// detections, heap words beyond).
+trait BitKey: Clone + Eq + std::hash::Hash {
+    fn empty(n_bits: usize) -> Self;
+    fn set(&mut self, b: usize);
+    fn has(&self, b: usize) -> bool;
+    fn and(&mut self, other: &Self);
+}
+
+impl BitKey for u64 {
+    fn empty(_: usize) -> Self {
+        0
+    }
+    fn set(&mut self, b: usize) {
+        *self |= 1 << b;
+    }
+    fn has(&self, b: usize) -> bool {
+        *self & (1 << b) != 0
+    }
+    fn and(&mut self, other: &Self) {
+        *self &= other;
+    }
+}
+
+impl BitKey for u128 {
+    fn empty(_: usize) -> Self {
+        0
+    }
+    fn set(&mut self, b: usize) {
+        *self |= 1 << b;
+    }
+    fn has(&self, b: usize) -> bool {
+        *self & (1 << b) != 0
+    }
+    fn and(&mut self, other: &Self) {
+        *self &= other;
+    }
+}
+
+impl BitKey for Vec<u64> {
+    fn empty(n_bits: usize) -> Self {
+        vec![0; n_bits.div_ceil(64).max(1)]
+    }
+    fn set(&mut self, b: usize) {
+        self[b / 64] |= 1 << (b % 64);
+    }
+    fn has(&self, b: usize) -> bool {
+        self[b / 64] & (1 << (b % 64)) != 0
+    }
+    fn and(&mut self, other: &Self) {
+        for (w, o) in self.iter_mut().zip(other) {
+            *w &= o;
+        }
+    }
+}
+
+/// A multiplicative hasher for the integer keys of EHM nodes (no DoS concern here).
+#[derive(Default, Clone, Copy)]
+struct FastHasher(u64);
+
+impl std::hash::Hasher for FastHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u64(b as u64);
+        }
+    }
+    fn write_u64(&mut self, v: u64) {
+        self.0 = (self.0.rotate_left(5) ^ v).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
+    }
+    fn write_u128(&mut self, v: u128) {
+        self.write_u64(v as u64);
+        self.write_u64((v >> 64) as u64);
+    }
+    fn write_usize(&mut self, v: usize) {
+        self.write_u64(v as u64);
+    }
+}
+
+type FastMap<K, V> = HashMap<K, V, std::hash::BuildHasherDefault<FastHasher>>;
+
+/// Exact marginals by Efficient Hypothesis Management: tracks are processed in the order
+/// given; a node of level `i` is the set of already-used detections that tracks `i..` could
+/// still use, so equal histories merge. Cost is the number of distinct nodes, small when each
+/// detection is shared by tracks close in the order (order tracks spatially).
+pub fn marginals_ehm(cluster: &[TrackHypotheses]) -> Result<Vec<Marginals>> {
+    check(cluster)?;
+    let mut local: HashMap<usize, usize> = HashMap::new();
+    let hyps: Vec<Vec<(usize, f64)>> = cluster
+        .iter()
+        .map(|h| {
+            h.detections
+                .iter()
+                .map(|&(d, w)| {
+                    let l = local.len();
+                    (*local.entry(d).or_insert(l), w)
+                })
+                .collect()
+        })
+        .collect();
+    match local.len() {
+        0..=64 => ehm::<u64>(cluster, &hyps, local.len()),
+        65..=128 => ehm::<u128>(cluster, &hyps, local.len()),
+        _ => ehm::<Vec<u64>>(cluster, &hyps, local.len()),
+    }
+}
+
+fn ehm<K: BitKey>(
+    cluster: &[TrackHypotheses],
+    hyps: &[Vec<(usize, f64)>],
+    n_bits: usize,
+) -> Result<Vec<Marginals>> {
+    let n = cluster.len();
+    // acc[i]: detections of tracks i.. (as a bit set); acc[n] = ∅.
+    let mut acc: Vec<K> = vec![K::empty(n_bits); n + 1];
+    for i in (0..n).rev() {
+        let mut k = acc[i + 1].clone();
+        for &(d, _) in &hyps[i] {
+            k.set(d);
+        }
+        acc[i] = k;
+    }
+    // Forward pass: nodes of each level with forward weights, and the edges to the next level
+    // (hypothesis index, or usize::MAX for missed; child node).
+    let mut nodes: Vec<Vec<K>> = vec![Vec::new(); n + 1];
+    let mut fw: Vec<Vec<f64>> = vec![Vec::new(); n + 1];
+    let mut edges: Vec<Vec<Vec<(usize, usize)>>> = vec![Vec::new(); n];
+    nodes[0].push(K::empty(n_bits));
+    fw[0].push(1.0);
+    for i in 0..n {
+        let mut index: FastMap<K, usize> = FastMap::default();
+        let mut next_nodes: Vec<K> = Vec::new();
+        let mut next_fw: Vec<f64> = Vec::new();
+        let mut level_edges = Vec::with_capacity(nodes[i].len());
+        for (ni, key) in nodes[i].iter().enumerate() {
+            let f = fw[i][ni];
+            let mut e = Vec::with_capacity(hyps[i].len() + 1);
+            let mut push = |mut child: K, h: usize, w: f64, e: &mut Vec<(usize, usize)>| {
+                child.and(&acc[i + 1]);
+                let c = match index.get(&child) {
+                    Some(&c) => c,
+                    None => {
+                        index.insert(child.clone(), next_nodes.len());
+                        next_nodes.push(child);
+                        next_fw.push(0.0);
+                        next_fw.len() - 1
+                    }
+                };
+                next_fw[c] += f * w;
+                e.push((h, c));
+            };
+            push(key.clone(), usize::MAX, cluster[i].missed, &mut e);
+            for (h, &(d, w)) in hyps[i].iter().enumerate() {
+                if !key.has(d) {
+                    let mut child = key.clone();
+                    child.set(d);
+                    push(child, h, w, &mut e);
+                }
+            }
+            level_edges.push(e);
+        }
+        nodes[i + 1] = next_nodes;
+        fw[i + 1] = next_fw;
+        edges[i] = level_edges;
+    }
+    // Backward pass.
+    let mut bw: Vec<Vec<f64>> = vec![Vec::new(); n + 1];
+    bw[n] = vec![1.0; nodes[n].len()];
+    for i in (0..n).rev() {
+        bw[i] = edges[i]
+            .iter()
+            .map(|e| {
+                e.iter()
+                    .map(|&(h, c)| {
+                        let w = if h == usize::MAX {
+                            cluster[i].missed
+                        } else {
+                            hyps[i][h].1
+                        };
+                        w * bw[i + 1][c]
+                    })
+                    .sum()
+            })
+            .collect();
+    }
+    let total = bw[0][0];
+    let mut out: Vec<Marginals> = Vec::with_capacity(n);
+    for i in 0..n {
+        let mut m = Marginals {
+            missed: 0.0,
+            detections: vec![0.0; hyps[i].len()],
+        };
+        for (ni, e) in edges[i].iter().enumerate() {
+            let f = fw[i][ni];
+            for &(h, c) in e {
+                if h == usize::MAX {
+                    m.missed += f * cluster[i].missed * bw[i + 1][c];
+                } else {
+                    m.detections[h] += f * hyps[i][h].1 * bw[i + 1][c];
+                }
+            }
+        }
+        out.push(m);
+    }
+    normalise(&mut out, total)?;
+    Ok(out)
+}
+
+/// Marginals of a cluster by the chosen method.
+pub fn marginals(cluster: &[TrackHypotheses], method: Method) -> Result<Vec<Marginals>> {
+    match method {
+        Method::BruteForce => marginals_brute_force(cluster),
+        Method::Ehm => marginals_ehm(cluster),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    #[test]
+    fn ehm_equals_brute_force_on_random_clusters() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+        for _ in 0..300 {
+            let n = rng.random_range(1..7);
+            let nd = rng.random_range(0..7);
+            let c: Vec<TrackHypotheses> = (0..n)
+                .map(|_| TrackHypotheses {
+                    missed: rng.random_range(0.01..1.0),
+                    detections: (0..nd)
+                        .filter(|_| rng.random_bool(0.5))
+                        .collect::<Vec<_>>()
+                        .into_iter()
+                        .map(|d| (d, rng.random_range(0.0..5.0)))
+                        .collect(),
+                })
+                .collect();
+            let a = marginals_brute_force(&c).unwrap();
+            let b = marginals_ehm(&c).unwrap();
+            for (x, y) in a.iter().zip(&b) {
+                assert!((x.missed - y.missed).abs() < 1e-12);
+                let s: f64 = x.missed + x.detections.iter().sum::<f64>();
+                assert!((s - 1.0).abs() < 1e-12);
+                for (p, q) in x.detections.iter().zip(&y.detections) {
+                    assert!((p - q).abs() < 1e-12);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn clusters_follow_shared_detections() {
+        let t = |d: &[usize]| TrackHypotheses {
+            missed: 1.0,
+            detections: d.iter().map(|&i| (i, 1.0)).collect(),
+        };
+        let c = clusters(&[t(&[0]), t(&[2]), t(&[0, 1]), t(&[]), t(&[1])], 3);
+        assert_eq!(c, vec![vec![0, 2, 4], vec![1], vec![3]]);
+    }
+}

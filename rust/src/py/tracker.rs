@@ -1,0 +1,585 @@
+//! Bindings of the multi-target tracker (`TrackerCore`) and of its association kernels
+//! (`linear_sum_assignment`, `jpda_marginals`, `chi2_gate`). The Python API is
+//! `usvfast.tracking`; these take pre-validated float64 C-contiguous arrays.
+
+use super::kalman::motion_model_from_spec;
+use super::to_py_err;
+use crate::error::Error;
+use crate::gating::chi2_quantile;
+use crate::jpda::{marginals, Method, TrackHypotheses};
+use crate::track::{Deleter, Track};
+use crate::tracker::{
+    Association, Confirmation, GnnParams, InitiatorConfig, JpdaParams, Measure, OutOfOrder, Sensor,
+    Tracker, TrackerConfig,
+};
+use nalgebra::{DMatrix, DVector};
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList, PyTuple};
+
+fn arr_f<'py>(py: Python<'py>, data: Vec<f64>, shape: &[usize]) -> PyResult<Bound<'py, PyAny>> {
+    Ok(PyArray1::from_vec(py, data).reshape(shape)?.into_any())
+}
+
+fn arr_i<'py>(py: Python<'py>, data: Vec<i64>, shape: &[usize]) -> PyResult<Bound<'py, PyAny>> {
+    Ok(PyArray1::from_vec(py, data).reshape(shape)?.into_any())
+}
+
+fn slice<'a, T: numpy::Element, D: numpy::ndarray::Dimension>(
+    name: &str,
+    a: &'a numpy::PyReadonlyArray<'_, T, D>,
+) -> PyResult<&'a [T]> {
+    a.as_slice()
+        .map_err(|_| PyValueError::new_err(format!("{name}: must be a C-contiguous array")))
+}
+
+fn matrix(name: &str, a: &PyReadonlyArray2<'_, f64>) -> PyResult<DMatrix<f64>> {
+    let s = a.shape();
+    Ok(DMatrix::from_row_slice(s[0], s[1], slice(name, a)?))
+}
+
+fn item<'py>(d: &Bound<'py, PyDict>, key: &str) -> PyResult<Bound<'py, PyAny>> {
+    d.get_item(key)?
+        .ok_or_else(|| PyValueError::new_err(format!("missing configuration key {key:?}")))
+}
+
+fn get_f64(d: &Bound<'_, PyDict>, key: &str) -> PyResult<f64> {
+    item(d, key)?.extract()
+}
+
+fn get_opt_f64(d: &Bound<'_, PyDict>, key: &str) -> PyResult<Option<f64>> {
+    item(d, key)?.extract()
+}
+
+fn get_bool(d: &Bound<'_, PyDict>, key: &str) -> PyResult<bool> {
+    item(d, key)?.extract()
+}
+
+fn get_str(d: &Bound<'_, PyDict>, key: &str) -> PyResult<String> {
+    item(d, key)?.extract()
+}
+
+fn measure(s: &str) -> PyResult<Measure> {
+    match s {
+        "mahalanobis" => Ok(Measure::Mahalanobis),
+        "squared_mahalanobis" => Ok(Measure::SquaredMahalanobis),
+        other => Err(PyValueError::new_err(format!(
+            "measure: expected 'mahalanobis' or 'squared_mahalanobis', got {other:?}"
+        ))),
+    }
+}
+
+fn method(s: &str) -> PyResult<Method> {
+    match s {
+        "ehm" => Ok(Method::Ehm),
+        "brute_force" => Ok(Method::BruteForce),
+        other => Err(PyValueError::new_err(format!(
+            "method: expected 'ehm' or 'brute_force', got {other:?}"
+        ))),
+    }
+}
+
+/// Parses `("steps", n) | ("time", s) | ("trace", thr, mapping|None) | ("any", [..]) |
+/// ("all", [..]) | ("never",)`.
+fn deleter(spec: &Bound<'_, PyAny>) -> PyResult<Deleter> {
+    let t = spec.cast::<PyTuple>().map_err(|_| {
+        PyValueError::new_err("deleter: expected a tuple spec such as ('steps', 3)")
+    })?;
+    let kind: String = t.get_item(0)?.extract()?;
+    Ok(match kind.as_str() {
+        "steps" => Deleter::StepsSinceUpdate(t.get_item(1)?.extract()?),
+        "time" => Deleter::TimeSinceUpdate(t.get_item(1)?.extract()?),
+        "trace" => Deleter::CovarianceTrace {
+            threshold: t.get_item(1)?.extract()?,
+            mapping: t.get_item(2)?.extract()?,
+        },
+        "any" | "all" => {
+            let list = t.get_item(1)?;
+            let list = list
+                .cast::<PyList>()
+                .map_err(|_| PyValueError::new_err("deleter: composite needs a list"))?;
+            Deleter::Composite {
+                deleters: list.iter().map(|d| deleter(&d)).collect::<PyResult<_>>()?,
+                intersect: kind == "all",
+            }
+        }
+        "never" => Deleter::Never,
+        other => {
+            return Err(PyValueError::new_err(format!(
+                "deleter: unknown kind {other:?}"
+            )))
+        }
+    })
+}
+
+type SensorSpec<'py> = (
+    PyReadonlyArray2<'py, f64>,
+    PyReadonlyArray2<'py, f64>,
+    Option<PyReadonlyArray2<'py, f64>>,
+    Option<PyReadonlyArray2<'py, f64>>,
+);
+
+fn history_dict<'py>(py: Python<'py>, tr: &Track, ndim: usize) -> PyResult<Bound<'py, PyDict>> {
+    let h = &tr.history;
+    let k = h.len();
+    let d = PyDict::new(py);
+    d.set_item("id", tr.id)?;
+    d.set_item("times", arr_f(py, h.times.clone(), &[k])?)?;
+    d.set_item("states", arr_f(py, h.states.clone(), &[k, ndim])?)?;
+    d.set_item(
+        "covariances",
+        arr_f(py, h.covariances.clone(), &[k, ndim, ndim])?,
+    )?;
+    let upd: Vec<bool> = h.is_update.clone();
+    d.set_item("is_update", PyArray1::from_vec(py, upd))?;
+    d.set_item("scan", arr_i(py, h.scan.clone(), &[k])?)?;
+    d.set_item("sensor", arr_i(py, h.sensor.clone(), &[k])?)?;
+    d.set_item("detection", arr_i(py, h.detection.clone(), &[k])?)?;
+    d.set_item("nis", arr_f(py, h.nis.clone(), &[k])?)?;
+    d.set_item(
+        "missed_probability",
+        arr_f(py, h.missed_probability.clone(), &[k])?,
+    )?;
+    let offs: Vec<i64> = if h.assoc_offsets.is_empty() {
+        vec![0]
+    } else {
+        h.assoc_offsets.iter().map(|&o| o as i64).collect()
+    };
+    let no = offs.len();
+    d.set_item("assoc_offsets", arr_i(py, offs, &[no])?)?;
+    let na = h.assoc_detection.len();
+    d.set_item(
+        "assoc_detection",
+        arr_i(py, h.assoc_detection.clone(), &[na])?,
+    )?;
+    d.set_item(
+        "assoc_probability",
+        arr_f(py, h.assoc_probability.clone(), &[na])?,
+    )?;
+    d.set_item("confirmed_time", tr.confirmed_time)?;
+    d.set_item("deleted_time", tr.deleted_time)?;
+    Ok(d)
+}
+
+/// The multi-target tracker core; build it through `usvfast.tracking.Tracker`.
+#[pyclass(module = "usvfast._core")]
+pub struct TrackerCore {
+    inner: Tracker,
+}
+
+#[pymethods]
+impl TrackerCore {
+    #[new]
+    #[pyo3(signature = (
+        motion_model, sensors, association, deleter_spec, initiator, *,
+        use_joseph_cov=false, delete_last_prediction=false, out_of_order="raise",
+        initiate_in_gates=true
+    ))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        motion_model: Vec<(String, f64)>,
+        sensors: Vec<SensorSpec<'_>>,
+        association: &Bound<'_, PyDict>,
+        deleter_spec: &Bound<'_, PyAny>,
+        initiator: &Bound<'_, PyDict>,
+        use_joseph_cov: bool,
+        delete_last_prediction: bool,
+        out_of_order: &str,
+        initiate_in_gates: bool,
+    ) -> PyResult<Self> {
+        let model = motion_model_from_spec(&motion_model)?;
+        let n = model.ndim();
+        let sensors = sensors
+            .iter()
+            .enumerate()
+            .map(|(i, (h, r, hi, ri))| {
+                let h = matrix("measurement_matrix", h)?;
+                let r = matrix("measurement_noise", r)?;
+                let init = match (hi, ri) {
+                    (None, None) => None,
+                    (hi, ri) => Some((
+                        hi.as_ref()
+                            .map_or(Ok(h.clone()), |a| matrix("initiation_matrix", a))?,
+                        ri.as_ref()
+                            .map_or(Ok(r.clone()), |a| matrix("initiation_noise", a))?,
+                    )),
+                };
+                Sensor::new(h, r, init, n, &format!("sensors[{i}]")).map_err(to_py_err)
+            })
+            .collect::<PyResult<Vec<_>>>()?;
+        let kind = get_str(association, "kind")?;
+        let association = match kind.as_str() {
+            "jpda" => Association::Jpda(JpdaParams {
+                prob_detect: get_f64(association, "prob_detect")?,
+                prob_gate: get_f64(association, "prob_gate")?,
+                clutter_density: get_opt_f64(association, "clutter_density")?,
+                include_all: get_bool(association, "include_all")?,
+                method: method(&get_str(association, "method")?)?,
+            }),
+            "gnn" => Association::Gnn(GnnParams {
+                measure: measure(&get_str(association, "measure")?)?,
+                missed_distance: get_f64(association, "missed_distance")?,
+                include_all: get_bool(association, "include_all")?,
+            }),
+            other => {
+                return Err(PyValueError::new_err(format!(
+                    "association: expected 'jpda' or 'gnn', got {other:?}"
+                )))
+            }
+        };
+        let prior_state: Vec<f64> = item(initiator, "prior_state")?.extract()?;
+        let prior_cov: PyReadonlyArray2<'_, f64> =
+            item(initiator, "prior_covariance")?.extract()?;
+        let m_of_n: Option<(usize, usize)> = item(initiator, "m_of_n")?.extract()?;
+        let confirmation = match m_of_n {
+            Some((m, n)) => Confirmation::MOfN { m, n },
+            None => Confirmation::MinPoints {
+                min_points: item(initiator, "min_points")?.extract()?,
+                updates_only: get_bool(initiator, "updates_only")?,
+            },
+        };
+        let init_model: Option<Vec<(String, f64)>> = item(initiator, "motion_model")?.extract()?;
+        let init = InitiatorConfig {
+            prior_state: DVector::from_vec(prior_state),
+            prior_covariance: matrix("prior_covariance", &prior_cov)?,
+            diag_load: get_f64(initiator, "diag_load")?,
+            confirmation,
+            deleter: deleter(&item(initiator, "deleter")?)?,
+            gnn: GnnParams {
+                measure: measure(&get_str(initiator, "measure")?)?,
+                missed_distance: get_f64(initiator, "missed_distance")?,
+                include_all: get_bool(initiator, "include_all")?,
+            },
+            motion_model: init_model.map(|m| motion_model_from_spec(&m)).transpose()?,
+            use_joseph_cov: get_bool(initiator, "use_joseph_cov")?,
+        };
+        let out_of_order = match out_of_order {
+            "raise" => OutOfOrder::Raise,
+            "drop" => OutOfOrder::Drop,
+            other => {
+                return Err(PyValueError::new_err(format!(
+                    "out_of_order: expected 'raise' or 'drop', got {other:?}"
+                )))
+            }
+        };
+        let cfg = TrackerConfig {
+            motion_model: model,
+            sensors,
+            association,
+            use_joseph_cov,
+            deleter: deleter(deleter_spec)?,
+            delete_last_prediction,
+            initiator: init,
+            out_of_order,
+            initiate_in_gates,
+        };
+        Ok(Self {
+            inner: Tracker::new(cfg).map_err(to_py_err)?,
+        })
+    }
+
+    /// Processes one scan; returns False when it was dropped as out of order.
+    fn step(
+        &mut self,
+        py: Python<'_>,
+        t: f64,
+        measurements: PyReadonlyArray2<'_, f64>,
+        sensor_ids: PyReadonlyArray1<'_, i64>,
+    ) -> PyResult<bool> {
+        let z = slice("measurements", &measurements)?;
+        let ids = to_usize("sensor_ids", slice("sensor_ids", &sensor_ids)?)?;
+        let inner = &mut self.inner;
+        let out = py.detach(|| inner.step(t, z, &ids)).map_err(to_py_err)?;
+        Ok(out == crate::tracker::StepOutcome::Processed)
+    }
+
+    /// Runs a whole recording: scan `i` at `times[i]` holds the detections with
+    /// `scan_index == i`. Returns, per scan, the confirmed tracks after it.
+    fn run<'py>(
+        &mut self,
+        py: Python<'py>,
+        times: PyReadonlyArray1<'py, f64>,
+        measurements: PyReadonlyArray2<'py, f64>,
+        sensor_ids: PyReadonlyArray1<'py, i64>,
+        scan_index: PyReadonlyArray1<'py, i64>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let t = slice("times", &times)?;
+        let z = slice("measurements", &measurements)?;
+        let m = self.inner.measurement_dim();
+        let ids = to_usize("sensor_ids", slice("sensor_ids", &sensor_ids)?)?;
+        let scans = to_usize("scan_index", slice("scan_index", &scan_index)?)?;
+        if measurements.shape()[1] != m && !z.is_empty() {
+            return Err(to_py_err(Error::dim(
+                "measurements",
+                format!("{m} columns"),
+                measurements.shape()[1],
+            )));
+        }
+        let nd = ids.len();
+        if scans.len() != nd || z.len() != nd * m {
+            return Err(to_py_err(Error::dim(
+                "scan_index",
+                format!("{nd} entries, one per measurement row"),
+                scans.len(),
+            )));
+        }
+        if let Some(p) = scans.iter().position(|&s| s >= t.len()) {
+            return Err(to_py_err(Error::param(
+                "scan_index",
+                format!(
+                    "element {p} is {}, but there are {} scans",
+                    scans[p],
+                    t.len()
+                ),
+            )));
+        }
+        let n = self.inner.config().motion_model.ndim();
+        let inner = &mut self.inner;
+        let out = py
+            .detach(|| -> crate::Result<_> {
+                // Bucket detections by scan, keeping their order.
+                let mut order: Vec<usize> = (0..nd).collect();
+                order.sort_by_key(|&i| scans[i]);
+                let mut rows = (
+                    Vec::<i64>::new(),
+                    Vec::<i64>::new(),
+                    Vec::<f64>::new(),
+                    Vec::<f64>::new(),
+                    Vec::<f64>::new(),
+                    Vec::<bool>::new(),
+                );
+                let mut dropped = Vec::<i64>::new();
+                let mut first_row = Vec::<i64>::with_capacity(t.len());
+                let mut p = 0;
+                let mut zs = Vec::<f64>::new();
+                let mut ss = Vec::<usize>::new();
+                for (i, &ti) in t.iter().enumerate() {
+                    zs.clear();
+                    ss.clear();
+                    first_row.push(p as i64);
+                    while p < nd && scans[order[p]] == i {
+                        let d = order[p];
+                        zs.extend_from_slice(&z[d * m..(d + 1) * m]);
+                        ss.push(ids[d]);
+                        p += 1;
+                    }
+                    if inner.step(ti, &zs, &ss)? == crate::tracker::StepOutcome::Dropped {
+                        dropped.push(i as i64);
+                        continue;
+                    }
+                    for tr in &inner.tracks {
+                        rows.0.push(i as i64);
+                        rows.1.push(tr.id as i64);
+                        rows.2.push(tr.t);
+                        rows.3.extend(tr.x.iter());
+                        rows.4.extend(tr.p.transpose().iter());
+                        rows.5.push(*tr.history.is_update.last().unwrap_or(&false));
+                    }
+                }
+                Ok((rows, dropped, order))
+            })
+            .map_err(to_py_err)?;
+        let ((scan, id, time, st, cv, upd), dropped, order) = out;
+        let r = scan.len();
+        let d = PyDict::new(py);
+        d.set_item("scan", arr_i(py, scan, &[r])?)?;
+        d.set_item("track_id", arr_i(py, id, &[r])?)?;
+        d.set_item("time", arr_f(py, time, &[r])?)?;
+        d.set_item("state", arr_f(py, st, &[r, n])?)?;
+        d.set_item("covariance", arr_f(py, cv, &[r, n, n])?)?;
+        d.set_item("is_update", PyArray1::from_vec(py, upd))?;
+        let nd_ = dropped.len();
+        d.set_item("dropped_scans", arr_i(py, dropped, &[nd_])?)?;
+        let no = order.len();
+        let order: Vec<i64> = order.into_iter().map(|o| o as i64).collect();
+        d.set_item("detection_order", arr_i(py, order, &[no])?)?;
+        Ok(d)
+    }
+
+    /// Adds a confirmed track; returns its id.
+    fn add_track(
+        &mut self,
+        state: PyReadonlyArray1<'_, f64>,
+        covariance: PyReadonlyArray2<'_, f64>,
+        time: f64,
+    ) -> PyResult<u64> {
+        self.inner
+            .add_track(
+                slice("state", &state)?,
+                slice("covariance", &covariance)?,
+                time,
+            )
+            .map_err(to_py_err)
+    }
+
+    /// Current confirmed tracks (or tentative ones) as arrays.
+    #[pyo3(signature = (tentative=false))]
+    fn snapshot<'py>(&self, py: Python<'py>, tentative: bool) -> PyResult<Bound<'py, PyDict>> {
+        let n = self.inner.config().motion_model.ndim();
+        let list = if tentative {
+            &self.inner.tentative
+        } else {
+            &self.inner.tracks
+        };
+        let k = list.len();
+        let d = PyDict::new(py);
+        d.set_item(
+            "ids",
+            arr_i(py, list.iter().map(|t| t.id as i64).collect(), &[k])?,
+        )?;
+        d.set_item(
+            "times",
+            arr_f(py, list.iter().map(|t| t.t).collect(), &[k])?,
+        )?;
+        d.set_item(
+            "states",
+            arr_f(
+                py,
+                list.iter().flat_map(|t| t.x.iter().copied()).collect(),
+                &[k, n],
+            )?,
+        )?;
+        d.set_item(
+            "covariances",
+            arr_f(
+                py,
+                list.iter()
+                    .flat_map(|t| t.p.transpose().iter().copied().collect::<Vec<_>>())
+                    .collect(),
+                &[k, n, n],
+            )?,
+        )?;
+        d.set_item(
+            "is_update",
+            PyArray1::from_vec(
+                py,
+                list.iter()
+                    .map(|t| *t.history.is_update.last().unwrap_or(&false))
+                    .collect::<Vec<bool>>(),
+            ),
+        )?;
+        d.set_item(
+            "n_updates",
+            arr_i(
+                py,
+                list.iter().map(|t| t.n_updates() as i64).collect(),
+                &[k],
+            )?,
+        )?;
+        Ok(d)
+    }
+
+    /// Ids of alive confirmed tracks and of deleted ones.
+    fn track_ids<'py>(&self, py: Python<'py>) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+        let a: Vec<i64> = self.inner.tracks.iter().map(|t| t.id as i64).collect();
+        let b: Vec<i64> = self.inner.deleted.iter().map(|t| t.id as i64).collect();
+        let (na, nb) = (a.len(), b.len());
+        Ok((arr_i(py, a, &[na])?, arr_i(py, b, &[nb])?))
+    }
+
+    /// Full history of a confirmed (alive or deleted) track.
+    fn history<'py>(&self, py: Python<'py>, track_id: u64) -> PyResult<Bound<'py, PyDict>> {
+        let n = self.inner.config().motion_model.ndim();
+        let tr = self
+            .inner
+            .tracks
+            .iter()
+            .chain(self.inner.deleted.iter())
+            .find(|t| t.id == track_id)
+            .ok_or_else(|| PyValueError::new_err(format!("track_id: no track {track_id}")))?;
+        history_dict(py, tr, n)
+    }
+
+    /// Scans dropped for being out of order.
+    #[getter]
+    fn dropped_scans(&self) -> usize {
+        self.inner.dropped_scans
+    }
+
+    /// Time of the last processed scan (None before the first).
+    #[getter]
+    fn last_time(&self) -> Option<f64> {
+        self.inner.last_time()
+    }
+}
+
+fn to_usize(name: &str, v: &[i64]) -> PyResult<Vec<usize>> {
+    if let Some(p) = v.iter().position(|&x| x < 0) {
+        return Err(to_py_err(Error::param(
+            name,
+            format!("element {p} is negative ({})", v[p]),
+        )));
+    }
+    Ok(v.iter().map(|&x| x as usize).collect())
+}
+
+/// Optimal assignment of a `(nr, nc)` cost matrix (`nr <= nc`, `inf` forbidden): the column
+/// of each row.
+#[pyfunction]
+fn linear_sum_assignment<'py>(
+    py: Python<'py>,
+    cost: PyReadonlyArray2<'py, f64>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let s = cost.shape();
+    let (nr, nc) = (s[0], s[1]);
+    let c = slice("cost", &cost)?;
+    let sol = py
+        .detach(|| crate::assign::linear_sum_assignment(c, nr, nc))
+        .map_err(to_py_err)?;
+    arr_i(py, sol.into_iter().map(|j| j as i64).collect(), &[nr])
+}
+
+/// JPDA marginals of one cluster: `likelihoods` is `(tracks, 1 + detections)`, column 0 the
+/// missed-detection weight, a weight `<= 0` in another column meaning "not gated".
+#[pyfunction]
+#[pyo3(signature = (likelihoods, method="ehm"))]
+fn jpda_marginals<'py>(
+    py: Python<'py>,
+    likelihoods: PyReadonlyArray2<'py, f64>,
+    method: &str,
+) -> PyResult<Bound<'py, PyAny>> {
+    let meth = self::method(method)?;
+    let s = likelihoods.shape();
+    let (nt, nc) = (s[0], s[1]);
+    if nc == 0 {
+        return Err(to_py_err(Error::dim(
+            "likelihoods",
+            "at least one column",
+            0,
+        )));
+    }
+    let l = slice("likelihoods", &likelihoods)?;
+    let cluster: Vec<TrackHypotheses> = (0..nt)
+        .map(|t| TrackHypotheses {
+            missed: l[t * nc],
+            detections: (1..nc)
+                .filter(|&j| l[t * nc + j] > 0.0 || l[t * nc + j].is_nan())
+                .map(|j| (j - 1, l[t * nc + j]))
+                .collect(),
+        })
+        .collect();
+    let m = py.detach(|| marginals(&cluster, meth)).map_err(to_py_err)?;
+    let mut out = vec![0.0; nt * nc];
+    for (t, (mm, h)) in m.iter().zip(&cluster).enumerate() {
+        out[t * nc] = mm.missed;
+        for (p, &(j, _)) in mm.detections.iter().zip(&h.detections) {
+            out[t * nc + j + 1] = *p;
+        }
+    }
+    arr_f(py, out, &[nt, nc])
+}
+
+/// The chi-square quantile `chi2.ppf(prob_gate, dof)`.
+#[pyfunction]
+fn chi2_gate(prob_gate: f64, dof: usize) -> PyResult<f64> {
+    chi2_quantile(prob_gate, dof).map_err(to_py_err)
+}
+
+pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<TrackerCore>()?;
+    m.add_function(wrap_pyfunction!(linear_sum_assignment, m)?)?;
+    m.add_function(wrap_pyfunction!(jpda_marginals, m)?)?;
+    m.add_function(wrap_pyfunction!(chi2_gate, m)?)?;
+    Ok(())
+}

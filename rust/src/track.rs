@@ -1,0 +1,327 @@
+//! Tracks, their history, and the deleters that end them (Stone Soup's
+//! `UpdateTimeStepsDeleter`, `UpdateTimeDeleter`, `CovarianceBasedDeleter`, `CompositeDeleter`).
+
+use crate::error::{Error, Result};
+use nalgebra::{DMatrix, DVector};
+
+/// Everything appended to a track at one scan, flat and row-major (numpy-ready).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct History {
+    /// Time of each entry, seconds.
+    pub times: Vec<f64>,
+    /// States `(k, ndim)`.
+    pub states: Vec<f64>,
+    /// Covariances `(k, ndim, ndim)`.
+    pub covariances: Vec<f64>,
+    /// Whether the entry is an update with a detection (Stone Soup `Update`) or a prediction.
+    pub is_update: Vec<bool>,
+    /// Scan counter (0-based, counting every accepted `step`) of each entry.
+    pub scan: Vec<i64>,
+    /// Sensor of the most probable detection of an update, −1 otherwise.
+    pub sensor: Vec<i64>,
+    /// Row in its scan of the most probable detection of an update, −1 otherwise.
+    pub detection: Vec<i64>,
+    /// Normalised innovation squared of that detection, NaN otherwise.
+    pub nis: Vec<f64>,
+    /// Probability that the track was not detected at this scan (NaN for initial states).
+    pub missed_probability: Vec<f64>,
+    /// CSR offsets into `assoc_detection`/`assoc_probability`, length `k + 1`.
+    pub assoc_offsets: Vec<usize>,
+    /// Detections (rows of their scan) hypothesised for the track at each entry.
+    pub assoc_detection: Vec<i64>,
+    /// Their association probabilities (JPDA marginals; 1/0 under GNN).
+    pub assoc_probability: Vec<f64>,
+}
+
+/// One appended entry (see [`History`] for the fields).
+#[derive(Debug, Clone)]
+pub struct Entry {
+    pub time: f64,
+    pub is_update: bool,
+    pub scan: i64,
+    pub sensor: i64,
+    pub detection: i64,
+    pub nis: f64,
+    pub missed_probability: f64,
+    pub assoc: Vec<(i64, f64)>,
+}
+
+impl History {
+    /// Number of entries.
+    pub fn len(&self) -> usize {
+        self.times.len()
+    }
+
+    /// True when there is no entry.
+    pub fn is_empty(&self) -> bool {
+        self.times.is_empty()
+    }
+
+    /// Reserves room for `k` more entries of an `n`-state track.
+    pub fn reserve(&mut self, k: usize, n: usize) {
+        self.times.reserve(k);
+        self.states.reserve(k * n);
+        self.covariances.reserve(k * n * n);
+        self.is_update.reserve(k);
+        self.scan.reserve(k);
+        self.sensor.reserve(k);
+        self.detection.reserve(k);
+        self.nis.reserve(k);
+        self.missed_probability.reserve(k);
+        self.assoc_offsets.reserve(k);
+        self.assoc_detection.reserve(4 * k);
+        self.assoc_probability.reserve(4 * k);
+    }
+
+    fn push(&mut self, e: Entry, x: &DVector<f64>, p: &DMatrix<f64>) {
+        if self.assoc_offsets.is_empty() {
+            self.assoc_offsets.push(0);
+        }
+        self.times.push(e.time);
+        self.states.extend(x.iter());
+        let n = x.len();
+        for i in 0..n {
+            for j in 0..n {
+                self.covariances.push(p[(i, j)]);
+            }
+        }
+        self.is_update.push(e.is_update);
+        self.scan.push(e.scan);
+        self.sensor.push(e.sensor);
+        self.detection.push(e.detection);
+        self.nis.push(e.nis);
+        self.missed_probability.push(e.missed_probability);
+        for (d, pr) in e.assoc {
+            self.assoc_detection.push(d);
+            self.assoc_probability.push(pr);
+        }
+        self.assoc_offsets.push(self.assoc_detection.len());
+    }
+
+    fn pop(&mut self, n: usize) {
+        if self.times.pop().is_none() {
+            return;
+        }
+        self.states.truncate(self.states.len() - n);
+        self.covariances.truncate(self.covariances.len() - n * n);
+        self.is_update.pop();
+        self.scan.pop();
+        self.sensor.pop();
+        self.detection.pop();
+        self.nis.pop();
+        self.missed_probability.pop();
+        self.assoc_offsets.pop();
+        let k = *self.assoc_offsets.last().unwrap_or(&0);
+        self.assoc_detection.truncate(k);
+        self.assoc_probability.truncate(k);
+    }
+}
+
+/// A track: current Gaussian state and its full history.
+#[derive(Debug, Clone)]
+pub struct Track {
+    /// Stable id (confirmed tracks count 0, 1, 2, ... in order of confirmation; tentative
+    /// tracks have their own counter).
+    pub id: u64,
+    /// Current state (state units, e.g. `[n, v_n, e, v_e]` in m, m/s).
+    pub x: DVector<f64>,
+    /// Current covariance.
+    pub p: DMatrix<f64>,
+    /// Time of the current state, seconds.
+    pub t: f64,
+    /// All states so far, including the tentative phase.
+    pub history: History,
+    /// Time of confirmation (NaN while tentative).
+    pub confirmed_time: f64,
+    /// Scan time at which the track was deleted (NaN while alive).
+    pub deleted_time: f64,
+}
+
+impl Track {
+    /// A track whose first entry is `(x, p)` at `entry.time`.
+    pub fn new(id: u64, x: DVector<f64>, p: DMatrix<f64>, entry: Entry) -> Self {
+        let mut t = Track {
+            id,
+            t: entry.time,
+            x: x.clone(),
+            p: p.clone(),
+            history: History::default(),
+            confirmed_time: f64::NAN,
+            deleted_time: f64::NAN,
+        };
+        t.history.push(entry, &x, &p);
+        t
+    }
+
+    /// Appends a state and makes it current.
+    pub fn append(&mut self, x: DVector<f64>, p: DMatrix<f64>, entry: Entry) {
+        self.t = entry.time;
+        self.history.push(entry, &x, &p);
+        self.x = x;
+        self.p = p;
+    }
+
+    /// Removes the last history entry if it is a prediction (Stone Soup's `delete_last_pred`).
+    pub fn drop_last_prediction(&mut self) {
+        if self.history.is_update.last() == Some(&false) && self.history.len() > 1 {
+            self.history.pop(self.x.len());
+        }
+    }
+
+    /// Number of update entries.
+    pub fn n_updates(&self) -> usize {
+        self.history.is_update.iter().filter(|u| **u).count()
+    }
+}
+
+/// When a track is deleted.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Deleter {
+    /// Delete when more than `steps` distinct timestamps go back from the newest state without
+    /// meeting an update (`UpdateTimeStepsDeleter(time_steps_since_update=steps)`).
+    StepsSinceUpdate(usize),
+    /// Delete when no update has a timestamp within `seconds` of the newest state
+    /// (`UpdateTimeDeleter(time_since_update=seconds)`).
+    TimeSinceUpdate(f64),
+    /// Delete when the trace of the covariance (or of the `mapping` diagonal entries) exceeds
+    /// the threshold (`CovarianceBasedDeleter`).
+    CovarianceTrace {
+        threshold: f64,
+        mapping: Option<Vec<usize>>,
+    },
+    /// Delete when any (`intersect = false`) or all (`intersect = true`) delete
+    /// (`CompositeDeleter`).
+    Composite {
+        deleters: Vec<Deleter>,
+        intersect: bool,
+    },
+    /// Never delete.
+    Never,
+}
+
+impl Deleter {
+    /// Checks parameters against the state dimension `ndim`.
+    pub fn validate(&self, ndim: usize, arg: &str) -> Result<()> {
+        match self {
+            Deleter::StepsSinceUpdate(_) | Deleter::Never => Ok(()),
+            Deleter::TimeSinceUpdate(s) if s.is_finite() && *s >= 0.0 => Ok(()),
+            Deleter::TimeSinceUpdate(s) => Err(Error::param(
+                arg,
+                format!("time since update must be finite and >= 0, got {s}"),
+            )),
+            Deleter::CovarianceTrace { threshold, mapping } => {
+                if threshold.is_nan() {
+                    return Err(Error::param(arg, "covariance trace threshold is NaN"));
+                }
+                if let Some(m) = mapping {
+                    if let Some(&bad) = m.iter().find(|&&i| i >= ndim) {
+                        return Err(Error::param(
+                            arg,
+                            format!("mapping index {bad} is outside the {ndim}-D state"),
+                        ));
+                    }
+                }
+                Ok(())
+            }
+            Deleter::Composite { deleters, .. } => {
+                if deleters.is_empty() {
+                    return Err(Error::param(arg, "a composite deleter needs deleters"));
+                }
+                deleters.iter().try_for_each(|d| d.validate(ndim, arg))
+            }
+        }
+    }
+
+    /// Whether `track` should be deleted now.
+    pub fn check(&self, track: &Track) -> bool {
+        let h = &track.history;
+        match self {
+            Deleter::Never => false,
+            Deleter::StepsSinceUpdate(steps) => {
+                let mut distinct = 0usize;
+                let mut last = f64::NAN;
+                for k in (0..h.len()).rev() {
+                    if h.times[k] != last {
+                        distinct += 1;
+                        last = h.times[k];
+                    }
+                    if distinct > *steps {
+                        return true;
+                    }
+                    if h.is_update[k] {
+                        return false;
+                    }
+                }
+                false
+            }
+            Deleter::TimeSinceUpdate(s) => {
+                let start = track.t - s;
+                !(0..h.len())
+                    .rev()
+                    .take_while(|&k| h.times[k] >= start)
+                    .any(|k| h.is_update[k])
+            }
+            Deleter::CovarianceTrace { threshold, mapping } => {
+                let trace: f64 = match mapping {
+                    Some(m) if !m.is_empty() => m.iter().map(|&i| track.p[(i, i)]).sum(),
+                    _ => track.p.diagonal().sum(),
+                };
+                trace > *threshold
+            }
+            Deleter::Composite {
+                deleters,
+                intersect,
+            } => {
+                if *intersect {
+                    deleters.iter().all(|d| d.check(track))
+                } else {
+                    deleters.iter().any(|d| d.check(track))
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn entry(time: f64, is_update: bool) -> Entry {
+        Entry {
+            time,
+            is_update,
+            scan: 0,
+            sensor: -1,
+            detection: -1,
+            nis: f64::NAN,
+            missed_probability: f64::NAN,
+            assoc: vec![],
+        }
+    }
+
+    #[test]
+    fn steps_since_update_counts_distinct_times() {
+        let x = DVector::zeros(2);
+        let p = DMatrix::identity(2, 2);
+        let mut t = Track::new(0, x.clone(), p.clone(), entry(0.0, true));
+        let d = Deleter::StepsSinceUpdate(2);
+        t.append(x.clone(), p.clone(), entry(1.0, false));
+        assert!(!d.check(&t));
+        t.append(x.clone(), p.clone(), entry(1.0, false));
+        assert!(!d.check(&t));
+        t.append(x.clone(), p.clone(), entry(2.0, false));
+        assert!(d.check(&t));
+        let trace = Deleter::CovarianceTrace {
+            threshold: 1.5,
+            mapping: None,
+        };
+        assert!(trace.check(&t));
+        let both = Deleter::Composite {
+            deleters: vec![d, Deleter::TimeSinceUpdate(5.0)],
+            intersect: true,
+        };
+        assert!(!both.check(&t));
+        t.drop_last_prediction();
+        assert_eq!(t.history.len(), 3);
+    }
+}

@@ -1,0 +1,1222 @@
+//! The multi-target tracker: Stone Soup's `MultiTargetMixtureTracker` (JPDA) and
+//! `MultiTargetTracker` (GNN) with a `MultiMeasurementInitiator`, reproduced step for step.
+//!
+//! One [`Tracker::step`] at scan time `t` with detections `z_k` (each from a sensor with its
+//! own `H`, `R`) does, in Stone Soup's order:
+//! 1. predict every confirmed track to `t` (`F P Fᵀ + Q`);
+//! 2. JPDA: PDA hypotheses per track — missed weight `1 − P_D P_G`, detection weight
+//!    `N(z; H x⁻, S) P_D / λ` for detections with `yᵀ S⁻¹ y ≤ χ²_m(P_G)` — then exact JPDA
+//!    marginals per cluster and a moment-matched Gaussian mixture of the prediction and the
+//!    Kalman updates; the new state is an update if some detection's marginal exceeds the
+//!    missed one, else a prediction. Detections whose marginal exceeds a track's missed
+//!    marginal are "associated". GNN: distance hypotheses (`d < missed_distance`), optimal
+//!    assignment, Kalman update or prediction;
+//! 3. delete confirmed tracks by the deleter;
+//! 4. the initiator takes the unassociated detections: its tentative tracks are predicted,
+//!    GNN-associated with its own distance gate and updated, confirmed once they hold
+//!    `min_points` updates, deleted by their own deleter; every detection left starts a new
+//!    tentative track (`x = H⁺ z` on the mapped axes, prior elsewhere).
+//!
+//! All detections of a scan share the scan time. Time must not go backwards.
+
+use crate::assign::gnn_assign;
+use crate::error::{check_finite, Error, Result};
+use crate::gating::{chi2_quantile, validation_volume, CandidateGrid};
+use crate::jpda::{clusters, marginals, Method, TrackHypotheses};
+use crate::kalman::check_covariance;
+use crate::models::MotionModel;
+use crate::track::{Deleter, Entry, Track};
+use nalgebra::{Cholesky, DMatrix, DVector, Dyn};
+
+/// `ln(2π)`.
+const LN_2PI: f64 = 1.837_877_066_409_345_5;
+
+/// A sensor's linear-Gaussian measurement model `z = H x + w`, `w ~ N(0, R)`.
+#[derive(Debug, Clone)]
+pub struct Sensor {
+    /// `H`, `(m, ndim)`.
+    pub h: DMatrix<f64>,
+    /// `R`, `(m, m)`, positive definite.
+    pub r: DMatrix<f64>,
+    /// The model the initiator uses to start tentative tracks from this sensor's detections
+    /// (`H`, `R`); defaults to `(h, r)`.
+    pub init: (DMatrix<f64>, DMatrix<f64>),
+}
+
+impl Sensor {
+    /// Builds and checks a sensor for an `ndim`-state model.
+    pub fn new(
+        h: DMatrix<f64>,
+        r: DMatrix<f64>,
+        init: Option<(DMatrix<f64>, DMatrix<f64>)>,
+        ndim: usize,
+        arg: &str,
+    ) -> Result<Self> {
+        let check = |h: &DMatrix<f64>, r: &DMatrix<f64>, what: &str| -> Result<()> {
+            if h.ncols() != ndim || h.nrows() == 0 {
+                return Err(Error::dim(
+                    &format!("{arg}.{what}measurement_matrix"),
+                    format!("shape (m, {ndim})"),
+                    format!("({}, {})", h.nrows(), h.ncols()),
+                ));
+            }
+            let m = h.nrows();
+            if r.shape() != (m, m) {
+                return Err(Error::dim(
+                    &format!("{arg}.{what}measurement_noise"),
+                    format!("shape ({m}, {m})"),
+                    format!("({}, {})", r.nrows(), r.ncols()),
+                ));
+            }
+            check_finite(&format!("{arg}.{what}measurement_matrix"), h.as_slice())?;
+            let rm: Vec<f64> = r.transpose().as_slice().to_vec();
+            check_covariance(&format!("{arg}.{what}measurement_noise"), &rm, m, true)
+        };
+        check(&h, &r, "")?;
+        let init = init.unwrap_or_else(|| (h.clone(), r.clone()));
+        check(&init.0, &init.1, "initiation_")?;
+        if init.0.nrows() != h.nrows() {
+            return Err(Error::dim(
+                &format!("{arg}.initiation_measurement_matrix"),
+                format!("{} rows like measurement_matrix", h.nrows()),
+                init.0.nrows(),
+            ));
+        }
+        Ok(Self { h, r, init })
+    }
+
+    /// Measurement dimension `m`.
+    pub fn m(&self) -> usize {
+        self.h.nrows()
+    }
+}
+
+/// How a distance hypothesiser scores a detection (Stone Soup measures).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Measure {
+    /// `sqrt(yᵀ S⁻¹ y)`.
+    Mahalanobis,
+    /// `yᵀ S⁻¹ y`.
+    SquaredMahalanobis,
+}
+
+/// Distance hypotheses + GNN (`DistanceHypothesiser` + `GNNWith2DAssignment`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GnnParams {
+    pub measure: Measure,
+    /// Detections at `distance >= missed_distance` are not hypothesised; a missed detection
+    /// costs `missed_distance` in the assignment. May be `+inf`.
+    pub missed_distance: f64,
+    /// Hypothesise every detection whatever its distance.
+    pub include_all: bool,
+}
+
+/// PDA hypotheses + JPDA (`PDAHypothesiser` + `JPDA`/`JPDAwithEHM`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct JpdaParams {
+    /// `P_D` in (0, 1].
+    pub prob_detect: f64,
+    /// `P_G` in (0, 1].
+    pub prob_gate: f64,
+    /// Clutter spatial density `λ` (per measurement-space unit volume); `None`: Stone Soup's
+    /// estimate from the validation-region volume and the number of gated detections.
+    pub clutter_density: Option<f64>,
+    /// Keep detections outside the gate (needs `clutter_density`).
+    pub include_all: bool,
+    pub method: Method,
+}
+
+/// The association of confirmed tracks.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Association {
+    Jpda(JpdaParams),
+    Gnn(GnnParams),
+}
+
+/// How tentative tracks are confirmed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Confirmation {
+    /// Confirmed once the track holds `min_points` updates (or states when `updates_only` is
+    /// false); dropped by the initiator's deleter (Stone Soup's `MultiMeasurementInitiator`).
+    MinPoints {
+        min_points: usize,
+        updates_only: bool,
+    },
+    /// Confirmed once `m` of its first `n` states are updates; dropped after `n` states
+    /// without confirmation.
+    MOfN { m: usize, n: usize },
+}
+
+/// The multi-measurement initiator.
+#[derive(Debug, Clone)]
+pub struct InitiatorConfig {
+    /// Prior state `(ndim,)`; its mapped entries are replaced by `H⁺ z`.
+    pub prior_state: DVector<f64>,
+    /// Prior covariance; mapped rows/columns are replaced by `H⁺ R H⁺ᵀ`.
+    pub prior_covariance: DMatrix<f64>,
+    /// Added to the diagonal of new covariances.
+    pub diag_load: f64,
+    pub confirmation: Confirmation,
+    /// Deleter of tentative tracks (ignored under M-of-N).
+    pub deleter: Deleter,
+    /// Gate and assignment of tentative tracks.
+    pub gnn: GnnParams,
+    /// Motion model of tentative tracks (`None`: the tracker's).
+    pub motion_model: Option<MotionModel>,
+    /// Joseph-form covariance in the initiator's updater.
+    pub use_joseph_cov: bool,
+}
+
+/// What to do with a scan older than the previous one.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum OutOfOrder {
+    /// Fail with [`Error::Order`].
+    Raise,
+    /// Ignore the scan and count it.
+    Drop,
+}
+
+/// The whole tracker configuration.
+#[derive(Debug, Clone)]
+pub struct TrackerConfig {
+    pub motion_model: MotionModel,
+    pub sensors: Vec<Sensor>,
+    pub association: Association,
+    /// Joseph-form covariance in the updater (Stone Soup's `use_joseph_cov`; default form is
+    /// `P − K S Kᵀ`).
+    pub use_joseph_cov: bool,
+    pub deleter: Deleter,
+    /// Drop the last state of a deleted track if it is a prediction (`delete_last_pred`).
+    pub delete_last_prediction: bool,
+    pub initiator: InitiatorConfig,
+    pub out_of_order: OutOfOrder,
+    /// Stone Soup passes detections to the initiator unless some track's marginal for them
+    /// exceeds its missed marginal (`true`). With `false` (native option against duplicate
+    /// tracks on one target): detections inside any confirmed track's gate are withheld too,
+    /// and a tentative track about to be confirmed is dropped when its position lies inside the
+    /// gate of a confirmed track or of a track confirmed before it in the same scan.
+    pub initiate_in_gates: bool,
+}
+
+impl TrackerConfig {
+    fn validate(&self) -> Result<()> {
+        let n = self.motion_model.ndim();
+        if self.sensors.is_empty() {
+            return Err(Error::param("sensors", "at least one sensor is needed"));
+        }
+        let m = self.sensors[0].m();
+        for (i, s) in self.sensors.iter().enumerate() {
+            if s.h.ncols() != n {
+                return Err(Error::dim(
+                    &format!("sensors[{i}].measurement_matrix"),
+                    format!("{n} columns (state dimension)"),
+                    s.h.ncols(),
+                ));
+            }
+            if s.m() != m {
+                return Err(Error::dim(
+                    &format!("sensors[{i}].measurement_matrix"),
+                    format!("{m} rows (all sensors share one measurement dimension)"),
+                    s.m(),
+                ));
+            }
+        }
+        let prob = |v: f64, arg: &str| -> Result<()> {
+            if v > 0.0 && v <= 1.0 {
+                Ok(())
+            } else {
+                Err(Error::param(arg, format!("must be in (0, 1], got {v}")))
+            }
+        };
+        let gnn = |g: &GnnParams, arg: &str| -> Result<()> {
+            if g.missed_distance.is_nan() || g.missed_distance < 0.0 {
+                return Err(Error::param(
+                    arg,
+                    format!("missed_distance must be >= 0, got {}", g.missed_distance),
+                ));
+            }
+            Ok(())
+        };
+        match &self.association {
+            Association::Jpda(j) => {
+                prob(j.prob_detect, "prob_detect")?;
+                prob(j.prob_gate, "prob_gate")?;
+                if let Some(l) = j.clutter_density {
+                    if !(l > 0.0 && l.is_finite()) {
+                        return Err(Error::param(
+                            "clutter_density",
+                            format!("must be finite and > 0, got {l}"),
+                        ));
+                    }
+                } else if j.include_all {
+                    return Err(Error::param(
+                        "clutter_density",
+                        "is required when include_all is set",
+                    ));
+                }
+            }
+            Association::Gnn(g) => gnn(g, "association")?,
+        }
+        self.deleter.validate(n, "deleter")?;
+        let init = &self.initiator;
+        if init.prior_state.len() != n {
+            return Err(Error::dim("prior_state", n, init.prior_state.len()));
+        }
+        if init.prior_covariance.shape() != (n, n) {
+            return Err(Error::dim(
+                "prior_covariance",
+                format!("({n}, {n})"),
+                format!("{:?}", init.prior_covariance.shape()),
+            ));
+        }
+        check_finite("prior_state", init.prior_state.as_slice())?;
+        let pc: Vec<f64> = init.prior_covariance.transpose().as_slice().to_vec();
+        check_covariance("prior_covariance", &pc, n, false)?;
+        if !(init.diag_load >= 0.0 && init.diag_load.is_finite()) {
+            return Err(Error::param("diag_load", "must be finite and >= 0"));
+        }
+        match init.confirmation {
+            Confirmation::MinPoints { min_points: 0, .. } => {
+                return Err(Error::param("min_points", "must be >= 1"));
+            }
+            Confirmation::MOfN { m, n } if m == 0 || n < m => {
+                return Err(Error::param(
+                    "confirmation",
+                    format!("M-of-N needs 1 <= M <= N, got {m} of {n}"),
+                ));
+            }
+            _ => {}
+        }
+        init.deleter.validate(n, "initiator.deleter")?;
+        gnn(&init.gnn, "initiator")?;
+        if let Some(mm) = &init.motion_model {
+            if mm.ndim() != n {
+                return Err(Error::dim("initiator.motion_model", n, mm.ndim()));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Per (track, sensor) quantities of a prediction.
+struct Innovation {
+    zhat: DVector<f64>,
+    s: DMatrix<f64>,
+    chol: Cholesky<f64, Dyn>,
+    ln_det: f64,
+    /// Kalman gain `P⁻ Hᵀ S⁻¹`.
+    k: DMatrix<f64>,
+}
+
+fn innovation(x: &DVector<f64>, p: &DMatrix<f64>, sensor: &Sensor) -> Result<Innovation> {
+    let h = &sensor.h;
+    let pht = p * h.transpose();
+    let s = h * &pht + &sensor.r;
+    let chol = Cholesky::new(s.clone()).ok_or_else(|| Error::NotPositiveDefinite {
+        arg: "innovation covariance".into(),
+        reason: "H P Hᵀ + R is not positive definite".into(),
+    })?;
+    let ln_det = chol.l_dirty().diagonal().iter().map(|d| 2.0 * d.ln()).sum();
+    let k = chol.solve(&pht.transpose()).transpose();
+    Ok(Innovation {
+        zhat: h * x,
+        s,
+        chol,
+        ln_det,
+        k,
+    })
+}
+
+/// Posterior covariance of a Kalman update (same for every detection of a sensor).
+fn posterior_cov(
+    p: &DMatrix<f64>,
+    inn: &Innovation,
+    sensor: &Sensor,
+    joseph: bool,
+) -> DMatrix<f64> {
+    if joseph {
+        let n = p.nrows();
+        let ikh = DMatrix::identity(n, n) - &inn.k * &sensor.h;
+        &ikh * p * ikh.transpose() + &inn.k * &sensor.r * inn.k.transpose()
+    } else {
+        p - &inn.k * &inn.s * inn.k.transpose()
+    }
+}
+
+/// Predicts every track to `t` (`x⁻ = F x`, `P⁻ = F P Fᵀ + Q`), computing `F`, `Q` once per
+/// distinct time step.
+fn predict_all(model: &MotionModel, tracks: &[Track], t: f64) -> Vec<(DVector<f64>, DMatrix<f64>)> {
+    // (dt bits, F, Fᵀ, Q)
+    type Step = (u64, DMatrix<f64>, DMatrix<f64>, DMatrix<f64>);
+    let mut cache: Vec<Step> = Vec::new();
+    tracks
+        .iter()
+        .map(|tr| {
+            let dt = t - tr.t;
+            let key = dt.to_bits();
+            let k = match cache.iter().position(|c| c.0 == key) {
+                Some(k) => k,
+                None if cache.len() >= 8 => {
+                    // Many distinct steps (tracks at scattered times): no caching.
+                    let (f, q) = model.matrices(dt);
+                    return (&f * &tr.x, &f * &tr.p * f.transpose() + q);
+                }
+                None => {
+                    let (f, q) = model.matrices(dt);
+                    let ft = f.transpose();
+                    cache.push((key, f, ft, q));
+                    cache.len() - 1
+                }
+            };
+            let (_, f, ft, q) = &cache[k];
+            (f * &tr.x, f * &tr.p * ft + q)
+        })
+        .collect()
+}
+
+#[allow(clippy::too_many_arguments)]
+/// Candidate `(track, detection, squared Mahalanobis)` pairs within `gate` (squared), for
+/// predictions `preds[t] = (x⁻, P⁻)`; `innov[t][s]` is filled lazily per sensor.
+fn gate_pairs(
+    preds: &[(DVector<f64>, DMatrix<f64>)],
+    sensors: &[Sensor],
+    z: &[f64],
+    m: usize,
+    det_sensor: &[usize],
+    dets: &[usize],
+    gate: f64,
+    innov: &mut [Vec<Option<Innovation>>],
+) -> Result<Vec<(usize, usize, f64)>> {
+    let mut pairs = Vec::new();
+    if preds.is_empty() || dets.is_empty() {
+        return Ok(pairs);
+    }
+    for (s, sensor) in sensors.iter().enumerate() {
+        let ids: Vec<usize> = dets
+            .iter()
+            .copied()
+            .filter(|&d| det_sensor[d] == s)
+            .collect();
+        if ids.is_empty() {
+            continue;
+        }
+        for (t, (x, p)) in preds.iter().enumerate() {
+            if innov[t][s].is_none() {
+                innov[t][s] = Some(innovation(x, p, sensor)?);
+            }
+        }
+        let pts: Vec<f64> = ids
+            .iter()
+            .flat_map(|&d| z[d * m..(d + 1) * m].iter().copied())
+            .collect();
+        // Cell side: median gate box width over tracks.
+        let mut widths: Vec<f64> = innov
+            .iter()
+            .map(|v| {
+                let inn = v[s].as_ref().expect("filled above");
+                let w = (0..m.min(2)).map(|i| inn.s[(i, i)]).fold(0.0, f64::max);
+                2.0 * (gate * w).sqrt()
+            })
+            .collect();
+        let cell = if gate.is_finite() {
+            let mid = widths.len() / 2;
+            *widths.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1
+        } else {
+            f64::INFINITY
+        };
+        let local: Vec<usize> = (0..ids.len()).collect();
+        let grid = CandidateGrid::new(&pts, m, &local, cell);
+        let mut half = vec![0.0; m];
+        for (t, v) in innov.iter().enumerate() {
+            let inn = v[s].as_ref().expect("filled above");
+            for (i, h) in half.iter_mut().enumerate() {
+                *h = (gate * inn.s[(i, i)]).sqrt();
+                if h.is_nan() {
+                    *h = f64::INFINITY;
+                }
+            }
+            grid.query(inn.zhat.as_slice(), &half, |k| {
+                let d = ids[k];
+                let y = DVector::from_column_slice(&z[d * m..(d + 1) * m]) - &inn.zhat;
+                let d2 = y.dot(&inn.chol.solve(&y));
+                if d2 <= gate {
+                    pairs.push((t, d, d2));
+                }
+            });
+        }
+    }
+    pairs.sort_unstable_by_key(|&(t, d, _)| (t, d));
+    Ok(pairs)
+}
+
+/// Result of one [`Tracker::step`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StepOutcome {
+    Processed,
+    /// The scan was older than the previous one and [`OutOfOrder::Drop`] is set.
+    Dropped,
+}
+
+/// The tracker state between scans.
+#[derive(Debug, Clone)]
+pub struct Tracker {
+    cfg: TrackerConfig,
+    m: usize,
+    /// Confirmed, alive tracks.
+    pub tracks: Vec<Track>,
+    /// Tentative tracks held by the initiator.
+    pub tentative: Vec<Track>,
+    /// Deleted confirmed tracks, in order of deletion.
+    pub deleted: Vec<Track>,
+    next_id: u64,
+    next_tentative_id: u64,
+    last_time: Option<f64>,
+    scan: i64,
+    /// Number of scans dropped for being out of order.
+    pub dropped_scans: usize,
+    gate: f64,
+}
+
+impl Tracker {
+    /// Checks the configuration and builds an empty tracker.
+    pub fn new(cfg: TrackerConfig) -> Result<Self> {
+        cfg.validate()?;
+        let m = cfg.sensors[0].m();
+        let gate = match &cfg.association {
+            Association::Jpda(j) => chi2_quantile(j.prob_gate, m)?,
+            Association::Gnn(_) => f64::INFINITY,
+        };
+        Ok(Self {
+            cfg,
+            m,
+            tracks: Vec::new(),
+            tentative: Vec::new(),
+            deleted: Vec::new(),
+            next_id: 0,
+            next_tentative_id: 0,
+            last_time: None,
+            scan: 0,
+            dropped_scans: 0,
+            gate,
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &TrackerConfig {
+        &self.cfg
+    }
+
+    /// Reserves room for `entries` more history entries on every track (clones shrink
+    /// capacity to fit; benchmarks of one scan on a cloned tracker use this).
+    pub fn reserve_history(&mut self, entries: usize) {
+        for t in self.tracks.iter_mut().chain(self.tentative.iter_mut()) {
+            t.history.reserve(entries, t.x.len());
+        }
+    }
+
+    /// Measurement dimension shared by all sensors.
+    pub fn measurement_dim(&self) -> usize {
+        self.m
+    }
+
+    /// Time of the last processed scan.
+    pub fn last_time(&self) -> Option<f64> {
+        self.last_time
+    }
+
+    /// Adds a confirmed track with state `x`, covariance `p` at time `t` (its first state is a
+    /// prior, not an update). Returns its id.
+    pub fn add_track(&mut self, x: &[f64], p: &[f64], t: f64) -> Result<u64> {
+        let n = self.cfg.motion_model.ndim();
+        if x.len() != n {
+            return Err(Error::dim("state", n, x.len()));
+        }
+        if p.len() != n * n {
+            return Err(Error::dim("covariance", format!("({n}, {n})"), p.len()));
+        }
+        check_finite("state", x)?;
+        check_finite("time", &[t])?;
+        check_covariance("covariance", p, n, false)?;
+        let id = self.next_id;
+        self.next_id += 1;
+        let mut tr = Track::new(
+            id,
+            DVector::from_column_slice(x),
+            DMatrix::from_row_slice(n, n, p),
+            Entry {
+                time: t,
+                is_update: false,
+                scan: self.scan - 1,
+                sensor: -1,
+                detection: -1,
+                nis: f64::NAN,
+                missed_probability: f64::NAN,
+                assoc: vec![],
+            },
+        );
+        tr.confirmed_time = t;
+        self.tracks.push(tr);
+        Ok(id)
+    }
+
+    /// Processes one scan: detections `z` (`(k, m)` row-major) from sensors `sensor_ids`
+    /// (`(k,)`) at time `t` seconds. An empty scan only predicts.
+    pub fn step(&mut self, t: f64, z: &[f64], sensor_ids: &[usize]) -> Result<StepOutcome> {
+        let m = self.m;
+        check_finite("t", &[t])?;
+        if z.len() != sensor_ids.len() * m {
+            return Err(Error::dim(
+                "measurements",
+                format!("{} x {m} values (one row per sensor id)", sensor_ids.len()),
+                z.len(),
+            ));
+        }
+        check_finite("measurements", z)?;
+        if let Some(pos) = sensor_ids.iter().position(|&s| s >= self.cfg.sensors.len()) {
+            return Err(Error::param(
+                "sensor_ids",
+                format!(
+                    "element {pos} is {}, but only {} sensors are configured",
+                    sensor_ids[pos],
+                    self.cfg.sensors.len()
+                ),
+            ));
+        }
+        if let Some(lt) = self.last_time {
+            if t < lt {
+                return match self.cfg.out_of_order {
+                    OutOfOrder::Drop => {
+                        self.dropped_scans += 1;
+                        Ok(StepOutcome::Dropped)
+                    }
+                    OutOfOrder::Raise => Err(Error::Order {
+                        arg: "t".into(),
+                        reason: format!("scan time {t} is before the previous scan time {lt}"),
+                    }),
+                };
+            }
+        }
+        let k = sensor_ids.len();
+        let all: Vec<usize> = (0..k).collect();
+        let associated = match self.cfg.association {
+            Association::Jpda(j) => self.step_jpda(t, z, sensor_ids, &all, &j)?,
+            Association::Gnn(g) => self.step_gnn(t, z, sensor_ids, &all, &g)?,
+        };
+        // Delete confirmed tracks.
+        let mut kept = Vec::with_capacity(self.tracks.len());
+        for mut tr in std::mem::take(&mut self.tracks) {
+            if self.cfg.deleter.check(&tr) {
+                if self.cfg.delete_last_prediction {
+                    tr.drop_last_prediction();
+                }
+                tr.deleted_time = t;
+                self.deleted.push(tr);
+            } else {
+                kept.push(tr);
+            }
+        }
+        self.tracks = kept;
+        let free: Vec<usize> = (0..k).filter(|&d| !associated[d]).collect();
+        self.initiate(t, z, sensor_ids, &free)?;
+        self.last_time = Some(t);
+        self.scan += 1;
+        Ok(StepOutcome::Processed)
+    }
+
+    fn step_jpda(
+        &mut self,
+        t: f64,
+        z: &[f64],
+        det_sensor: &[usize],
+        dets: &[usize],
+        j: &JpdaParams,
+    ) -> Result<Vec<bool>> {
+        let m = self.m;
+        let k = det_sensor.len();
+        let ns = self.cfg.sensors.len();
+        let preds = predict_all(&self.cfg.motion_model, &self.tracks, t);
+        let mut innov: Vec<Vec<Option<Innovation>>> = (0..preds.len())
+            .map(|_| (0..ns).map(|_| None).collect())
+            .collect();
+        let gate = if j.include_all {
+            f64::INFINITY
+        } else {
+            self.gate
+        };
+        let pairs = gate_pairs(
+            &preds,
+            &self.cfg.sensors,
+            z,
+            m,
+            det_sensor,
+            dets,
+            gate,
+            &mut innov,
+        )?;
+        // Log weights per track: missed, then gated detections.
+        let ln_missed = (1.0 - j.prob_detect * j.prob_gate).ln();
+        let mut hyps: Vec<Vec<(usize, f64, f64)>> = vec![Vec::new(); preds.len()]; // (det, ln w, d2)
+        for &(ti, d, d2) in &pairs {
+            let inn = innov[ti][det_sensor[d]].as_ref().expect("gated");
+            let logpdf = -0.5 * (d2 + inn.ln_det + m as f64 * LN_2PI);
+            let mut lw = logpdf + j.prob_detect.ln();
+            if let Some(l) = j.clutter_density {
+                lw -= l.ln();
+            }
+            hyps[ti].push((d, lw, d2));
+        }
+        if j.clutter_density.is_none() {
+            for (ti, h) in hyps.iter_mut().enumerate() {
+                let n_valid = h.iter().filter(|x| x.2 <= self.gate).count() as f64;
+                for e in h.iter_mut() {
+                    let inn = innov[ti][det_sensor[e.0]].as_ref().expect("gated");
+                    let vol = validation_volume(m, self.gate, inn.ln_det.exp());
+                    e.1 += vol.ln() - n_valid.ln();
+                }
+            }
+        }
+        let th: Vec<TrackHypotheses> = hyps
+            .iter()
+            .map(|h| {
+                let mx = h.iter().map(|e| e.1).fold(ln_missed, f64::max);
+                TrackHypotheses {
+                    missed: (ln_missed - mx).exp(),
+                    detections: h.iter().map(|e| (e.0, (e.1 - mx).exp())).collect(),
+                }
+            })
+            .collect();
+        let mut marg = vec![crate::jpda::Marginals::default(); th.len()];
+        for c in clusters(&th, k) {
+            if c.len() == 1 {
+                let h = &th[c[0]];
+                let tot = h.missed + h.detections.iter().map(|d| d.1).sum::<f64>();
+                marg[c[0]] = crate::jpda::Marginals {
+                    missed: h.missed / tot,
+                    detections: h.detections.iter().map(|d| d.1 / tot).collect(),
+                };
+                continue;
+            }
+            let ordered = order_cluster(&c, &preds);
+            let sub: Vec<TrackHypotheses> = ordered.iter().map(|&i| th[i].clone()).collect();
+            let r = marginals(&sub, j.method)?;
+            for (i, mm) in ordered.into_iter().zip(r) {
+                marg[i] = mm;
+            }
+        }
+        let mut associated = vec![false; k];
+        let mut in_gate = vec![false; k];
+        let joseph = self.cfg.use_joseph_cov;
+        for (ti, ((xp, pp), tr)) in preds.into_iter().zip(self.tracks.iter_mut()).enumerate() {
+            let mg = &marg[ti];
+            let h = &hyps[ti];
+            let n = xp.len();
+            let b0 = mg.missed;
+            let tot: f64 = b0 + mg.detections.iter().sum::<f64>();
+            // Components: prediction, then one Kalman update per gated detection.
+            let mut mean = &xp * (b0 / tot);
+            let mut comps: Vec<(f64, DVector<f64>, usize)> = Vec::with_capacity(h.len());
+            for (e, &b) in h.iter().zip(&mg.detections) {
+                let s = det_sensor[e.0];
+                let inn = innov[ti][s].as_ref().expect("gated");
+                let y = DVector::from_column_slice(&z[e.0 * m..(e.0 + 1) * m]) - &inn.zhat;
+                let xu = &xp + &inn.k * y;
+                mean += &xu * (b / tot);
+                comps.push((b / tot, xu, s));
+                in_gate[e.0] = true;
+            }
+            let dx = &xp - &mean;
+            let mut cov = &pp * (b0 / tot) + (&dx * dx.transpose()) * (b0 / tot);
+            let mut post_by_sensor: Vec<Option<DMatrix<f64>>> = vec![None; self.cfg.sensors.len()];
+            for (w, xu, s) in &comps {
+                let pu = post_by_sensor[*s].get_or_insert_with(|| {
+                    posterior_cov(
+                        &pp,
+                        innov[ti][*s].as_ref().expect("gated"),
+                        &self.cfg.sensors[*s],
+                        joseph,
+                    )
+                });
+                let dx = xu - &mean;
+                cov += &*pu * *w + (&dx * dx.transpose()) * *w;
+            }
+            debug_assert_eq!(cov.nrows(), n);
+            let mut best: Option<usize> = None;
+            for (i, &b) in mg.detections.iter().enumerate() {
+                if b > b0 {
+                    associated[h[i].0] = true;
+                    if best.is_none_or(|bi| b > mg.detections[bi]) {
+                        best = Some(i);
+                    }
+                }
+            }
+            let entry = Entry {
+                time: t,
+                is_update: best.is_some(),
+                scan: self.scan,
+                sensor: best.map_or(-1, |i| det_sensor[h[i].0] as i64),
+                detection: best.map_or(-1, |i| h[i].0 as i64),
+                nis: best.map_or(f64::NAN, |i| h[i].2),
+                missed_probability: b0 / tot,
+                assoc: h
+                    .iter()
+                    .zip(&mg.detections)
+                    .map(|(e, &b)| (e.0 as i64, b / tot))
+                    .collect(),
+            };
+            tr.append(mean, cov, entry);
+        }
+        if !self.cfg.initiate_in_gates {
+            for d in 0..k {
+                associated[d] |= in_gate[d];
+            }
+        }
+        Ok(associated)
+    }
+
+    fn step_gnn(
+        &mut self,
+        t: f64,
+        z: &[f64],
+        det_sensor: &[usize],
+        dets: &[usize],
+        g: &GnnParams,
+    ) -> Result<Vec<bool>> {
+        let model = self.cfg.motion_model.clone();
+        let joseph = self.cfg.use_joseph_cov;
+        let scan = self.scan;
+        let sensors = self.cfg.sensors.clone();
+        let assoc = gnn_step(
+            &mut self.tracks,
+            &model,
+            &sensors,
+            g,
+            joseph,
+            t,
+            z,
+            self.m,
+            det_sensor,
+            dets,
+            scan,
+        )?;
+        let mut associated = vec![false; det_sensor.len()];
+        for d in assoc.into_iter().flatten() {
+            associated[d] = true;
+        }
+        Ok(associated)
+    }
+
+    fn initiate(&mut self, t: f64, z: &[f64], det_sensor: &[usize], free: &[usize]) -> Result<()> {
+        let m = self.m;
+        let init = self.cfg.initiator.clone();
+        let model = init
+            .motion_model
+            .clone()
+            .unwrap_or_else(|| self.cfg.motion_model.clone());
+        let mut used = vec![false; det_sensor.len()];
+        if !self.tentative.is_empty() {
+            let assoc = gnn_step(
+                &mut self.tentative,
+                &model,
+                &self.cfg.sensors,
+                &init.gnn,
+                init.use_joseph_cov,
+                t,
+                z,
+                m,
+                det_sensor,
+                free,
+                self.scan,
+            )?;
+            for d in assoc.into_iter().flatten() {
+                used[d] = true;
+            }
+            let mut keep = Vec::with_capacity(self.tentative.len());
+            let mut confirmed = Vec::new();
+            for tr in std::mem::take(&mut self.tentative) {
+                let (confirm, drop) = match init.confirmation {
+                    Confirmation::MinPoints {
+                        min_points,
+                        updates_only,
+                    } => {
+                        let count = if updates_only {
+                            tr.n_updates()
+                        } else {
+                            tr.history.len()
+                        };
+                        (count >= min_points, false)
+                    }
+                    Confirmation::MOfN { m: mm, n } => {
+                        let ups = tr.history.is_update.iter().take(n).filter(|u| **u).count();
+                        (ups >= mm, tr.history.len() >= n)
+                    }
+                };
+                if confirm {
+                    confirmed.push(tr);
+                } else if !drop {
+                    keep.push(tr);
+                }
+            }
+            if !self.cfg.initiate_in_gates {
+                confirmed = self.without_duplicates(confirmed)?;
+            }
+            for mut tr in confirmed {
+                tr.id = self.next_id;
+                self.next_id += 1;
+                tr.confirmed_time = t;
+                self.tracks.push(tr);
+            }
+            if matches!(init.confirmation, Confirmation::MinPoints { .. }) {
+                keep.retain(|tr| !init.deleter.check(tr));
+            }
+            self.tentative = keep;
+        }
+        // New tentative tracks from every detection left.
+        for &d in free {
+            if used[d] {
+                continue;
+            }
+            let sensor = &self.cfg.sensors[det_sensor[d]];
+            let (hi, ri) = &sensor.init;
+            let pinv = hi
+                .clone()
+                .pseudo_inverse(1e-15)
+                .map_err(|e| Error::param("initiation_measurement_matrix", e))?;
+            let zd = DVector::from_column_slice(&z[d * m..(d + 1) * m]);
+            let mut x = init.prior_state.clone();
+            let mut p = init.prior_covariance.clone();
+            let n = x.len();
+            for c in 0..n {
+                if (0..hi.nrows()).any(|r| hi[(r, c)] != 0.0) {
+                    x[c] = 0.0;
+                    for r in 0..n {
+                        p[(c, r)] = 0.0;
+                        p[(r, c)] = 0.0;
+                    }
+                }
+            }
+            x += &pinv * zd;
+            p += &pinv * ri * pinv.transpose();
+            for i in 0..n {
+                p[(i, i)] += init.diag_load;
+            }
+            let id = self.next_tentative_id;
+            self.next_tentative_id += 1;
+            self.tentative.push(Track::new(
+                id,
+                x,
+                p,
+                Entry {
+                    time: t,
+                    is_update: true,
+                    scan: self.scan,
+                    sensor: det_sensor[d] as i64,
+                    detection: d as i64,
+                    nis: f64::NAN,
+                    missed_probability: f64::NAN,
+                    assoc: vec![(d as i64, 1.0)],
+                },
+            ));
+        }
+        Ok(())
+    }
+}
+
+impl Tracker {
+    /// Drops tentative tracks about to be confirmed whose position falls inside the gate of a
+    /// confirmed track or of a candidate accepted before them (native duplicate suppression;
+    /// the gate is the association gate widened to at least χ²_m(0.9999)).
+    fn without_duplicates(&self, cands: Vec<Track>) -> Result<Vec<Track>> {
+        if cands.is_empty() {
+            return Ok(cands);
+        }
+        let m = self.m;
+        let gate = match &self.cfg.association {
+            Association::Jpda(_) => self.gate,
+            Association::Gnn(g) => match g.measure {
+                Measure::Mahalanobis => g.missed_distance * g.missed_distance,
+                Measure::SquaredMahalanobis => g.missed_distance,
+            },
+        };
+        // A generous gate: a candidate is a duplicate unless clearly outside (P = 0.9999).
+        let wide = chi2_quantile(0.9999, m)?;
+        let gate = if gate.is_finite() {
+            gate.max(wide)
+        } else {
+            wide
+        };
+        // Each candidate as a pseudo-detection H x from the sensor of its last update.
+        let sens: Vec<usize> = cands
+            .iter()
+            .map(|c| {
+                let s = *c.history.sensor.last().unwrap_or(&0);
+                if s >= 0 {
+                    s as usize
+                } else {
+                    0
+                }
+            })
+            .collect();
+        let z: Vec<f64> = cands
+            .iter()
+            .zip(&sens)
+            .flat_map(|(c, &s)| {
+                (&self.cfg.sensors[s].h * &c.x)
+                    .iter()
+                    .copied()
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        let all: Vec<usize> = (0..cands.len()).collect();
+        let ns = self.cfg.sensors.len();
+        let existing: Vec<(DVector<f64>, DMatrix<f64>)> = self
+            .tracks
+            .iter()
+            .map(|t| (t.x.clone(), t.p.clone()))
+            .collect();
+        let mut innov: Vec<Vec<Option<Innovation>>> = (0..existing.len())
+            .map(|_| (0..ns).map(|_| None).collect())
+            .collect();
+        let mut reject = vec![false; cands.len()];
+        for (_, d, _) in gate_pairs(
+            &existing,
+            &self.cfg.sensors,
+            &z,
+            m,
+            &sens,
+            &all,
+            gate,
+            &mut innov,
+        )? {
+            reject[d] = true;
+        }
+        let own: Vec<(DVector<f64>, DMatrix<f64>)> =
+            cands.iter().map(|t| (t.x.clone(), t.p.clone())).collect();
+        let mut innov: Vec<Vec<Option<Innovation>>> = (0..own.len())
+            .map(|_| (0..ns).map(|_| None).collect())
+            .collect();
+        let mut gated_by: Vec<Vec<usize>> = vec![Vec::new(); cands.len()];
+        for (i, d, _) in gate_pairs(
+            &own,
+            &self.cfg.sensors,
+            &z,
+            m,
+            &sens,
+            &all,
+            gate,
+            &mut innov,
+        )? {
+            if i != d {
+                gated_by[d].push(i);
+            }
+        }
+        let mut accepted = vec![false; cands.len()];
+        for c in 0..cands.len() {
+            if !reject[c] && !gated_by[c].iter().any(|&i| accepted[i]) {
+                accepted[c] = true;
+            }
+        }
+        Ok(cands
+            .into_iter()
+            .zip(accepted)
+            .filter_map(|(c, a)| a.then_some(c))
+            .collect())
+    }
+}
+
+/// Orders a cluster's tracks along the axis of largest spread of their predicted states, so
+/// that EHM's sets of pending detections stay small.
+fn order_cluster(c: &[usize], preds: &[(DVector<f64>, DMatrix<f64>)]) -> Vec<usize> {
+    let mut out = c.to_vec();
+    let n = preds[c[0]].0.len();
+    let spread = |i: usize| {
+        let v: Vec<f64> = c.iter().map(|&t| preds[t].0[i]).collect();
+        let lo = v.iter().cloned().fold(f64::INFINITY, f64::min);
+        let hi = v.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+        hi - lo
+    };
+    let axis = (0..n)
+        .max_by(|&a, &b| spread(a).total_cmp(&spread(b)))
+        .unwrap_or(0);
+    out.sort_by(|&a, &b| preds[a].0[axis].total_cmp(&preds[b].0[axis]));
+    out
+}
+
+/// Distance hypotheses + GNN + update/predict on `tracks` (confirmed or tentative). Returns
+/// the detection assigned to each track.
+#[allow(clippy::too_many_arguments)]
+fn gnn_step(
+    tracks: &mut [Track],
+    model: &MotionModel,
+    sensors: &[Sensor],
+    g: &GnnParams,
+    joseph: bool,
+    t: f64,
+    z: &[f64],
+    m: usize,
+    det_sensor: &[usize],
+    dets: &[usize],
+    scan: i64,
+) -> Result<Vec<Option<usize>>> {
+    let preds = predict_all(model, tracks, t);
+    let mut innov: Vec<Vec<Option<Innovation>>> = (0..preds.len())
+        .map(|_| (0..sensors.len()).map(|_| None).collect())
+        .collect();
+    let gate = if g.include_all {
+        f64::INFINITY
+    } else {
+        match g.measure {
+            Measure::Mahalanobis => g.missed_distance * g.missed_distance,
+            Measure::SquaredMahalanobis => g.missed_distance,
+        }
+    };
+    let pairs = gate_pairs(&preds, sensors, z, m, det_sensor, dets, gate, &mut innov)?;
+    let mut hyps: Vec<Vec<(usize, f64)>> = vec![Vec::new(); tracks.len()];
+    let mut d2s: Vec<Vec<f64>> = vec![Vec::new(); tracks.len()];
+    for (ti, d, d2) in pairs {
+        let dist = match g.measure {
+            Measure::Mahalanobis => d2.sqrt(),
+            Measure::SquaredMahalanobis => d2,
+        };
+        if g.include_all || dist < g.missed_distance {
+            hyps[ti].push((d, dist));
+            d2s[ti].push(d2);
+        }
+    }
+    let assign = gnn_assign(&hyps, det_sensor.len(), g.missed_distance)?;
+    for (ti, ((xp, pp), tr)) in preds.into_iter().zip(tracks.iter_mut()).enumerate() {
+        let assoc: Vec<(i64, f64)> = hyps[ti]
+            .iter()
+            .map(|&(d, _)| (d as i64, if assign[ti] == Some(d) { 1.0 } else { 0.0 }))
+            .collect();
+        match assign[ti] {
+            Some(d) => {
+                let s = det_sensor[d];
+                let inn = innov[ti][s].as_ref().expect("gated");
+                let y = DVector::from_column_slice(&z[d * m..(d + 1) * m]) - &inn.zhat;
+                let nis = d2s[ti][hyps[ti].iter().position(|h| h.0 == d).expect("hyp")];
+                let xu = &xp + &inn.k * y;
+                let pu = posterior_cov(&pp, inn, &sensors[s], joseph);
+                tr.append(
+                    xu,
+                    pu,
+                    Entry {
+                        time: t,
+                        is_update: true,
+                        scan,
+                        sensor: s as i64,
+                        detection: d as i64,
+                        nis,
+                        missed_probability: 0.0,
+                        assoc,
+                    },
+                );
+            }
+            None => tr.append(
+                xp,
+                pp,
+                Entry {
+                    time: t,
+                    is_update: false,
+                    scan,
+                    sensor: -1,
+                    detection: -1,
+                    nis: f64::NAN,
+                    missed_probability: 1.0,
+                    assoc,
+                },
+            ),
+        }
+    }
+    Ok(assign)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn config(assoc: Association) -> TrackerConfig {
+        let h = DMatrix::from_row_slice(2, 4, &[1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0]);
+        let r = DMatrix::identity(2, 2) * 0.25;
+        TrackerConfig {
+            motion_model: MotionModel::constant_velocity_2d(0.01).unwrap(),
+            sensors: vec![Sensor::new(h, r, None, 4, "sensors[0]").unwrap()],
+            association: assoc,
+            use_joseph_cov: false,
+            deleter: Deleter::StepsSinceUpdate(3),
+            delete_last_prediction: false,
+            initiator: InitiatorConfig {
+                prior_state: DVector::zeros(4),
+                prior_covariance: DMatrix::from_diagonal(&DVector::from_vec(vec![
+                    0.0, 1.0, 0.0, 1.0,
+                ])),
+                diag_load: 0.0,
+                confirmation: Confirmation::MinPoints {
+                    min_points: 2,
+                    updates_only: true,
+                },
+                deleter: Deleter::StepsSinceUpdate(2),
+                gnn: GnnParams {
+                    measure: Measure::Mahalanobis,
+                    missed_distance: 3.0,
+                    include_all: false,
+                },
+                motion_model: None,
+                use_joseph_cov: false,
+            },
+            out_of_order: OutOfOrder::Raise,
+            initiate_in_gates: true,
+        }
+    }
+
+    fn run(assoc: Association) -> Tracker {
+        let mut tr = Tracker::new(config(assoc)).unwrap();
+        for k in 0..20 {
+            let t = k as f64;
+            let z = [t, 0.0, t, 50.0, 100.0 - t, 20.0];
+            tr.step(t, &z, &[0, 0, 0]).unwrap();
+        }
+        tr
+    }
+
+    #[test]
+    fn jpda_and_gnn_track_three_targets() {
+        let jpda = Association::Jpda(JpdaParams {
+            prob_detect: 0.9,
+            prob_gate: 0.99,
+            clutter_density: Some(1e-3),
+            include_all: false,
+            method: Method::Ehm,
+        });
+        let gnn = Association::Gnn(GnnParams {
+            measure: Measure::Mahalanobis,
+            missed_distance: 5.0,
+            include_all: false,
+        });
+        for a in [jpda, gnn] {
+            let tr = run(a);
+            assert_eq!(tr.tracks.len(), 3);
+            assert!(tr.tentative.is_empty());
+            for t in &tr.tracks {
+                assert!((t.x[1].abs() - 1.0).abs() < 0.1 || t.x[1].abs() < 0.1);
+            }
+        }
+    }
+
+    #[test]
+    fn time_backwards_is_an_error_or_dropped() {
+        let gnn = Association::Gnn(GnnParams {
+            measure: Measure::Mahalanobis,
+            missed_distance: 5.0,
+            include_all: false,
+        });
+        let mut tr = Tracker::new(config(gnn)).unwrap();
+        tr.step(1.0, &[], &[]).unwrap();
+        assert!(matches!(tr.step(0.5, &[], &[]), Err(Error::Order { .. })));
+        let mut c = config(gnn);
+        c.out_of_order = OutOfOrder::Drop;
+        let mut tr = Tracker::new(c).unwrap();
+        tr.step(1.0, &[], &[]).unwrap();
+        assert_eq!(tr.step(0.5, &[], &[]).unwrap(), StepOutcome::Dropped);
+        assert_eq!(tr.dropped_scans, 1);
+    }
+}
