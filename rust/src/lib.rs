@@ -8,11 +8,13 @@
 pub mod assign;
 pub mod error;
 pub mod gating;
+pub mod hypothesise;
 pub mod jpda;
 pub mod kalman;
 pub mod models;
 pub mod track;
 pub mod tracker;
+pub mod tracker_config;
 
 #[cfg(feature = "python")]
 pub mod py;
