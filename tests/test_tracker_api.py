@@ -375,3 +375,45 @@ def code57_with(sensor, deleter=None, association=None):
         deleter=deleter or T.StepsSinceUpdate(3),
         initiator=T.MultiMeasurementInitiator(np.zeros(4), np.eye(4)),
     )
+
+
+def test_initiation_model_and_prior_follow_stonesoup_simple_initiator():
+    # A detection without its own model starts a track with the initiator's model (Stone
+    # Soup's initiator measurement_model): x = H⁺ z on mapped axes, P = H⁺ R H⁺ᵀ + prior
+    # with mapped rows/columns zeroed, + diag_load.
+    sensor = T.Sensor(
+        np.array([[1.0, 0, 0, 0], [0, 0, 1.0, 0]]),
+        np.eye(2) * 0.25,
+        initiation_noise=np.diag([0.01, 0.04]),
+    )
+    a = np.random.default_rng(0).normal(size=(4, 4))
+    prior = a @ a.T + 0.1 * np.eye(4)
+    tracker = T.Tracker(
+        motion_model=constant_velocity_2d(0.1),
+        sensors=[sensor],
+        association=T.JPDA(0.9, 0.95, 0.01),
+        deleter=T.StepsSinceUpdate(3),
+        initiator=T.MultiMeasurementInitiator(
+            np.array([7.0, 0.5, 7.0, -0.5]), prior, diag_load=0.001
+        ),
+    )
+    tracker.step(0.0, [[3.0, 4.0]], [0])
+    tent = tracker.tentative_tracks
+    assert len(tent) == 1
+    np.testing.assert_allclose(tent.states[0], [3.0, 0.5, 4.0, -0.5], atol=1e-15)
+    want = np.zeros((4, 4))
+    want[np.ix_([1, 3], [1, 3])] = prior[np.ix_([1, 3], [1, 3])]
+    want[0, 0], want[2, 2] = 0.01, 0.04
+    np.testing.assert_allclose(tent.covariances[0], want + 0.001 * np.eye(4), atol=1e-15)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_brute_force_and_ehm_trackers_agree(seed):
+    scans = scenario(seed, n_targets=6, n_scans=20, clutter=5.0, spread=4.0)
+    runs = []
+    for method in ("ehm", "brute_force"):
+        tracker = code57(T.JPDA(0.85, 0.95, 0.125, method=method))
+        runs.append([tracker.step(t, z, s) for t, z, s in scans])
+    for a, b in zip(*runs, strict=True):
+        np.testing.assert_array_equal(a.ids, b.ids)
+        np.testing.assert_allclose(a.states, b.states, rtol=1e-10, atol=1e-12)

@@ -42,6 +42,12 @@ Native API (stable; the Stone Soup drop-in builds on it)::
     tracker.history(tracks.ids[0]).states               # every state, incl. tentative phase
     result = tracker.run(times, measurements, sensor_ids, scan_index)   # whole recording
 
+Also: ``tracker.add_track(state, covariance, time)`` seeds a confirmed track (first state a
+prior, not an update); ``tracker.tentative_tracks``, ``tracker.deleted_track_ids``,
+``tracker.history(id).to_dataframe()``, ``tracker.dropped_scans``. Track ids are stable
+integers counted in order of confirmation. Kernels: ``usvfast._core.linear_sum_assignment``,
+``jpda_marginals`` (EHM or brute force) and ``chi2_gate``.
+
 Units SI, state ``[n, v_n, e, v_e]`` (NED metres, m/s) for the 2-D model; times float seconds
 (use times relative to a recent epoch for sub-microsecond ``dt``). All detections of a scan
 share the scan time and are associated jointly. Scans must come in time order: an older scan

@@ -12,6 +12,7 @@ pub mod frames;
 pub mod gating;
 pub mod geodesy;
 pub mod georef;
+pub mod hypothesise;
 pub mod jpda;
 pub mod kalman;
 pub mod line_of_sight;
@@ -20,6 +21,7 @@ pub mod models;
 pub mod nms;
 pub mod track;
 pub mod tracker;
+pub mod tracker_config;
 
 #[cfg(feature = "python")]
 pub mod py;

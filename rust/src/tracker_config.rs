@@ -1,0 +1,276 @@
+//! Configuration of the multi-target tracker: sensors, association (JPDA / GNN), initiator,
+//! deleters and policies, with their validation. See [`crate::tracker`] for the step.
+
+use crate::error::{check_finite, Error, Result};
+use crate::jpda::Method;
+use crate::kalman::check_covariance;
+use crate::models::MotionModel;
+use crate::track::Deleter;
+use nalgebra::{DMatrix, DVector};
+
+/// A sensor's linear-Gaussian measurement model `z = H x + w`, `w ~ N(0, R)`.
+#[derive(Debug, Clone)]
+pub struct Sensor {
+    /// `H`, `(m, ndim)`.
+    pub h: DMatrix<f64>,
+    /// `R`, `(m, m)`, positive definite.
+    pub r: DMatrix<f64>,
+    /// The model the initiator uses to start tentative tracks from this sensor's detections
+    /// (`H`, `R`); defaults to `(h, r)`.
+    pub init: (DMatrix<f64>, DMatrix<f64>),
+}
+
+impl Sensor {
+    /// Builds and checks a sensor for an `ndim`-state model.
+    pub fn new(
+        h: DMatrix<f64>,
+        r: DMatrix<f64>,
+        init: Option<(DMatrix<f64>, DMatrix<f64>)>,
+        ndim: usize,
+        arg: &str,
+    ) -> Result<Self> {
+        let check = |h: &DMatrix<f64>, r: &DMatrix<f64>, what: &str| -> Result<()> {
+            if h.ncols() != ndim || h.nrows() == 0 {
+                return Err(Error::dim(
+                    &format!("{arg}.{what}measurement_matrix"),
+                    format!("shape (m, {ndim})"),
+                    format!("({}, {})", h.nrows(), h.ncols()),
+                ));
+            }
+            let m = h.nrows();
+            if r.shape() != (m, m) {
+                return Err(Error::dim(
+                    &format!("{arg}.{what}measurement_noise"),
+                    format!("shape ({m}, {m})"),
+                    format!("({}, {})", r.nrows(), r.ncols()),
+                ));
+            }
+            check_finite(&format!("{arg}.{what}measurement_matrix"), h.as_slice())?;
+            let rm: Vec<f64> = r.transpose().as_slice().to_vec();
+            check_covariance(&format!("{arg}.{what}measurement_noise"), &rm, m, true)
+        };
+        check(&h, &r, "")?;
+        let init = init.unwrap_or_else(|| (h.clone(), r.clone()));
+        check(&init.0, &init.1, "initiation_")?;
+        if init.0.nrows() != h.nrows() {
+            return Err(Error::dim(
+                &format!("{arg}.initiation_measurement_matrix"),
+                format!("{} rows like measurement_matrix", h.nrows()),
+                init.0.nrows(),
+            ));
+        }
+        Ok(Self { h, r, init })
+    }
+
+    /// Measurement dimension `m`.
+    pub fn m(&self) -> usize {
+        self.h.nrows()
+    }
+}
+
+/// How a distance hypothesiser scores a detection (Stone Soup measures).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Measure {
+    /// `sqrt(yᵀ S⁻¹ y)`.
+    Mahalanobis,
+    /// `yᵀ S⁻¹ y`.
+    SquaredMahalanobis,
+}
+
+/// Distance hypotheses + GNN (`DistanceHypothesiser` + `GNNWith2DAssignment`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GnnParams {
+    pub measure: Measure,
+    /// Detections at `distance >= missed_distance` are not hypothesised; a missed detection
+    /// costs `missed_distance` in the assignment. May be `+inf`.
+    pub missed_distance: f64,
+    /// Hypothesise every detection whatever its distance.
+    pub include_all: bool,
+}
+
+/// PDA hypotheses + JPDA (`PDAHypothesiser` + `JPDA`/`JPDAwithEHM`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct JpdaParams {
+    /// `P_D` in (0, 1].
+    pub prob_detect: f64,
+    /// `P_G` in (0, 1].
+    pub prob_gate: f64,
+    /// Clutter spatial density `λ` (per measurement-space unit volume); `None`: Stone Soup's
+    /// estimate from the validation-region volume and the number of gated detections.
+    pub clutter_density: Option<f64>,
+    /// Keep detections outside the gate (needs `clutter_density`).
+    pub include_all: bool,
+    pub method: Method,
+}
+
+/// The association of confirmed tracks.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Association {
+    Jpda(JpdaParams),
+    Gnn(GnnParams),
+}
+
+/// How tentative tracks are confirmed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Confirmation {
+    /// Confirmed once the track holds `min_points` updates (or states when `updates_only` is
+    /// false); dropped by the initiator's deleter (Stone Soup's `MultiMeasurementInitiator`).
+    MinPoints {
+        min_points: usize,
+        updates_only: bool,
+    },
+    /// Confirmed once `m` of its first `n` states are updates; dropped after `n` states
+    /// without confirmation.
+    MOfN { m: usize, n: usize },
+}
+
+/// The multi-measurement initiator.
+#[derive(Debug, Clone)]
+pub struct InitiatorConfig {
+    /// Prior state `(ndim,)`; its mapped entries are replaced by `H⁺ z`.
+    pub prior_state: DVector<f64>,
+    /// Prior covariance; mapped rows/columns are replaced by `H⁺ R H⁺ᵀ`.
+    pub prior_covariance: DMatrix<f64>,
+    /// Added to the diagonal of new covariances.
+    pub diag_load: f64,
+    pub confirmation: Confirmation,
+    /// Deleter of tentative tracks (ignored under M-of-N).
+    pub deleter: Deleter,
+    /// Gate and assignment of tentative tracks.
+    pub gnn: GnnParams,
+    /// Motion model of tentative tracks (`None`: the tracker's).
+    pub motion_model: Option<MotionModel>,
+    /// Joseph-form covariance in the initiator's updater.
+    pub use_joseph_cov: bool,
+}
+
+/// What to do with a scan older than the previous one.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum OutOfOrder {
+    /// Fail with [`Error::Order`].
+    Raise,
+    /// Ignore the scan and count it.
+    Drop,
+}
+
+/// The whole tracker configuration.
+#[derive(Debug, Clone)]
+pub struct TrackerConfig {
+    pub motion_model: MotionModel,
+    pub sensors: Vec<Sensor>,
+    pub association: Association,
+    /// Joseph-form covariance in the updater (Stone Soup's `use_joseph_cov`; default form is
+    /// `P − K S Kᵀ`).
+    pub use_joseph_cov: bool,
+    pub deleter: Deleter,
+    /// Drop the last state of a deleted track if it is a prediction (`delete_last_pred`).
+    pub delete_last_prediction: bool,
+    pub initiator: InitiatorConfig,
+    pub out_of_order: OutOfOrder,
+    /// Stone Soup passes detections to the initiator unless some track's marginal for them
+    /// exceeds its missed marginal (`true`). With `false` (native option against duplicate
+    /// tracks on one target): detections inside any confirmed track's gate are withheld too,
+    /// and a tentative track about to be confirmed is dropped when its position lies inside the
+    /// gate of a confirmed track or of a track confirmed before it in the same scan.
+    pub initiate_in_gates: bool,
+}
+
+impl TrackerConfig {
+    pub(crate) fn validate(&self) -> Result<()> {
+        let n = self.motion_model.ndim();
+        if self.sensors.is_empty() {
+            return Err(Error::param("sensors", "at least one sensor is needed"));
+        }
+        let m = self.sensors[0].m();
+        for (i, s) in self.sensors.iter().enumerate() {
+            if s.h.ncols() != n {
+                return Err(Error::dim(
+                    &format!("sensors[{i}].measurement_matrix"),
+                    format!("{n} columns (state dimension)"),
+                    s.h.ncols(),
+                ));
+            }
+            if s.m() != m {
+                return Err(Error::dim(
+                    &format!("sensors[{i}].measurement_matrix"),
+                    format!("{m} rows (all sensors share one measurement dimension)"),
+                    s.m(),
+                ));
+            }
+        }
+        let prob = |v: f64, arg: &str| -> Result<()> {
+            if v > 0.0 && v <= 1.0 {
+                Ok(())
+            } else {
+                Err(Error::param(arg, format!("must be in (0, 1], got {v}")))
+            }
+        };
+        let gnn = |g: &GnnParams, arg: &str| -> Result<()> {
+            if g.missed_distance.is_nan() || g.missed_distance < 0.0 {
+                return Err(Error::param(
+                    arg,
+                    format!("missed_distance must be >= 0, got {}", g.missed_distance),
+                ));
+            }
+            Ok(())
+        };
+        match &self.association {
+            Association::Jpda(j) => {
+                prob(j.prob_detect, "prob_detect")?;
+                prob(j.prob_gate, "prob_gate")?;
+                if let Some(l) = j.clutter_density {
+                    if !(l > 0.0 && l.is_finite()) {
+                        return Err(Error::param(
+                            "clutter_density",
+                            format!("must be finite and > 0, got {l}"),
+                        ));
+                    }
+                } else if j.include_all {
+                    return Err(Error::param(
+                        "clutter_density",
+                        "is required when include_all is set",
+                    ));
+                }
+            }
+            Association::Gnn(g) => gnn(g, "association")?,
+        }
+        self.deleter.validate(n, "deleter")?;
+        let init = &self.initiator;
+        if init.prior_state.len() != n {
+            return Err(Error::dim("prior_state", n, init.prior_state.len()));
+        }
+        if init.prior_covariance.shape() != (n, n) {
+            return Err(Error::dim(
+                "prior_covariance",
+                format!("({n}, {n})"),
+                format!("{:?}", init.prior_covariance.shape()),
+            ));
+        }
+        check_finite("prior_state", init.prior_state.as_slice())?;
+        let pc: Vec<f64> = init.prior_covariance.transpose().as_slice().to_vec();
+        check_covariance("prior_covariance", &pc, n, false)?;
+        if !(init.diag_load >= 0.0 && init.diag_load.is_finite()) {
+            return Err(Error::param("diag_load", "must be finite and >= 0"));
+        }
+        match init.confirmation {
+            Confirmation::MinPoints { min_points: 0, .. } => {
+                return Err(Error::param("min_points", "must be >= 1"));
+            }
+            Confirmation::MOfN { m, n } if m == 0 || n < m => {
+                return Err(Error::param(
+                    "confirmation",
+                    format!("M-of-N needs 1 <= M <= N, got {m} of {n}"),
+                ));
+            }
+            _ => {}
+        }
+        init.deleter.validate(n, "initiator.deleter")?;
+        gnn(&init.gnn, "initiator")?;
+        if let Some(mm) = &init.motion_model {
+            if mm.ndim() != n {
+                return Err(Error::dim("initiator.motion_model", n, mm.ndim()));
+            }
+        }
+        Ok(())
+    }
+}
