@@ -50,7 +50,10 @@ def test_matches_pymap3d_on_a_sphere(lat, lon, heading, dist_m, az):
     lat_t, lon_t, _ = pymap3d.enu2geodetic(e, n, 0.0, lat, lon, 0.0, ell=SPHERE)
     az_peer, _, _ = pymap3d.geodetic2aer(lat_t, lon_t, 0.0, lat, lon, 0.0, ell=SPHERE)
     ours = relative_bearing_deg(lat, lon, heading, lat_t, wrap_deg(lon_t))
-    assert angle_diff(ours, az_peer - heading) < 1e-7
+    # pymap3d's enu2aer zeroes |e| or |n| below 1 mm ("singularity stability"), so its azimuth
+    # is only exact when both components are larger than that.
+    if min(abs(e), abs(n)) >= 1e-3:
+        assert angle_diff(ours, az_peer - heading) < 1e-7
     assert angle_diff(ours, vector_bearing_deg(lat, lon, lat_t, lon_t) - heading) < 1e-7
     assert -180.0 < ours <= 180.0
 
