@@ -309,6 +309,12 @@ struct Sweep {
     endpoints: Vec<(f64, u32)>,
     /// Segments whose line passes through (or within rounding of) the sensor.
     through_sensor: Vec<u32>,
+    /// Bearing buckets over [-π, π]: bucket `b` starts at `-π + b / bucket_scale`.
+    bucket_scale: f64,
+    /// First envelope piece with `hi >= ` the bucket's start, per bucket.
+    envelope_from: Vec<u32>,
+    /// First endpoint with bearing `>=` the bucket's start, per bucket.
+    endpoints_from: Vec<u32>,
 }
 
 impl Sweep {
@@ -376,12 +382,33 @@ impl Sweep {
         }
         endpoints.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         let envelope = build_envelope(leaves, &dual);
+        // Bucket tables turn the two bearing searches into a short forward scan.
+        let buckets = (4 * (envelope.len() + endpoints.len())).clamp(64, 1 << 16);
+        let bucket_scale = buckets as f64 / (2.0 * PI);
+        let starts = (0..buckets).map(|b| -PI + b as f64 / bucket_scale);
+        let envelope_from = starts
+            .clone()
+            .map(|lo| envelope.partition_point(|pc| pc.hi < lo) as u32)
+            .collect();
+        let endpoints_from = starts
+            .map(|lo| endpoints.partition_point(|e| e.0 < lo) as u32)
+            .collect();
         Sweep {
             sensor,
             envelope,
             endpoints,
             through_sensor,
+            bucket_scale,
+            envelope_from,
+            endpoints_from,
         }
+    }
+
+    /// A bucket whose start is at or before `theta` (one bucket early against rounding).
+    #[inline]
+    fn bucket(&self, theta: f64) -> usize {
+        let b = ((theta + PI) * self.bucket_scale).floor() - 1.0;
+        (b.max(0.0) as usize).min(self.envelope_from.len() - 1)
     }
 
     /// `true` when some segment hides `p` (the naive `any(blocks)` answer; see module docs).
@@ -395,7 +422,10 @@ impl Sweep {
         let theta = dy.atan2(dx);
         // 1. The nearest envelope segment at this bearing (and neighbours at a boundary).
         let env = &self.envelope;
-        let i = env.partition_point(|pc| pc.hi < theta);
+        let mut i = self.envelope_from[self.bucket(theta)] as usize;
+        while i < env.len() && env[i].hi < theta {
+            i += 1;
+        }
         if i < env.len() && env[i].lo <= theta {
             if test(env[i].seg) {
                 return true;
@@ -418,7 +448,10 @@ impl Sweep {
     fn grazing(&self, theta: f64, test: &impl Fn(u32) -> bool) -> bool {
         let window = |lo: f64, hi: f64| {
             let e = &self.endpoints;
-            let a = e.partition_point(|x| x.0 < lo);
+            let mut a = self.endpoints_from[self.bucket(lo)] as usize;
+            while a < e.len() && e[a].0 < lo {
+                a += 1;
+            }
             e[a..].iter().take_while(|x| x.0 <= hi).any(|x| test(x.1))
         };
         let (lo, hi) = (theta - BEARING_MARGIN, theta + BEARING_MARGIN);
