@@ -22,8 +22,10 @@
 //! bearing, the first element of the active set of segments ordered by range. The envelope
 //! is built by divide and conquer, each merge being an angular sweep over two envelopes
 //! (two segments cross at most once, so it has O(m α(m)) pieces and costs O(m log m)); each
-//! point then finds its envelope piece by binary search on bearing. Wall returns come from a
-//! uniform grid over the segments widened by `tolerance`. Every decision is finally taken by
+//! point then finds its envelope piece through a bearing bucket table (O(1) typical, O(log m)
+//! at worst). Bearings are diamond pseudo-angles ([`pseudo_angle`]), monotone in the true
+//! bearing and cheaper than `atan2`. Wall returns come from a uniform grid over the
+//! segments widened by `tolerance`. Every decision is finally taken by
 //! the shared predicates on the candidates found, so the result equals the naive one:
 //! candidates are the envelope segment at the point's bearing (envelope intervals are
 //! shrunk by [`BEARING_MARGIN`] so that the predicates are robust on them), every segment
@@ -33,6 +35,7 @@
 //! generic data. The equality argument needs `tolerance` above ~1e-7 of the scene extent.
 
 use crate::error::{check_finite, Error, Result};
+
 /// Half a turn in pseudo-angle units (see [`pseudo_angle`]).
 const PI: f64 = 2.0;
 
@@ -460,10 +463,9 @@ impl Sweep {
         let theta = pseudo_angle(dx, dy);
         // 1. The nearest envelope segment at this bearing (and neighbours at a boundary).
         let env = &self.envelope;
-        let mut i = self.envelope_from[self.bucket(theta)] as usize;
-        while i < env.len() && env[i].hi < theta {
-            i += 1;
-        }
+        let i = scan_from(env, self.envelope_from[self.bucket(theta)], |pc| {
+            pc.hi < theta
+        });
         if i < env.len() && env[i].lo <= theta {
             if test(env[i].seg) {
                 return true;
@@ -486,10 +488,7 @@ impl Sweep {
     fn grazing(&self, theta: f64, test: &impl Fn(u32) -> bool) -> bool {
         let window = |lo: f64, hi: f64| {
             let e = &self.endpoints;
-            let mut a = self.endpoints_from[self.bucket(lo)] as usize;
-            while a < e.len() && e[a].0 < lo {
-                a += 1;
-            }
+            let a = scan_from(e, self.endpoints_from[self.bucket(lo)], |x| x.0 < lo);
             e[a..].iter().take_while(|x| x.0 <= hi).any(|x| test(x.1))
         };
         let (lo, hi) = (theta - BEARING_MARGIN, theta + BEARING_MARGIN);
@@ -502,6 +501,21 @@ impl Sweep {
     fn envelope_len(&self) -> usize {
         self.envelope.len()
     }
+}
+
+/// First index at or after `start` where `before` turns false (`before` is true on a prefix):
+/// a few linear steps (the bucket tables make this O(1) on typical data), then binary search,
+/// so that a crowded bucket costs O(log n) at worst.
+#[inline]
+fn scan_from<T>(items: &[T], start: u32, before: impl Fn(&T) -> bool) -> usize {
+    let mut i = start as usize;
+    for _ in 0..8 {
+        if i >= items.len() || !before(&items[i]) {
+            return i;
+        }
+        i += 1;
+    }
+    i + items[i..].partition_point(before)
 }
 
 /// Divide-and-conquer lower envelope (in range; upper in `dual · u`) of the leaf pieces.
