@@ -86,6 +86,15 @@ def test_segment_across_the_bearing_cut():
     np.testing.assert_array_equal(keep, [False, False, False, True])
 
 
+def test_sensor_inside_a_closed_box_sees_only_the_inside():
+    box = [[-3, -3, 3, -3], [3, -3, 3, 3], [3, 3, -3, 3], [-3, 3, -3, -3]]
+    rng = np.random.default_rng(0)
+    inside = rng.uniform(-2.8, 2.8, (200, 2))
+    outside = rng.uniform(3.2, 9, (200, 2)) * rng.choice([-1, 1], (200, 2))
+    keep = all_three(np.vstack([inside, outside]), box, sensor=(0.5, -1.0))
+    assert keep[:200].all() and not keep[200:].any()
+
+
 def test_empty_inputs():
     assert all_three(np.zeros((0, 2)), [[0, 0, 1, 1]]).shape == (0,)
     np.testing.assert_array_equal(all_three([[1.0, 2.0]], np.zeros((0, 4))), [True])

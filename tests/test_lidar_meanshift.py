@@ -141,3 +141,11 @@ def test_bad_input_names_the_argument():
         mean_shift(x, seeds=[[50.0, 50.0]])
     with pytest.raises(ValueError, match="seeds"):
         mean_shift(x, seeds=[[50.0, 50.0]], backend="sklearn")
+
+
+@pytest.mark.parametrize("dim", [1, 4])
+@pytest.mark.parametrize("cluster_all", [True, False])
+def test_equals_sklearn_in_other_dimensions(dim, cluster_all):
+    # 1-D uses the grid; more than 3 dimensions use the plain scan.
+    x = np.random.default_rng(dim).normal(0, 2, (120, dim))
+    assert_same(x, bandwidth=1.5, cluster_all=cluster_all)

@@ -17,8 +17,10 @@
 //! - labels: the nearest kept centre (lowest index on ties); with `cluster_all == false`
 //!   points farther than `bandwidth` from every centre get `-1`.
 //!
-//! Window sums are taken in point-index order (scikit-learn sums in KD-tree order), so
-//! centres can differ from scikit-learn's in the last bits.
+//! Window sums are taken in point-index order (scikit-learn sums in KD-tree order), so centres can
+//! differ from scikit-learn's in the last bits; and a point at exactly the same distance from
+//! two centres gets the lower index here, while scikit-learn breaks such exact ties in its
+//! KD-tree traversal order (only exactly representable inputs, e.g. grids, hit this).
 //! Trajectories are memoised on (mean, iteration): seeds that meet on the same mean after
 //! the same number of steps share the rest of the climb, which is exact.
 
@@ -98,33 +100,30 @@ pub fn mean_shift(
         None => (points.to_vec(), false),
     };
     let grid = Grid::new(points, dim, bw);
-    let mut climber = Climber {
-        points,
-        dim,
-        grid: &grid,
-        bw2: bw * bw,
-        stop: 1e-3 * bw,
-        max_iter: params.max_iter,
-        memo: HashMap::default(),
-        window: Vec::new(),
-    };
+    let mut climber = Climber::new(points, dim, &grid, bw, params.max_iter);
     // Final centre -> intensity, keeping first-insertion keys (a Python dict of tuples).
     let mut index: FastMap<Vec<u64>, usize> = HashMap::default();
     let mut found: Vec<(Vec<f64>, usize)> = Vec::new();
+    let mut outcome_slot: FastMap<u32, usize> = HashMap::default();
     let mut n_iter = 0;
     for seed in seed_values.chunks_exact(dim) {
-        let (center, intensity, iters) = climber.climb(seed);
-        n_iter = n_iter.max(iters);
+        let o = climber.climb(seed);
+        n_iter = n_iter.max(climber.outcome_iters[o as usize]);
+        let intensity = climber.outcome_sizes[o as usize];
         if intensity == 0 {
             continue;
         }
-        match index.entry(key_bits(&center)) {
-            std::collections::hash_map::Entry::Occupied(e) => found[*e.get()].1 = intensity,
-            std::collections::hash_map::Entry::Vacant(e) => {
-                e.insert(found.len());
-                found.push((center, intensity));
-            }
+        if let Some(&slot) = outcome_slot.get(&o) {
+            found[slot].1 = intensity;
+            continue;
         }
+        let center = climber.outcome_mean(o);
+        let slot = *index.entry(key_bits(center)).or_insert_with(|| {
+            found.push((center.to_vec(), intensity));
+            found.len() - 1
+        });
+        found[slot].1 = intensity;
+        outcome_slot.insert(o, slot);
     }
     if found.is_empty() {
         return Err(Error::param(
@@ -356,9 +355,9 @@ fn dist2(a: &[f64], b: &[f64]) -> f64 {
     s
 }
 
-/// Outcome of one seed's climb: (final mean, window size, completed iterations).
-type Climb = (Vec<f64>, usize, usize);
-
+/// Hill climbing of seeds with a memo of visited states (mean, completed iterations):
+/// the rest of a climb depends only on that state, so meeting a known state reuses its
+/// outcome. States and outcomes live in flat arenas (no allocation per step).
 struct Climber<'a> {
     points: &'a [f64],
     dim: usize,
@@ -366,59 +365,133 @@ struct Climber<'a> {
     bw2: f64,
     stop: f64,
     max_iter: usize,
-    /// (mean bits, completed iterations) -> (final mean, intensity, completed iterations).
-    memo: FastMap<(Vec<u64>, usize), Climb>,
+    /// (hash of mean bits, completed) -> first state with that key (chained via `next`).
+    memo: FastMap<(u64, usize), u32>,
+    state_means: Vec<f64>,
+    state_next: Vec<u32>,
+    state_outcome: Vec<u32>,
+    /// Outcomes: final mean (`dim` values each), window size, completed iterations.
+    outcome_means: Vec<f64>,
+    outcome_sizes: Vec<usize>,
+    outcome_iters: Vec<usize>,
     window: Vec<u32>,
+    visited: Vec<u32>,
+    mean: Vec<f64>,
+    sum: Vec<f64>,
 }
 
-impl Climber<'_> {
-    /// scikit-learn's `_mean_shift_single_seed`: (final mean, window size, iterations).
-    fn climb(&mut self, seed: &[f64]) -> Climb {
+const NONE: u32 = u32::MAX;
+
+impl<'a> Climber<'a> {
+    fn new(points: &'a [f64], dim: usize, grid: &'a Grid, bw: f64, max_iter: usize) -> Self {
+        Climber {
+            points,
+            dim,
+            grid,
+            bw2: bw * bw,
+            stop: 1e-3 * bw,
+            max_iter,
+            memo: HashMap::default(),
+            state_means: Vec::new(),
+            state_next: Vec::new(),
+            state_outcome: Vec::new(),
+            outcome_means: Vec::new(),
+            outcome_sizes: Vec::new(),
+            outcome_iters: Vec::new(),
+            window: Vec::new(),
+            visited: Vec::new(),
+            mean: vec![0.0; dim],
+            sum: vec![0.0; dim],
+        }
+    }
+
+    fn outcome_mean(&self, o: u32) -> &[f64] {
+        &self.outcome_means[o as usize * self.dim..(o as usize + 1) * self.dim]
+    }
+
+    /// Known state equal (bit for bit) to the current mean after `completed` steps, or
+    /// registers it; returns (state, was it known).
+    fn state(&mut self, completed: usize) -> (u32, bool) {
+        let mut h = FxHasher::default();
+        self.mean.iter().for_each(|v| h.write_u64(v.to_bits()));
+        let key = (h.finish(), completed);
         let dim = self.dim;
-        let mut mean = seed.to_vec();
-        let mut completed = 0usize;
-        let mut visited: Vec<(Vec<u64>, usize)> = Vec::new();
-        let result = loop {
-            let state = (
-                mean.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
-                completed,
-            );
-            if let Some(r) = self.memo.get(&state) {
-                break r.clone();
+        let head = self.memo.get(&key).copied().unwrap_or(NONE);
+        let mut s = head;
+        while s != NONE {
+            let m = &self.state_means[s as usize * dim..(s as usize + 1) * dim];
+            if m.iter()
+                .zip(&self.mean)
+                .all(|(a, b)| a.to_bits() == b.to_bits())
+            {
+                return (s, true);
             }
-            visited.push(state);
+            s = self.state_next[s as usize];
+        }
+        let new = self.state_next.len() as u32;
+        self.state_means.extend_from_slice(&self.mean);
+        self.state_next.push(head);
+        self.state_outcome.push(NONE);
+        self.memo.insert(key, new);
+        (new, false)
+    }
+
+    /// scikit-learn's `_mean_shift_single_seed`; returns the outcome index.
+    fn climb(&mut self, seed: &[f64]) -> u32 {
+        let dim = self.dim;
+        self.mean.copy_from_slice(seed);
+        self.visited.clear();
+        let mut completed = 0usize;
+        let outcome = loop {
+            let (state, known) = self.state(completed);
+            if known {
+                break self.state_outcome[state as usize];
+            }
+            self.visited.push(state);
             self.window.clear();
-            let (pts, bw2, window) = (self.points, self.bw2, &mut self.window);
-            self.grid.for_candidates(&mean, |i| {
+            let (pts, bw2, mean, window) = (self.points, self.bw2, &self.mean, &mut self.window);
+            self.grid.for_candidates(mean, |i| {
                 let p = &pts[i as usize * dim..(i as usize + 1) * dim];
-                if dist2(p, &mean) <= bw2 {
+                if dist2(p, mean) <= bw2 {
                     window.push(i);
                 }
             });
             if self.window.is_empty() {
-                break (mean, 0, completed);
+                break self.push_outcome(0, completed);
             }
-            self.window.sort_unstable();
-            let mut sum = vec![0.0; dim];
+            self.window.sort_unstable(); // sum in point-index order
+            self.sum.iter_mut().for_each(|v| *v = 0.0);
             for &i in &self.window {
                 let p = &pts[i as usize * dim..(i as usize + 1) * dim];
-                for (s, v) in sum.iter_mut().zip(p) {
+                for (s, v) in self.sum.iter_mut().zip(p) {
                     *s += v;
                 }
             }
             let count = self.window.len();
-            let new_mean: Vec<f64> = sum.iter().map(|s| s / count as f64).collect();
-            let shift = dist2(&new_mean, &mean).sqrt();
-            mean = new_mean;
-            if shift <= self.stop || completed == self.max_iter {
-                break (mean, count, completed);
+            // np.mean: the sum divided by the count; then the shift from the old mean.
+            let mut shift2 = 0.0;
+            for (m, s) in self.mean.iter_mut().zip(&self.sum) {
+                let new = s / count as f64;
+                let t = new - *m;
+                shift2 += t * t;
+                *m = new;
+            }
+            if shift2.sqrt() <= self.stop || completed == self.max_iter {
+                break self.push_outcome(count, completed);
             }
             completed += 1;
         };
-        for state in visited {
-            self.memo.insert(state, result.clone());
+        for &s in &self.visited {
+            self.state_outcome[s as usize] = outcome;
         }
-        result
+        outcome
+    }
+
+    fn push_outcome(&mut self, size: usize, completed: usize) -> u32 {
+        self.outcome_means.extend_from_slice(&self.mean);
+        self.outcome_sizes.push(size);
+        self.outcome_iters.push(completed);
+        (self.outcome_sizes.len() - 1) as u32
     }
 }
 
