@@ -93,12 +93,20 @@ class Mount:
 
     Example values: the thesis's Otter (Figure 4.2) has every sensor on the centre plane
     (y = 0) with LiDAR, camera and two GNSS lever arms; its numbers are only in the figure
-    image, so enter them from the figure for that platform."""
+    image, so enter them from the figure for that platform.
+
+    Raises NonFiniteError (naming the field, e.g. `Mount.roll`) on NaN/inf and TypeError on
+    non-numbers."""
 
     lever_arm: Any = field(default_factory=lambda: np.zeros(3))
     roll: float = 0.0
     pitch: float = 0.0
     yaw: float = 0.0
+
+    def __post_init__(self) -> None:
+        as_float_array("Mount.lever_arm", self.lever_arm)
+        for name in ("roll", "pitch", "yaw"):
+            as_float_array(f"Mount.{name}", getattr(self, name))
 
     @property
     def rotation(self) -> np.ndarray:
@@ -130,8 +138,9 @@ def sensor_to_ned(
     `p = R(roll, pitch, yaw) (R_mount p_s + lever_arm) + position_ned`.
 
     The vessel pose is one pose (scalars and a (3,) position) or one per point ((n,) angles and
-    an (n, 3) position, e.g. a LiDAR sweep with per-point times). Raises DimensionError on
-    wrong shapes, NonFiniteError on NaN/inf."""
+    an (n, 3) position, e.g. a LiDAR sweep with per-point times). No points (n = 0) give a
+    (0, 3) result. Raises DimensionError on wrong shapes (an empty pose with n > 0 included),
+    NonFiniteError on NaN/inf."""
     p = as_float_array("points", points, ndim=2)
     if p.shape[1] != 3:
         raise DimensionError(f"points: expected shape (n, 3), got {p.shape}")
