@@ -28,6 +28,7 @@ from pyais import NMEAMessage
 from pyais.exceptions import AISBaseException
 
 from usvfast import geodesy
+from usvfast._validate import as_float_array
 from usvfast.nav.nmea import KNOT, DamagedRecordsWarning
 
 __all__ = ["AisLog", "AisPositions", "StaticData", "dead_reckon", "read_ais"]
@@ -253,10 +254,16 @@ def dead_reckon(
     Returns (lat_deg, lon_deg, age_s) of the shape of `times`; age_s = time since the report
     used. Times before the first report, or with age beyond `max_age`, give NaN positions
     (age still reported, NaN before the first report). A report without speed or course
-    extrapolates as stationary. Raises ValueError when the MMSI has no timed report.
+    extrapolates as stationary; reports without latitude or longitude are not used. Raises
+    ValueError when the MMSI has no timed report, NonFiniteError when `times` holds NaN/inf.
     """
-    t_query = np.asarray(times, dtype=np.float64)
-    sel = (positions.mmsi == mmsi) & np.isfinite(positions.time) & np.isfinite(positions.lat_deg)
+    t_query = as_float_array("times", times)
+    sel = (
+        (positions.mmsi == mmsi)
+        & np.isfinite(positions.time)
+        & np.isfinite(positions.lat_deg)
+        & np.isfinite(positions.lon_deg)
+    )
     if not np.any(sel):
         raise ValueError(f"mmsi: no timed position report for {mmsi}")
     t_rep = positions.time[sel]
@@ -264,8 +271,12 @@ def dead_reckon(
     t_rep = t_rep[order]
     lat = positions.lat_deg[sel][order]
     lon = positions.lon_deg[sel][order]
-    speed = np.nan_to_num(positions.speed[sel][order], nan=0.0)
-    course = np.radians(np.nan_to_num(positions.course_deg[sel][order], nan=0.0))
+    speed = positions.speed[sel][order]
+    course_deg = positions.course_deg[sel][order]
+    # Without both speed and course the motion is unknown: hold the reported position.
+    moving = np.isfinite(speed) & np.isfinite(course_deg)
+    speed = np.where(moving, speed, 0.0)
+    course = np.radians(np.where(moving, course_deg, 0.0))
     idx = np.searchsorted(t_rep, t_query, side="right") - 1
     valid = idx >= 0
     i = np.where(valid, idx, 0)
