@@ -104,9 +104,9 @@ def test_no_points_give_empty_output():
 @pytest.mark.parametrize("field", ["roll", "pitch", "yaw"])
 def test_non_finite_mount_is_rejected(field):
     # Used to give NaN output silently.
-    with pytest.raises(NonFiniteError, match=f"Mount.{field}"):
+    with pytest.raises(NonFiniteError, match=rf"Mount\.{field}"):
         Mount(**{field: np.nan})
-    with pytest.raises(NonFiniteError, match="Mount.lever_arm"):
+    with pytest.raises(NonFiniteError, match=r"Mount\.lever_arm"):
         Mount(lever_arm=[0.0, np.inf, 0.0])
 
 

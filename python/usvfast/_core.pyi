@@ -147,6 +147,7 @@ def georeference_rays(
     sigma_height: float = 0.0,
     sigma_heading: float = 0.0,
 ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.uint8]]: ...
+
 # --- tracker (rust/src/py/tracker.rs) ---
 class TrackerCore:
     def __init__(

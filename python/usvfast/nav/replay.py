@@ -45,6 +45,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from usvfast._core import DimensionError, NonFiniteError, NotPositiveDefiniteError, TimeOrderError
 from usvfast.frames import Mount
 from usvfast.nav._damage import DamagedRecordsWarning
 
@@ -454,6 +455,10 @@ def load_recording(path: Path | str) -> Recording:
 # --- replay ----------------------------------------------------------------------------------
 
 
+# usvfast's argument errors are ValueErrors too, but never mean "t is outside the coverage".
+_NOT_A_GAP = (DimensionError, NonFiniteError, NotPositiveDefiniteError, TimeOrderError)
+
+
 class PoseSource(Protocol):
     """Anything with `pose_at(t)` (the vessel pose at UNIX time t; None or a ValueError when t
     is outside its coverage), or with `at(times)` as usvfast.nav.pose.PoseTrack (its Pose of
@@ -613,7 +618,9 @@ class Replay:
                 if self._pose_at is not None:
                     try:
                         pose = self._pose_at(t)
-                    except ValueError:
+                    except _NOT_A_GAP:
+                        raise  # bad data or a broken pose source: not a gap in coverage
+                    except ValueError:  # PoseGapError, or a plain ValueError (PoseSource)
                         pose = None
                     if pose is None:
                         counts.no_pose += 1
