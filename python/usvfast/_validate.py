@@ -9,11 +9,13 @@ import numpy as np
 from usvfast._core import DimensionError, NonFiniteError
 
 
-def as_float_array(name: str, value: Any, ndim: int | None = None) -> np.ndarray:
+def as_float_array(
+    name: str, value: Any, ndim: int | None = None, *, finite: bool = True
+) -> np.ndarray:
     """Return `value` as a C-contiguous float64 array, or raise naming `name`.
 
     Raises TypeError when it is not numeric, DimensionError when `ndim` is given and differs,
-    NonFiniteError when it holds NaN or inf.
+    NonFiniteError when it holds NaN or inf (unless `finite` is False: missing values allowed).
     """
     try:
         arr = np.ascontiguousarray(value, dtype=np.float64)
@@ -23,7 +25,7 @@ def as_float_array(name: str, value: Any, ndim: int | None = None) -> np.ndarray
         ) from exc
     if ndim is not None and arr.ndim != ndim:
         raise DimensionError(f"{name}: expected a {ndim}-D array, got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
+    if finite and not np.all(np.isfinite(arr)):
         raise NonFiniteError(f"{name}: contains a non-finite value (NaN or inf)")
     return arr
 
