@@ -131,6 +131,11 @@ def test_constructor_altitude_gaps_keep_positions():
     track = PoseTrack(t, [1.0, 2.0, 3.0], [0.0, 0.0, 0.0], [5.0, np.nan, 7.0], max_gap=2.0)
     pose = track.at([1.0])
     assert pose.lat_deg[0] == 2.0 and pose.altitude[0] == pytest.approx(6.0)
+    # The sample without altitude used to be dropped whole: a gap for the position too.
+    track = PoseTrack(t, [1.0, 2.0, 3.0], [0.0, 0.0, 0.0], [5.0, np.nan, 7.0], max_gap=1.5)
+    pose = track.at([0.5, 1.0, 2.0])
+    np.testing.assert_allclose(pose.lat_deg, [1.5, 2.0, 3.0])
+    np.testing.assert_array_equal(np.isnan(pose.altitude), [True, True, False])
 
 
 def test_errors_name_the_arguments():
