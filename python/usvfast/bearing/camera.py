@@ -22,6 +22,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from usvfast._core import DimensionError
 from usvfast.bearing.angles import float_array
 
 
@@ -145,7 +146,7 @@ def _broadcast(names: tuple[str, ...], *arrays: np.ndarray) -> list[np.ndarray]:
         return list(np.broadcast_arrays(*arrays))
     except ValueError as exc:
         shapes = ", ".join(f"{n} {a.shape}" for n, a in zip(names, arrays, strict=True))
-        raise ValueError(f"{', '.join(names)}: shapes do not broadcast ({shapes})") from exc
+        raise DimensionError(f"{', '.join(names)}: shapes do not broadcast ({shapes})") from exc
 
 
 def pixel_to_bearing(
