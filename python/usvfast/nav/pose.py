@@ -22,23 +22,11 @@ from typing import Any
 
 import numpy as np
 
+from usvfast._angles import wrap_2pi, wrap_180_deg, wrap_pi
 from usvfast._core import DimensionError, TimeOrderError
 from usvfast._validate import as_float_array
 
 __all__ = ["Channel", "Pose", "PoseGapError", "PoseTrack"]
-
-TWO_PI = 2.0 * np.pi
-
-
-def _wrap_2pi(a: np.ndarray) -> np.ndarray:
-    """Angles into [0, 2π): np.mod of a tiny negative rounds to 2π itself."""
-    w = np.mod(a, TWO_PI)
-    return np.where(w >= TWO_PI, 0.0, w)
-
-
-def _wrap_pi(a: np.ndarray) -> np.ndarray:
-    """Angles into [-π, π)."""
-    return _wrap_2pi(a + np.pi) - np.pi
 
 
 class PoseGapError(ValueError):
@@ -129,13 +117,13 @@ class Channel:
         d = v[j] - v[i]
         for c, kind in enumerate(self.kinds):
             if kind == "angle":  # shortest arc, radians
-                d[:, c] = np.mod(d[:, c] + np.pi, TWO_PI) - np.pi
+                d[:, c] = wrap_pi(d[:, c])
             elif kind == "lon_deg":
-                d[:, c] = np.mod(d[:, c] + 180.0, 360.0) - 180.0
+                d[:, c] = wrap_180_deg(d[:, c])
         out = v[i] + f * d
         for c, kind in enumerate(self.kinds):
             if kind == "lon_deg":
-                out[:, c] = np.mod(out[:, c] + 180.0, 360.0) - 180.0
+                out[:, c] = wrap_180_deg(out[:, c])
         return out
 
 
@@ -260,9 +248,9 @@ class PoseTrack:
             altitude = nan.copy()
             ok = self.altitude.covered(t)
             altitude[ok] = self.altitude.at(t[ok])[:, 0]
-        heading = _wrap_2pi(self.heading.at(t)[:, 0]) if self.heading is not None else nan
+        heading = wrap_2pi(self.heading.at(t)[:, 0]) if self.heading is not None else nan
         if self.attitude is not None:
-            att = _wrap_pi(self.attitude.at(t))
+            att = wrap_pi(self.attitude.at(t))
             roll, pitch = att[:, 0], att[:, 1]
         else:
             roll = pitch = nan
