@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from usvfast._damage import DamagedRecordsWarning
 from usvfast.lidar.frame import POINT_DTYPE, LidarFrame
 
 #: Size of the UDP payload of a Velodyne data packet, bytes.
@@ -44,8 +45,9 @@ uint8[1206] data
 """
 
 
-class LidarDataWarning(UserWarning):
-    """Damaged LiDAR records were skipped while reading (count in the message)."""
+class LidarDataWarning(DamagedRecordsWarning):
+    """Damaged LiDAR records were skipped while reading (count in the message); a
+    DamagedRecordsWarning like every reader's."""
 
 
 @dataclass

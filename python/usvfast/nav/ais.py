@@ -28,8 +28,9 @@ from pyais import NMEAMessage
 from pyais.exceptions import AISBaseException
 
 from usvfast import geodesy
+from usvfast._damage import DamagedRecordsWarning
 from usvfast._validate import as_float_array
-from usvfast.nav.nmea import KNOT, DamagedRecordsWarning
+from usvfast.nav.nmea import KNOT
 
 __all__ = ["AisLog", "AisPositions", "StaticData", "dead_reckon", "read_ais"]
 

@@ -36,6 +36,8 @@ from typing import Any
 import numpy as np
 import pynmea2
 
+from usvfast._damage import DamagedRecordsWarning
+
 __all__ = [
     "DamagedRecordsWarning",
     "Headings",
@@ -53,10 +55,6 @@ _POSITION_TYPES = {"GGA": 0, "RMC": 1, "GLL": 2}  # priority when several share 
 _WANTED = {"GGA", "RMC", "GLL", "ZDA", "VTG", "HDT", "THS", "ROT"}
 # FAA mode indicator → GGA-style fix quality.
 _MODE_QUALITY = {"A": 1, "D": 2, "P": 3, "R": 4, "F": 5, "E": 6, "M": 7, "S": 8, "N": 0}
-
-
-class DamagedRecordsWarning(UserWarning):
-    """A field-data reader skipped damaged records (the count is on the result)."""
 
 
 @dataclass(frozen=True)
