@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
-from datetime import datetime, timezone
 from pathlib import Path
 from typing import Annotated
 
@@ -16,6 +15,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from usvfast._angles import wrap_180_deg
+from usvfast._time import unix_to_iso
 from usvfast.bearing.ais import reference_bearing_deg
 from usvfast.bearing.angles import unwrap_deg
 from usvfast.bearing.fusion import (
@@ -145,7 +145,7 @@ def plot_fusion(
             label="AIS (between reports)",
         )
     ax.set_ylabel("bearing rate [deg/s]")
-    start = datetime.fromtimestamp(t0, tz=timezone.utc).strftime("%Y-%m-%d %H:%M:%S.%f")[:-3]
+    start = unix_to_iso(t0, sep=" ")
     ax.set_xlabel(f"time since {start} UTC [s]")
     ax.legend(loc="best", fontsize=8)
     ax.grid(alpha=0.3)

@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from usvfast._damage import DamagedRecordsWarning
+from usvfast._time import ros_stamp_seconds
 from usvfast.lidar.frame import POINT_DTYPE, LidarFrame
 
 #: Size of the UDP payload of a Velodyne data packet, bytes.
@@ -345,7 +346,7 @@ def pointcloud2_to_points(msg: object) -> tuple[float, np.ndarray]:
     non-finite coordinate (organised clouds) are dropped. Raises ValueError on a message
     whose layout does not match its data.
     """
-    stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+    stamp = ros_stamp_seconds(msg.header.stamp)
     if msg.is_bigendian:
         raise ValueError("PointCloud2: big-endian clouds are not supported")
     fields = {f.name: f for f in msg.fields}
@@ -549,7 +550,7 @@ class BagReader:
                 stats.damage(problem)
                 continue
             model_id = payload[1205]
-            t = pkt.stamp.sec + pkt.stamp.nanosec * 1e-9
+            t = ros_stamp_seconds(pkt.stamp)
             packets.append(vd.VelodynePacket(t, payload))
         if not packets:
             stats.damage("empty scan")

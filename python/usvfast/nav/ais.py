@@ -20,7 +20,6 @@ import os
 import warnings
 from collections.abc import Iterable
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -30,6 +29,7 @@ from pyais.exceptions import AISBaseException
 from usvfast import geodesy
 from usvfast._damage import DamagedRecordsWarning
 from usvfast._validate import as_float_array
+from usvfast.nav._damage import iter_lines
 from usvfast.nav.nmea import KNOT
 
 __all__ = ["AisLog", "AisPositions", "StaticData", "dead_reckon", "read_ais"]
@@ -108,14 +108,6 @@ class AisLog:
     n_ignored: int
 
 
-def _lines(source: Any) -> Iterable[Any]:
-    if isinstance(source, str | os.PathLike):
-        with Path(source).open("rb") as fh:
-            yield from fh
-    else:
-        yield from source
-
-
 def _nan_if(value: Any, *sentinels: float) -> float:
     if value is None:
         return math.nan
@@ -131,7 +123,7 @@ def read_ais(source: str | os.PathLike | Iterable[Any]) -> AisLog:
     static: dict[int, StaticData] = {}
     pending: dict[tuple, list[NMEAMessage]] = {}
     n_sentences = n_messages = n_damaged = n_incomplete = n_other = n_ignored = 0
-    for item in _lines(source):
+    for item in iter_lines(source):
         t, raw = item if isinstance(item, tuple) else (math.nan, item)
         line = raw if isinstance(raw, bytes) else raw.encode("ascii", "replace")
         line = line.strip()

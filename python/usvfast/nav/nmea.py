@@ -30,13 +30,13 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from functools import reduce
 from operator import xor
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pynmea2
 
 from usvfast._damage import DamagedRecordsWarning
+from usvfast.nav._damage import iter_lines
 
 __all__ = [
     "DamagedRecordsWarning",
@@ -170,14 +170,6 @@ def _day(year: int, month: int, day: int) -> float:
     return (_dt.date(year, month, day) - _dt.date(1970, 1, 1)).days * DAY
 
 
-def _lines(source: Any) -> Iterable[bytes | str]:
-    if isinstance(source, str | os.PathLike):
-        with Path(source).open("rb") as fh:
-            yield from fh
-    else:
-        yield from source
-
-
 def _near(candidate: float, reference: float) -> float:
     """Shift `candidate` by whole days to within half a day of `reference` (midnight rollover)."""
     return candidate + DAY * round((reference - candidate) / DAY)
@@ -207,7 +199,7 @@ def read_nmea(
         if len(damaged_lines) < 100:
             damaged_lines.append(lineno)
 
-    for lineno, raw in enumerate(_lines(source), start=1):
+    for lineno, raw in enumerate(iter_lines(source), start=1):
         if isinstance(raw, bytes):
             try:
                 line = raw.decode("ascii").strip()
