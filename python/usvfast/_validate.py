@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -39,3 +40,20 @@ def as_index_array(name: str, value: Any, length: int) -> np.ndarray:
     if arr.shape != (length,):
         raise DimensionError(f"{name}: expected shape ({length},), got {arr.shape}")
     return arr
+
+
+def broadcast_shape(arrays: Mapping[str, np.ndarray]) -> tuple[int, ...]:
+    """The common broadcast shape of the named arrays, or DimensionError naming them all with
+    their shapes."""
+    try:
+        return np.broadcast_shapes(*(np.shape(a) for a in arrays.values()))
+    except ValueError as exc:
+        shapes = ", ".join(f"{name} {np.shape(a)}" for name, a in arrays.items())
+        raise DimensionError(f"{', '.join(arrays)}: shapes do not broadcast ({shapes})") from exc
+
+
+def broadcast(arrays: Mapping[str, np.ndarray]) -> list[np.ndarray]:
+    """The named arrays broadcast to their common shape (read-only views, in order), or
+    DimensionError as `broadcast_shape`."""
+    shape = broadcast_shape(arrays)
+    return [np.broadcast_to(a, shape) for a in arrays.values()]
