@@ -464,7 +464,11 @@ class PoseSource(Protocol):
     is outside its coverage), or with `at(times)` as usvfast.nav.pose.PoseTrack (its Pose of
     shape (1,) arrays; PoseGapError outside)."""
 
-    def pose_at(self, t: float) -> Any: ...
+    def pose_at(self, t: float) -> Any:
+        """The vessel pose at UNIX time `t` (seconds, the replay's clock), in any form the
+        consumer understands; None, PoseGapError or a plain ValueError when `t` is outside the
+        source's coverage (counted as `no_pose`). Other errors propagate."""
+        ...
 
 
 @dataclass(frozen=True)
