@@ -8,15 +8,20 @@ usvfast.nav.nmea.read_nmea and, as the baseline, by a bare pynmea2.parse loop ov
 from __future__ import annotations
 
 import argparse
+import sys
 import tempfile
 import time
 from pathlib import Path
 
 import pynmea2
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+
 from usvfast.nav.nmea import read_nmea
 
-LOG = Path(__file__).resolve().parents[2] / "shared" / "data" / "nmea" / "ublox-zed-f9p-nmea.log"
+from conftest import SHARED_DATA
+
+LOG = SHARED_DATA / "nmea" / "ublox-zed-f9p-nmea.log"
 
 
 def main() -> None:

@@ -15,5 +15,8 @@ settings.register_profile(
 )
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
-# The real field data lives in shared/data beside the repository (as on CI).
-SHARED_DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+# The real field data lives in shared/data beside the repository (as on CI); set
+# USVFAST_SHARED_DATA to use another copy (e.g. from a git worktree elsewhere).
+SHARED_DATA = Path(
+    os.environ.get("USVFAST_SHARED_DATA", Path(__file__).resolve().parents[2] / "shared" / "data")
+)

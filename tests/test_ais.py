@@ -10,6 +10,7 @@ import numpy as np
 import pymap3d
 import pytest
 
+from usvfast import NonFiniteError
 from usvfast.nav.ais import AisPositions, dead_reckon, read_ais
 from usvfast.nav.nmea import KNOT, DamagedRecordsWarning
 
@@ -120,3 +121,34 @@ def test_dead_reckoning_against_pymap3d():
     assert np.isnan(lat) and age == 70.0
     with pytest.raises(ValueError, match="mmsi"):
         dead_reckon(pos, 8, [1.0])
+
+
+def test_dead_reckoning_without_course_or_speed_is_stationary():
+    # A report with a speed but no course used to move the target north.
+    for speed, course in [(10.0, np.nan), (np.nan, 90.0), (np.nan, np.nan)]:
+        pos = report(speed=[speed], course_deg=[course])
+        lat, lon, age = dead_reckon(pos, 7, [0.0, 60.0])
+        np.testing.assert_allclose(lat, [59.0, 59.0], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(lon, [10.0, 10.0], rtol=0, atol=1e-12)
+        np.testing.assert_array_equal(age, [0.0, 60.0])
+
+
+def test_dead_reckoning_skips_reports_without_longitude():
+    pos = report(
+        time=[0.0, 100.0], mmsi=[7, 7], msg_type=[1, 1], own_ship=[False, False],
+        lat_deg=[59.0, 59.5], lon_deg=[10.0, np.nan], speed=[0.0, 0.0],
+        course_deg=[0.0, 0.0], heading_deg=[0.0, 0.0], second=[0, 40], status=[0, 0],
+    )  # fmt: skip
+    lat, lon, age = dead_reckon(pos, 7, [150.0])
+    np.testing.assert_allclose(lat, [59.0], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(lon, [10.0], rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(age, [150.0])
+    with pytest.raises(ValueError, match="mmsi"):
+        dead_reckon(report(lon_deg=[np.nan]), 7, [1.0])
+
+
+def test_dead_reckoning_checks_times():
+    with pytest.raises(NonFiniteError, match="times"):
+        dead_reckon(report(), 7, [0.0, np.nan])
+    with pytest.raises(TypeError, match="times"):
+        dead_reckon(report(), 7, ["soon"])

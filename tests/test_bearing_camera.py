@@ -141,6 +141,11 @@ def test_bad_input_names_the_argument():
         pixel_to_bearing(1.0, 1.0, PLAIN, zoom=0.0)
     with pytest.raises(ValueError, match="x_px, y_px"):
         pixel_to_bearing([1.0, 2.0, 3.0], [1.0, 2.0], PLAIN)
+    # Shape errors are DimensionErrors, as everywhere else.
+    with pytest.raises(usvfast.DimensionError, match="x_px, y_px"):
+        pixel_to_bearing([1.0, 2.0, 3.0], [1.0, 2.0], PLAIN)
+    with pytest.raises(usvfast.DimensionError, match="bearing_deg, elevation_deg"):
+        bearing_to_pixel([1.0, 2.0], [1.0, 2.0, 3.0], PLAIN)
     with pytest.raises(ValueError, match="hfov_deg"):
         BearingCamera(width_px=10, height_px=10, hfov_deg=180.0, vfov_deg=10.0)
     with pytest.raises(ValueError, match="width_px"):

@@ -88,6 +88,28 @@ def test_bad_input():
         sensor_to_ned(np.zeros((3, 3)), Mount(), np.nan, 0, 0, [0, 0, 0])
 
 
+def test_no_points_give_empty_output():
+    # Used to panic in Rust (PanicException) indexing the empty pose arrays.
+    out = sensor_to_ned(np.zeros((0, 3)), Mount(), [], [], [], np.zeros((0, 3)))
+    assert out.shape == (0, 3)
+    out = sensor_to_ned(np.zeros((0, 3)), Mount(), 0.1, 0.2, 0.3, [1.0, 2.0, 3.0])
+    assert out.shape == (0, 3)
+    # With points, an empty pose is a shape error naming the argument.
+    with pytest.raises(DimensionError, match="roll"):
+        sensor_to_ned(np.zeros((2, 3)), Mount(), [], 0, 0, [0, 0, 0])
+    with pytest.raises(DimensionError, match="position_ned"):
+        sensor_to_ned(np.zeros((2, 3)), Mount(), 0, 0, 0, np.zeros((0, 3)))
+
+
+@pytest.mark.parametrize("field", ["roll", "pitch", "yaw"])
+def test_non_finite_mount_is_rejected(field):
+    # Used to give NaN output silently.
+    with pytest.raises(NonFiniteError, match=rf"Mount\.{field}"):
+        Mount(**{field: np.nan})
+    with pytest.raises(NonFiniteError, match=r"Mount\.lever_arm"):
+        Mount(lever_arm=[0.0, np.inf, 0.0])
+
+
 @given(st.floats(-80, 80), st.floats(-180, 180), st.floats(0, 2 * np.pi - 1e-9), st.floats(0.5, 20))
 def test_dual_antenna_heading(lat, lon, heading, baseline):
     # Place the fore antenna with pymap3d along the heading, recover it.

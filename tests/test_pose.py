@@ -88,3 +88,64 @@ def test_from_nmea_saab():
     late = PoseTrack.from_nmea(log, max_gap=1.5, heading_offset=0.25)
     with pytest.raises(PoseGapError, match="heading"):
         late.at(p.time[0])
+
+
+def _nmea_like(altitude):
+    """A stand-in for a read_nmea result: four fixes 1 s apart, no headings."""
+    from types import SimpleNamespace
+
+    n = len(altitude)
+    positions = SimpleNamespace(
+        time=np.arange(n, dtype=float),
+        lat_deg=59.0 + 1e-4 * np.arange(n),
+        lon_deg=np.full(n, 10.0),
+        altitude=np.asarray(altitude, dtype=float),
+        fix_quality=np.ones(n, dtype=int),
+    )
+    headings = SimpleNamespace(time=np.empty(0), heading_deg=np.empty(0))
+    return SimpleNamespace(positions=positions, headings=headings)
+
+
+def test_one_fix_without_altitude_keeps_the_others():
+    # One missing altitude used to make every altitude NaN.
+    track = PoseTrack.from_nmea(_nmea_like([10.0, np.nan, 14.0, 16.0]), max_gap=2.5)
+    pose = track.at([0.0, 0.5, 2.0, 2.5, 3.0])
+    lat = 59.0 + 1e-4 * np.array([0.0, 0.5, 2.0, 2.5, 3.0])
+    np.testing.assert_allclose(pose.lat_deg, lat, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(
+        pose.altitude, np.interp([0.0, 0.5, 2.0, 2.5, 3.0], [0, 2, 3], [10, 14, 16])
+    )
+    # Altitude samples further apart than max_gap: position still known, altitude NaN.
+    tight = PoseTrack.from_nmea(_nmea_like([10.0, np.nan, 14.0, 16.0]), max_gap=1.5)
+    pose = tight.at([0.5, 1.0, 2.5])
+    np.testing.assert_allclose(pose.lat_deg, 59.0 + 1e-4 * np.array([0.5, 1.0, 2.5]), atol=1e-12)
+    np.testing.assert_array_equal(np.isnan(pose.altitude), [True, True, False])
+    assert pose.altitude[2] == pytest.approx(15.0)
+    # No altitude at all: NaN altitude, positions unaffected.
+    none = PoseTrack.from_nmea(_nmea_like([np.nan] * 4))
+    assert not none.has_altitude and np.all(np.isnan(none.at([0.5, 1.0]).altitude))
+
+
+def test_constructor_altitude_gaps_keep_positions():
+    t = [0.0, 1.0, 2.0]
+    track = PoseTrack(t, [1.0, 2.0, 3.0], [0.0, 0.0, 0.0], [5.0, np.nan, 7.0], max_gap=2.0)
+    pose = track.at([1.0])
+    assert pose.lat_deg[0] == 2.0 and pose.altitude[0] == pytest.approx(6.0)
+    # The sample without altitude used to be dropped whole: a gap for the position too.
+    track = PoseTrack(t, [1.0, 2.0, 3.0], [0.0, 0.0, 0.0], [5.0, np.nan, 7.0], max_gap=1.5)
+    pose = track.at([0.5, 1.0, 2.0])
+    np.testing.assert_allclose(pose.lat_deg, [1.5, 2.0, 3.0])
+    np.testing.assert_array_equal(np.isnan(pose.altitude), [True, True, False])
+
+
+def test_errors_name_the_arguments():
+    with pytest.raises(TimeOrderError, match="heading_time"):
+        PoseTrack([0.0, 1.0], [0, 0], [0, 0], heading_time=[1.0, 0.0], heading=[0.0, 0.1])
+    with pytest.raises(TimeOrderError, match="position_time"):
+        PoseTrack([1.0, 0.0], [0, 0], [0, 0])
+    with pytest.raises(TimeOrderError, match="attitude_time"):
+        PoseTrack([0.0], [0], [0], attitude_time=[1.0, 0.0], roll=[0, 0], pitch=[0, 0])
+    with pytest.raises(TypeError, match="lat_deg"):
+        PoseTrack([0.0], ["north"], [0.0])
+    with pytest.raises(TypeError, match="heading"):
+        PoseTrack([0.0], [0.0], [0.0], heading_time=[0.0], heading=[object()])

@@ -15,7 +15,9 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from usvfast import DimensionError, NonFiniteError, TimeOrderError
 from usvfast.nav._damage import DamagedRecordsWarning
+from usvfast.nav.pose import PoseGapError
 from usvfast.nav.replay import (
     Recording,
     RecordingError,
@@ -151,6 +153,39 @@ def test_pose_at_item_time_and_outside():
     assert skipping.counts["s0"].no_pose == 2 and skipping.counts["s0"].yielded == 6
     with pytest.raises(TypeError, match="pose_track"):
         Replay(rec, object())
+
+
+class _BrokenPose:
+    """A pose source failing with errors other than "outside the coverage"."""
+
+    def __init__(self, exc):
+        self.exc = exc
+
+    def pose_at(self, t):
+        raise self.exc
+
+
+@pytest.mark.parametrize(
+    "exc",
+    [
+        NonFiniteError("yaw: contains a non-finite value (NaN or inf)"),
+        DimensionError("position: expected shape (3,), got (2,)"),
+        TimeOrderError("time: must be sorted ascending"),
+        KeyError("yaw"),
+    ],
+)
+def test_pose_source_errors_are_not_counted_as_no_pose(exc):
+    # These used to be swallowed (ValueError subclasses) and counted as no_pose.
+    rec = _recording([[(float(t), t) for t in range(3)]], [0.0])
+    with pytest.raises(type(exc)):
+        list(Replay(rec, _BrokenPose(exc)))
+
+
+def test_pose_gap_error_is_no_pose():
+    rec = _recording([[(float(t), t) for t in range(3)]], [0.0])
+    replay = Replay(rec, _BrokenPose(PoseGapError("t: outside the pose track")))
+    assert [it.pose for it in replay] == [None, None, None]
+    assert replay.counts["s0"].no_pose == 3
 
 
 def test_replay_with_the_recordings_pose_track(tmp_path):

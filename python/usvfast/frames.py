@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from usvfast import _core, geodesy
+from usvfast._angles import wrap_2pi, wrap_pi
 from usvfast._core import DimensionError
 from usvfast._validate import as_float_array
 
@@ -37,12 +38,6 @@ __all__ = [
     "se3",
     "sensor_to_ned",
 ]
-
-
-def _wrap_2pi(a: Any) -> np.ndarray:
-    """Angles into [0, 2π): np.mod of a tiny negative rounds to 2π itself."""
-    w = np.mod(a, 2.0 * np.pi)
-    return np.where(w >= 2.0 * np.pi, 0.0, w)
 
 
 def rotation_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
@@ -93,12 +88,20 @@ class Mount:
 
     Example values: the thesis's Otter (Figure 4.2) has every sensor on the centre plane
     (y = 0) with LiDAR, camera and two GNSS lever arms; its numbers are only in the figure
-    image, so enter them from the figure for that platform."""
+    image, so enter them from the figure for that platform.
+
+    Raises NonFiniteError (naming the field, e.g. `Mount.roll`) on NaN/inf and TypeError on
+    non-numbers."""
 
     lever_arm: Any = field(default_factory=lambda: np.zeros(3))
     roll: float = 0.0
     pitch: float = 0.0
     yaw: float = 0.0
+
+    def __post_init__(self) -> None:
+        as_float_array("Mount.lever_arm", self.lever_arm)
+        for name in ("roll", "pitch", "yaw"):
+            as_float_array(f"Mount.{name}", getattr(self, name))
 
     @property
     def rotation(self) -> np.ndarray:
@@ -130,8 +133,9 @@ def sensor_to_ned(
     `p = R(roll, pitch, yaw) (R_mount p_s + lever_arm) + position_ned`.
 
     The vessel pose is one pose (scalars and a (3,) position) or one per point ((n,) angles and
-    an (n, 3) position, e.g. a LiDAR sweep with per-point times). Raises DimensionError on
-    wrong shapes, NonFiniteError on NaN/inf."""
+    an (n, 3) position, e.g. a LiDAR sweep with per-point times). No points (n = 0) give a
+    (0, 3) result. Raises DimensionError on wrong shapes (an empty pose with n > 0 included),
+    NonFiniteError on NaN/inf."""
     p = as_float_array("points", points, ndim=2)
     if p.shape[1] != 3:
         raise DimensionError(f"points: expected shape (n, 3), got {p.shape}")
@@ -166,7 +170,7 @@ def dual_antenna_heading(
     if a.shape[0] != 3 or f.shape[0] != 3:
         raise DimensionError(f"aft/fore: expected (3,) or (3, n), got {a.shape} and {f.shape}")
     n, e, d = geodesy.geodetic2ned(f[0], f[1], f[2], a[0], a[1], a[2], ell)
-    heading = _wrap_2pi(np.arctan2(e, n) - baseline_yaw)
+    heading = wrap_2pi(np.arctan2(e, n) - baseline_yaw)
     return heading, np.sqrt(n * n + e * e + d * d)
 
 
@@ -178,11 +182,11 @@ def bearing_range(origin_ne: Any, target_ne: Any) -> tuple[np.ndarray, np.ndarra
     if o.shape[-1] != 2 or t.shape[-1] != 2:
         raise DimensionError(f"origin_ne/target_ne: last axis must be 2, got {o.shape}, {t.shape}")
     d = t - o
-    return _wrap_2pi(np.arctan2(d[..., 1], d[..., 0])), np.hypot(d[..., 0], d[..., 1])
+    return wrap_2pi(np.arctan2(d[..., 1], d[..., 0])), np.hypot(d[..., 0], d[..., 1])
 
 
 def relative_bearing(bearing: Any, heading: Any) -> np.ndarray:
     """Bearing relative to the bow, wrapped to [-π, π) (positive = starboard), radians."""
     b = as_float_array("bearing", bearing)
     h = as_float_array("heading", heading)
-    return _wrap_2pi(b - h + np.pi) - np.pi
+    return wrap_pi(b - h)

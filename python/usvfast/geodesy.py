@@ -25,8 +25,7 @@ from typing import Any
 import numpy as np
 
 from usvfast import _core
-from usvfast._core import DimensionError
-from usvfast._validate import as_float_array
+from usvfast._validate import as_float_array, broadcast_shape
 
 __all__ = [
     "WGS84",
@@ -68,11 +67,7 @@ def _flat(args: dict[str, Any]) -> tuple[tuple[int, ...], list[np.ndarray]]:
     arrays = [
         a.reshape(()) if np.ndim(v) == 0 else a for a, v in zip(arrays, args.values(), strict=True)
     ]
-    try:
-        shape = np.broadcast_shapes(*(a.shape for a in arrays))
-    except ValueError as exc:
-        shapes = ", ".join(f"{n}{a.shape}" for n, a in zip(args, arrays, strict=True))
-        raise DimensionError(f"{', '.join(args)}: shapes do not broadcast: {shapes}") from exc
+    shape = broadcast_shape(dict(zip(args, arrays, strict=True)))
     cols = []
     for a in arrays:
         if a.size == 1:

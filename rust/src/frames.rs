@@ -95,7 +95,8 @@ impl Se3 {
 /// `points`: row-major (n, 3) in the sensor frame (metres). `mount`: body ← sensor. Vessel
 /// pose arrays `roll`, `pitch`, `yaw` (radians) and `position` (row-major (m, 3), NED metres of
 /// the body origin) each have m = 1 (one pose for all points) or m = n (a pose per point).
-/// Returns row-major (n, 3) NED metres. Fails on wrong lengths or non-finite values.
+/// Returns row-major (n, 3) NED metres (empty for n = 0). Fails on wrong lengths or non-finite
+/// values (in the points, the pose or the mount).
 pub fn sensor_to_ned(
     points: &[f64],
     mount: &Se3,
@@ -128,6 +129,11 @@ pub fn sensor_to_ned(
         check_finite(name, s)?;
     }
     check_finite("points", points)?;
+    check_finite("mount.rotation", mount.rotation.as_slice())?;
+    check_finite("mount.translation", mount.translation.as_slice())?;
+    if n == 0 {
+        return Ok(Vec::new());
+    }
     let pick = |s: &[f64], i: usize| if s.len() == 1 { s[0] } else { s[i] };
     let single = roll.len() == 1 && pitch.len() == 1 && yaw.len() == 1 && position.len() == 3;
     let pose_at = |i: usize| {
@@ -190,6 +196,31 @@ mod tests {
             let back = t.inverse().apply(t.apply(p));
             prop_assert!((back[0] - 1.0).abs() < 1e-12 && (back[2] - 3.0).abs() < 1e-12);
         }
+    }
+
+    #[test]
+    fn no_points_give_no_output() {
+        let mount = Se3::from_rpy(0.0, 0.0, 0.0, [0.0; 3]);
+        assert_eq!(sensor_to_ned(&[], &mount, &[], &[], &[], &[]), Ok(vec![]));
+        assert_eq!(
+            sensor_to_ned(&[], &mount, &[0.1], &[0.0], &[0.2], &[1.0, 2.0, 3.0]),
+            Ok(vec![])
+        );
+        // n > 0 with empty pose arrays is a shape error, not a panic.
+        assert!(matches!(
+            sensor_to_ned(&[1.0, 2.0, 3.0], &mount, &[], &[], &[], &[]),
+            Err(Error::Dimension { .. })
+        ));
+    }
+
+    #[test]
+    fn non_finite_mount_is_an_error() {
+        let mount = Se3::from_rpy(f64::NAN, 0.0, 0.0, [0.0; 3]);
+        let got = sensor_to_ned(&[1.0, 2.0, 3.0], &mount, &[0.0], &[0.0], &[0.0], &[0.0; 3]);
+        assert!(matches!(got, Err(Error::NonFinite { arg, .. }) if arg == "mount.rotation"));
+        let mount = Se3::from_rpy(0.0, 0.0, 0.0, [0.0, f64::INFINITY, 0.0]);
+        let got = sensor_to_ned(&[1.0, 2.0, 3.0], &mount, &[0.0], &[0.0], &[0.0], &[0.0; 3]);
+        assert!(matches!(got, Err(Error::NonFinite { arg, .. }) if arg == "mount.translation"));
     }
 
     #[test]

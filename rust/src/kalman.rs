@@ -321,8 +321,8 @@ where
         .chunks(m * m)
         .map(|r| OMatrix::<f64, M, M>::from_row_slice_generic(md, md, r))
         .collect();
-    let mut x = OVector::<f64, N>::from_row_slice_generic(nd, U1, input.prior_state);
-    let mut p = OMatrix::<f64, N, N>::from_row_slice_generic(nd, nd, input.prior_covariance);
+    let x0 = OVector::<f64, N>::from_row_slice_generic(nd, U1, input.prior_state);
+    let p0 = OMatrix::<f64, N, N>::from_row_slice_generic(nd, nd, input.prior_covariance);
     let mut f = OMatrix::<f64, N, N>::zeros_generic(nd, nd);
     let mut q = OMatrix::<f64, N, N>::zeros_generic(nd, nd);
 
@@ -336,7 +336,12 @@ where
     for (i, &t) in input.times.iter().enumerate() {
         model.fill(t - t_prev, &mut f, &mut q);
         t_prev = t;
-        let (xp, pp) = predict(&x, &p, &f, &q);
+        // Each step starts from the last filtered state (the prior before the first).
+        let (x, p) = match (xf_all.last(), pf_all.last()) {
+            (Some(x), Some(p)) => (x, p),
+            _ => (&x0, &p0),
+        };
+        let (xp, pp) = predict(x, p, &f, &q);
         let z = OVector::<f64, M>::from_row_slice_generic(
             md,
             U1,
@@ -352,8 +357,6 @@ where
         })?;
         nis.push(u.nis);
         log_likelihood.push(u.log_likelihood);
-        x = u.x.clone();
-        p = u.p.clone();
         xp_all.push(xp);
         pp_all.push(pp);
         xf_all.push(u.x);
@@ -381,7 +384,9 @@ where
 /// `C_k = P_k Fᵀ (P⁻_{k+1})⁻¹`, `x̂_k = x_k + C_k (x̂_{k+1} − x⁻_{k+1})`,
 /// `P̂_k = P_k + C_k (P̂_{k+1} − P⁻_{k+1}) C_kᵀ`.
 ///
-/// Fails with [`Error::NotPositiveDefinite`] when a predicted covariance is singular.
+/// All four sequences must have one entry per time, states of the model's dimension and
+/// covariances square of that dimension; otherwise fails with [`Error::Dimension`]. Fails with
+/// [`Error::NotPositiveDefinite`] when a predicted covariance is singular.
 #[allow(clippy::type_complexity)]
 pub fn rts_smooth<N: Dim>(
     model: &MotionModel,
@@ -395,6 +400,49 @@ where
     DefaultAllocator: Allocator<N, N> + Allocator<N>,
 {
     let n = times.len();
+    let ndim = model.ndim();
+    for (name, len) in [
+        ("predicted_states", predicted_states.len()),
+        ("predicted_covariances", predicted_covariances.len()),
+        ("filtered_states", filtered_states.len()),
+        ("filtered_covariances", filtered_covariances.len()),
+    ] {
+        if len != n {
+            return Err(Error::dim(
+                name,
+                format!("{n} entries (one per time)"),
+                format!("{len} entries"),
+            ));
+        }
+    }
+    for (name, states) in [
+        ("predicted_states", predicted_states),
+        ("filtered_states", filtered_states),
+    ] {
+        if let Some((k, x)) = states.iter().enumerate().find(|(_, x)| x.nrows() != ndim) {
+            return Err(Error::dim(
+                name,
+                format!("states of {ndim} values"),
+                format!("{} values at entry {k}", x.nrows()),
+            ));
+        }
+    }
+    for (name, covs) in [
+        ("predicted_covariances", predicted_covariances),
+        ("filtered_covariances", filtered_covariances),
+    ] {
+        if let Some((k, c)) = covs
+            .iter()
+            .enumerate()
+            .find(|(_, c)| c.shape() != (ndim, ndim))
+        {
+            return Err(Error::dim(
+                name,
+                format!("({ndim}, {ndim}) matrices"),
+                format!("{:?} at entry {k}", c.shape()),
+            ));
+        }
+    }
     let mut xs = filtered_states.to_vec();
     let mut ps = filtered_covariances.to_vec();
     if n < 2 {
@@ -489,6 +537,56 @@ mod tests {
         let p_simple = &p - &k * s * k.transpose();
         assert!((&u.p - p_simple).abs().max() < 1e-14);
         assert!((u.nis - 0.49 / s).abs() < 1e-14);
+    }
+
+    #[test]
+    fn rts_smooth_checks_lengths_and_shapes() {
+        let model = MotionModel::new(vec![Component::ConstantVelocity { q: 0.3 }]).unwrap();
+        let times = [0.0, 1.0, 2.0];
+        let x = DVector::from_vec(vec![0.0, 1.0]);
+        let p = DMatrix::<f64>::identity(2, 2);
+        let (xs, ps) = (vec![x.clone(); 3], vec![p.clone(); 3]);
+        assert!(rts_smooth(&model, &times, &xs, &ps, &xs, &ps).is_ok());
+        let short_x = vec![x.clone(); 2];
+        let short_p = vec![p.clone(); 2];
+        let name = |r: Result<_>| match r {
+            Err(Error::Dimension { arg, .. }) => arg,
+            other => panic!("expected a dimension error, got {other:?}"),
+        };
+        let cases = [
+            (
+                rts_smooth(&model, &times, &short_x, &ps, &xs, &ps),
+                "predicted_states",
+            ),
+            (
+                rts_smooth(&model, &times, &xs, &short_p, &xs, &ps),
+                "predicted_covariances",
+            ),
+            (
+                rts_smooth(&model, &times, &xs, &ps, &short_x, &ps),
+                "filtered_states",
+            ),
+            (
+                rts_smooth(&model, &times, &xs, &ps, &xs, &short_p),
+                "filtered_covariances",
+            ),
+        ];
+        for (got, want) in cases {
+            assert_eq!(name(got), want);
+        }
+        // Wrong state dimension (dynamic matrices would otherwise panic in nalgebra).
+        let mut bad_x = xs.clone();
+        bad_x[1] = DVector::from_vec(vec![0.0]);
+        assert_eq!(
+            name(rts_smooth(&model, &times, &xs, &ps, &bad_x, &ps)),
+            "filtered_states"
+        );
+        let mut bad_p = ps.clone();
+        bad_p[2] = DMatrix::<f64>::identity(3, 3);
+        assert_eq!(
+            name(rts_smooth(&model, &times, &xs, &bad_p, &xs, &ps)),
+            "predicted_covariances"
+        );
     }
 
     #[test]

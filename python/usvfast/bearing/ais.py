@@ -18,6 +18,7 @@ from typing import Any, cast
 
 import numpy as np
 
+from usvfast._angles import wrap_360_deg
 from usvfast._core import DimensionError, TimeOrderError
 from usvfast._validate import as_float_array
 from usvfast.bearing.angles import float_array, unwrap_deg, wrap_deg
@@ -130,7 +131,7 @@ class VesselTrack:
         lon = wrap_deg(interp(unwrap_deg(self.lon_deg)))
         heading = None
         if self.heading_deg is not None:
-            heading = np.mod(interp(unwrap_deg(self.heading_deg)), 360.0)
+            heading = wrap_360_deg(interp(unwrap_deg(self.heading_deg)))
         return lat, lon, heading
 
 

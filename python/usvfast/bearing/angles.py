@@ -6,22 +6,15 @@ from typing import Any
 
 import numpy as np
 
+from usvfast._angles import wrap_deg
 from usvfast._validate import as_float_array
+
+__all__ = ["float_array", "unwrap_deg", "wrap_deg"]
 
 
 def float_array(name: str, value: Any) -> np.ndarray:
     """`as_float_array` that keeps the shape of scalars (0-D in, 0-D out)."""
     return as_float_array(name, value).reshape(np.shape(value))
-
-
-def wrap_deg(angle_deg: Any) -> np.ndarray:
-    """Wrap angles (degrees, any shape) to the half-open interval (-180°, 180°].
-
-    +180° stays +180°, -180° becomes +180°; NaN stays NaN. Returns float64 of the same shape.
-    """
-    a = np.asarray(angle_deg, dtype=np.float64)
-    # 180 - ((180 - a) mod 360) lies in (-180, 180]: the mod is in [0, 360).
-    return 180.0 - np.mod(180.0 - a, 360.0)
 
 
 def unwrap_deg(angle_deg: Any) -> np.ndarray:

@@ -22,6 +22,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from usvfast._validate import broadcast
 from usvfast.bearing.angles import float_array
 
 
@@ -140,14 +141,6 @@ def _ptz(
     return pan, tilt, gamma
 
 
-def _broadcast(names: tuple[str, ...], *arrays: np.ndarray) -> list[np.ndarray]:
-    try:
-        return list(np.broadcast_arrays(*arrays))
-    except ValueError as exc:
-        shapes = ", ".join(f"{n} {a.shape}" for n, a in zip(names, arrays, strict=True))
-        raise ValueError(f"{', '.join(names)}: shapes do not broadcast ({shapes})") from exc
-
-
 def pixel_to_bearing(
     x_px: Any,
     y_px: Any,
@@ -166,8 +159,8 @@ def pixel_to_bearing(
     x = float_array("x_px", x_px)
     y = float_array("y_px", y_px)
     pan, tilt, gamma = _ptz(camera, pan_deg, tilt_deg, zoom)
-    x, y, pan, tilt, gamma = _broadcast(
-        ("x_px", "y_px", "pan_deg", "tilt_deg", "zoom"), x, y, pan, tilt, gamma
+    x, y, pan, tilt, gamma = broadcast(
+        {"x_px": x, "y_px": y, "pan_deg": pan, "tilt_deg": tilt, "zoom": gamma}
     )
     tan_half_fx = math.tan(math.radians(camera.hfov_deg) / 2.0)
     tan_half_fy = math.tan(math.radians(camera.vfov_deg) / 2.0)
@@ -201,8 +194,8 @@ def bearing_to_pixel(
     b = float_array("bearing_deg", bearing_deg)
     e = float_array("elevation_deg", elevation_deg)
     pan, tilt, gamma = _ptz(camera, pan_deg, tilt_deg, zoom)
-    b, e, pan, tilt, gamma = _broadcast(
-        ("bearing_deg", "elevation_deg", "pan_deg", "tilt_deg", "zoom"), b, e, pan, tilt, gamma
+    b, e, pan, tilt, gamma = broadcast(
+        {"bearing_deg": b, "elevation_deg": e, "pan_deg": pan, "tilt_deg": tilt, "zoom": gamma}
     )
     c = math.cos(math.radians(camera.horizon_roll_deg))
     s = math.sin(math.radians(camera.horizon_roll_deg))

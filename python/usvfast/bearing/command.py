@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
-from datetime import datetime, timezone
 from pathlib import Path
 from typing import Annotated
 
@@ -15,6 +14,8 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
+from usvfast._angles import wrap_180_deg
+from usvfast._time import unix_to_iso
 from usvfast.bearing.ais import reference_bearing_deg
 from usvfast.bearing.angles import unwrap_deg
 from usvfast.bearing.fusion import (
@@ -66,8 +67,8 @@ def plot_fusion(
     # Plot continuous (unwrapped) bearings, shifted back into (-180, 180] as a whole.
     shift = fusion.bearing_deg[0] - fusion.bearing_unwrapped_deg[0]
     fused = fusion.bearing_unwrapped_deg + shift
-    measured = fused + ((fusion.measured_bearing_deg - fused + 180.0) % 360.0 - 180.0)
-    ref = fused + ((reference_deg - fused + 180.0) % 360.0 - 180.0)
+    measured = fused + wrap_180_deg(fusion.measured_bearing_deg - fused)
+    ref = fused + wrap_180_deg(reference_deg - fused)
     ais_t = ais.target.times
     ais_in = (ais_t >= fusion.times[0]) & (ais_t <= fusion.times[-1])
     ais_ref = reference_bearing_deg(ais_t[ais_in], ais.own, ais.target)
@@ -144,7 +145,7 @@ def plot_fusion(
             label="AIS (between reports)",
         )
     ax.set_ylabel("bearing rate [deg/s]")
-    start = datetime.fromtimestamp(t0, tz=timezone.utc).strftime("%Y-%m-%d %H:%M:%S.%f")[:-3]
+    start = unix_to_iso(t0, sep=" ")
     ax.set_xlabel(f"time since {start} UTC [s]")
     ax.legend(loc="best", fontsize=8)
     ax.grid(alpha=0.3)

@@ -20,7 +20,6 @@ from __future__ import annotations
 import csv
 import json
 import math
-import warnings
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from usvfast._damage import DamageCounter, DamagedRecordsWarning
 from usvfast.bearing.ais import VesselTrack
 from usvfast.bearing.camera import THERMAL_CAMERA, VISIBLE_CAMERA, BearingCamera, pixel_to_bearing
 from usvfast.bearing.fusion import (
@@ -42,8 +42,9 @@ PAPER_CAMERAS: Mapping[int, BearingCamera] = {VISIBLE: VISIBLE_CAMERA, THERMAL: 
 """The paper's calibration per source id (used when no cameras file is given)."""
 
 
-class SkippedRowsWarning(UserWarning):
-    """Some rows of an input file were damaged and skipped (the count is on the result)."""
+class SkippedRowsWarning(DamagedRecordsWarning):
+    """Some rows of an input file were damaged and skipped (the count is on the result); a
+    DamagedRecordsWarning like every reader's."""
 
 
 class _BadRow(Exception):
@@ -93,14 +94,8 @@ def _open_rows(
     return header, rows(), f
 
 
-def _warn(path: Path, skipped: int, reasons: list[str]) -> None:
-    if skipped:
-        shown = "; ".join(reasons[:3])
-        warnings.warn(
-            f"{path}: skipped {skipped} bad row(s) ({shown}{'; ...' if skipped > 3 else ''})",
-            SkippedRowsWarning,
-            stacklevel=3,
-        )
+def _bad_rows(path: Path) -> DamageCounter:
+    return DamageCounter(str(path), what="bad row(s)", category=SkippedRowsWarning)
 
 
 @dataclass(frozen=True)
@@ -173,7 +168,7 @@ def read_bearing_samples(
         known = set(PAPER_MEASUREMENT_STD_DEG if sources is None else sources)
         optional = [c for c in ("confidence", "pan_deg", "tilt_deg", "zoom") if c in header]
         parsed: list[tuple[float, ...]] = []
-        skipped, reasons = 0, []
+        bad = _bad_rows(path)
         for line, row in rows:
             try:
                 if None in row:
@@ -199,11 +194,10 @@ def read_bearing_samples(
                     ]
                 parsed.append((*values, conf))
             except _BadRow as exc:
-                skipped += 1
-                reasons.append(f"line {line}: {exc}")
+                bad.add(f"line {line}: {exc}")
     if not parsed:
-        raise ValueError(f"samples: no usable row in {path} ({skipped} bad row(s))")
-    _warn(path, skipped, reasons)
+        raise ValueError(f"samples: no usable row in {path} ({bad.count} bad row(s))")
+    bad.warn()
     table = np.array(parsed, dtype=np.float64)
     table = table[np.argsort(table[:, 1], kind="stable")]
     source = table[:, 0].astype(np.int64)
@@ -223,7 +217,7 @@ def read_bearing_samples(
             )
             bearing[m], elevation[m] = b, e
     return BearingSamples(
-        source, table[:, 1].copy(), bearing, elevation, table[:, -1].copy(), skipped
+        source, table[:, 1].copy(), bearing, elevation, table[:, -1].copy(), bad.count
     )
 
 
@@ -257,7 +251,7 @@ def read_ais(path: Path | str) -> AisData:
                 "expected vessel,t,lat_deg,lon_deg,heading_deg"
             )
         tracks: dict[str, dict[float, tuple[float, float, float]]] = {"own": {}, "target": {}}
-        skipped, reasons = 0, []
+        bad = _bad_rows(path)
         for line, raw in rows:
             row = {c: raw.get(h) for c, h in cols.items()}
             try:
@@ -279,22 +273,21 @@ def read_ais(path: Path | str) -> AisData:
                     raise _BadRow(f"repeated time {t} for {vessel}")
                 tracks[vessel][t] = (lat, lon, heading)
             except _BadRow as exc:
-                skipped += 1
-                reasons.append(f"line {line}: {exc}")
+                bad.add(f"line {line}: {exc}")
     for vessel, points in tracks.items():
         if len(points) < 2:
             raise ValueError(
                 f"ais: {path} has {len(points)} usable '{vessel}' row(s), need at least 2 "
-                f"({skipped} bad row(s))"
+                f"({bad.count} bad row(s))"
             )
-    _warn(path, skipped, reasons)
+    bad.warn()
 
     def track(points: dict[float, tuple[float, float, float]], with_heading: bool) -> VesselTrack:
         t = np.array(sorted(points))
         values = np.array([points[k] for k in t])
         return VesselTrack(t, values[:, 0], values[:, 1], values[:, 2] if with_heading else None)
 
-    return AisData(track(tracks["own"], True), track(tracks["target"], False), skipped)
+    return AisData(track(tracks["own"], True), track(tracks["target"], False), bad.count)
 
 
 FUSION_COLUMNS = (

@@ -22,6 +22,7 @@ from typing import cast
 
 import numpy as np
 
+from usvfast._angles import wrap_360_deg
 from usvfast.bearing.ais import VesselTrack, ais_report_interval_s, relative_bearing_deg
 from usvfast.bearing.camera import THERMAL_CAMERA, VISIBLE_CAMERA, BearingCamera, bearing_to_pixel
 from usvfast.bearing.fusion import THERMAL, VISIBLE
@@ -165,7 +166,7 @@ def generate_encounter(
         np.round(START_TIME + t_own, 3),
         np.round(own_lat, 7),
         np.round(own_lon, 7),
-        np.round(np.mod(own_path[2], 360.0), 2),
+        np.round(wrap_360_deg(own_path[2]), 2),
     )
     # Target AIS: nominal interval for its speed, random phase, small jitter.
     interval = ais_report_interval_s(12.0)
@@ -177,7 +178,7 @@ def generate_encounter(
         np.round(START_TIME + t_ais, 3),
         np.round(np.round(tgt_lat / AIS_RESOLUTION_DEG) * AIS_RESOLUTION_DEG, 7),
         np.round(np.round(tgt_lon / AIS_RESOLUTION_DEG) * AIS_RESOLUTION_DEG, 7),
-        np.round(np.mod(target_path[2], 360.0)),
+        np.round(wrap_360_deg(target_path[2])),
     )
 
     columns: dict[str, list[np.ndarray]] = {

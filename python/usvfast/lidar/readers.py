@@ -25,6 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
+from usvfast._damage import DamagedRecordsWarning
+from usvfast._time import ros_stamp_seconds
 from usvfast.lidar.frame import POINT_DTYPE, LidarFrame
 
 #: Size of the UDP payload of a Velodyne data packet, bytes.
@@ -44,8 +46,9 @@ uint8[1206] data
 """
 
 
-class LidarDataWarning(UserWarning):
-    """Damaged LiDAR records were skipped while reading (count in the message)."""
+class LidarDataWarning(DamagedRecordsWarning):
+    """Damaged LiDAR records were skipped while reading (count in the message); a
+    DamagedRecordsWarning like every reader's."""
 
 
 @dataclass
@@ -343,7 +346,7 @@ def pointcloud2_to_points(msg: object) -> tuple[float, np.ndarray]:
     non-finite coordinate (organised clouds) are dropped. Raises ValueError on a message
     whose layout does not match its data.
     """
-    stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+    stamp = ros_stamp_seconds(msg.header.stamp)
     if msg.is_bigendian:
         raise ValueError("PointCloud2: big-endian clouds are not supported")
     fields = {f.name: f for f in msg.fields}
@@ -547,7 +550,7 @@ class BagReader:
                 stats.damage(problem)
                 continue
             model_id = payload[1205]
-            t = pkt.stamp.sec + pkt.stamp.nanosec * 1e-9
+            t = ros_stamp_seconds(pkt.stamp)
             packets.append(vd.VelodynePacket(t, payload))
         if not packets:
             stats.damage("empty scan")

@@ -1,40 +1,26 @@
-"""Skip-and-count bookkeeping shared by the field-data readers of `usvfast.nav`."""
+"""File checks of the `usvfast.nav` readers; re-exports the skip-and-count bookkeeping."""
 
 from __future__ import annotations
 
-import warnings
+import os
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
-# One warning class for every reader of usvfast.nav (defined with the NMEA reader).
-from usvfast.nav.nmea import DamagedRecordsWarning
+# The warning and the counter live in usvfast._damage (shared with lidar and bearing).
+from usvfast._damage import DamageCounter, DamagedRecordsWarning
 
-__all__ = ["DamageCounter", "DamagedRecordsWarning", "check_file"]
+__all__ = ["DamageCounter", "DamagedRecordsWarning", "check_file", "iter_lines"]
 
 
-class DamageCounter:
-    """Count damaged records and keep the first few reasons for the warning message."""
-
-    def __init__(self, source: str) -> None:
-        self.source = source
-        self.count = 0
-        self.reasons: list[str] = []
-
-    def add(self, reason: str) -> None:
-        """Record one damaged (skipped) record."""
-        self.count += 1
-        if len(self.reasons) < 3:
-            self.reasons.append(reason)
-
-    def warn(self, stacklevel: int = 3) -> None:
-        """Emit one DamagedRecordsWarning if anything was skipped."""
-        if self.count:
-            shown = "; ".join(self.reasons)
-            more = "; ..." if self.count > len(self.reasons) else ""
-            warnings.warn(
-                f"{self.source}: skipped {self.count} damaged record(s) ({shown}{more})",
-                DamagedRecordsWarning,
-                stacklevel=stacklevel,
-            )
+def iter_lines(source: Any) -> Iterator[Any]:
+    """The lines of `source`: a path (str or os.PathLike, read as bytes, closed at the end)
+    or any iterable of lines (str, bytes or (time, line) pairs), passed through."""
+    if isinstance(source, str | os.PathLike):
+        with Path(source).open("rb") as fh:
+            yield from fh
+    else:
+        yield from source
 
 
 def check_file(path: Path | str, label: str) -> Path:

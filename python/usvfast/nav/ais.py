@@ -20,7 +20,6 @@ import os
 import warnings
 from collections.abc import Iterable
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -28,7 +27,10 @@ from pyais import NMEAMessage
 from pyais.exceptions import AISBaseException
 
 from usvfast import geodesy
-from usvfast.nav.nmea import KNOT, DamagedRecordsWarning
+from usvfast._damage import DamagedRecordsWarning
+from usvfast._validate import as_float_array
+from usvfast.nav._damage import iter_lines
+from usvfast.nav.nmea import KNOT
 
 __all__ = ["AisLog", "AisPositions", "StaticData", "dead_reckon", "read_ais"]
 
@@ -106,14 +108,6 @@ class AisLog:
     n_ignored: int
 
 
-def _lines(source: Any) -> Iterable[Any]:
-    if isinstance(source, str | os.PathLike):
-        with Path(source).open("rb") as fh:
-            yield from fh
-    else:
-        yield from source
-
-
 def _nan_if(value: Any, *sentinels: float) -> float:
     if value is None:
         return math.nan
@@ -129,7 +123,7 @@ def read_ais(source: str | os.PathLike | Iterable[Any]) -> AisLog:
     static: dict[int, StaticData] = {}
     pending: dict[tuple, list[NMEAMessage]] = {}
     n_sentences = n_messages = n_damaged = n_incomplete = n_other = n_ignored = 0
-    for item in _lines(source):
+    for item in iter_lines(source):
         t, raw = item if isinstance(item, tuple) else (math.nan, item)
         line = raw if isinstance(raw, bytes) else raw.encode("ascii", "replace")
         line = line.strip()
@@ -253,10 +247,16 @@ def dead_reckon(
     Returns (lat_deg, lon_deg, age_s) of the shape of `times`; age_s = time since the report
     used. Times before the first report, or with age beyond `max_age`, give NaN positions
     (age still reported, NaN before the first report). A report without speed or course
-    extrapolates as stationary. Raises ValueError when the MMSI has no timed report.
+    extrapolates as stationary; reports without latitude or longitude are not used. Raises
+    ValueError when the MMSI has no timed report, NonFiniteError when `times` holds NaN/inf.
     """
-    t_query = np.asarray(times, dtype=np.float64)
-    sel = (positions.mmsi == mmsi) & np.isfinite(positions.time) & np.isfinite(positions.lat_deg)
+    t_query = as_float_array("times", times)
+    sel = (
+        (positions.mmsi == mmsi)
+        & np.isfinite(positions.time)
+        & np.isfinite(positions.lat_deg)
+        & np.isfinite(positions.lon_deg)
+    )
     if not np.any(sel):
         raise ValueError(f"mmsi: no timed position report for {mmsi}")
     t_rep = positions.time[sel]
@@ -264,8 +264,12 @@ def dead_reckon(
     t_rep = t_rep[order]
     lat = positions.lat_deg[sel][order]
     lon = positions.lon_deg[sel][order]
-    speed = np.nan_to_num(positions.speed[sel][order], nan=0.0)
-    course = np.radians(np.nan_to_num(positions.course_deg[sel][order], nan=0.0))
+    speed = positions.speed[sel][order]
+    course_deg = positions.course_deg[sel][order]
+    # Without both speed and course the motion is unknown: hold the reported position.
+    moving = np.isfinite(speed) & np.isfinite(course_deg)
+    speed = np.where(moving, speed, 0.0)
+    course = np.radians(np.where(moving, course_deg, 0.0))
     idx = np.searchsorted(t_rep, t_query, side="right") - 1
     valid = idx >= 0
     i = np.where(valid, idx, 0)

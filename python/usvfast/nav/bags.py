@@ -30,6 +30,7 @@ from rosbags.highlevel import AnyReader, AnyReaderError
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
+from usvfast._time import ros_stamp_seconds
 from usvfast.nav._damage import DamageCounter, check_file
 
 # Message definitions of the common driver packages that rosbags' stores do not ship.
@@ -150,10 +151,6 @@ def _bag_path(path: Path | str) -> Path:
     if p.is_file() and p.suffix in (".db3", ".mcap") and (p.parent / "metadata.yaml").exists():
         return p.parent
     return p
-
-
-def _stamp(t: Any) -> float:
-    return float(t.sec) + float(t.nanosec) * 1e-9
 
 
 def _vec3(v: Any) -> np.ndarray:
@@ -345,7 +342,7 @@ class BagTopic:
                     t = record_time
                     header = getattr(msg, "header", None)
                     if self.time_source == "header" and header is not None:
-                        stamp = _stamp(header.stamp)
+                        stamp = ros_stamp_seconds(header.stamp)
                         if stamp != 0.0:
                             t = stamp
                     self.yielded += 1

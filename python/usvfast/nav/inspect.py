@@ -9,7 +9,6 @@ import heapq
 import math
 import warnings
 from dataclasses import dataclass
-from datetime import datetime, timezone
 from pathlib import Path
 from typing import Annotated
 
@@ -18,6 +17,7 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
+from usvfast._time import unix_to_iso
 from usvfast.nav.replay import (
     NMEA_RECORDS,
     Recording,
@@ -186,7 +186,7 @@ def recording_for_path(path: Path | str) -> Recording:
 def _utc(t: float) -> str:
     if not math.isfinite(t):
         return "-"
-    return datetime.fromtimestamp(t, tz=timezone.utc).isoformat(timespec="milliseconds")[:-6]
+    return unix_to_iso(t)
 
 
 def _secs(x: float) -> str:

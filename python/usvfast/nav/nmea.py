@@ -30,11 +30,13 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from functools import reduce
 from operator import xor
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pynmea2
+
+from usvfast._damage import DamagedRecordsWarning
+from usvfast.nav._damage import iter_lines
 
 __all__ = [
     "DamagedRecordsWarning",
@@ -53,10 +55,6 @@ _POSITION_TYPES = {"GGA": 0, "RMC": 1, "GLL": 2}  # priority when several share 
 _WANTED = {"GGA", "RMC", "GLL", "ZDA", "VTG", "HDT", "THS", "ROT"}
 # FAA mode indicator → GGA-style fix quality.
 _MODE_QUALITY = {"A": 1, "D": 2, "P": 3, "R": 4, "F": 5, "E": 6, "M": 7, "S": 8, "N": 0}
-
-
-class DamagedRecordsWarning(UserWarning):
-    """A field-data reader skipped damaged records (the count is on the result)."""
 
 
 @dataclass(frozen=True)
@@ -172,14 +170,6 @@ def _day(year: int, month: int, day: int) -> float:
     return (_dt.date(year, month, day) - _dt.date(1970, 1, 1)).days * DAY
 
 
-def _lines(source: Any) -> Iterable[bytes | str]:
-    if isinstance(source, str | os.PathLike):
-        with Path(source).open("rb") as fh:
-            yield from fh
-    else:
-        yield from source
-
-
 def _near(candidate: float, reference: float) -> float:
     """Shift `candidate` by whole days to within half a day of `reference` (midnight rollover)."""
     return candidate + DAY * round((reference - candidate) / DAY)
@@ -209,7 +199,7 @@ def read_nmea(
         if len(damaged_lines) < 100:
             damaged_lines.append(lineno)
 
-    for lineno, raw in enumerate(_lines(source), start=1):
+    for lineno, raw in enumerate(iter_lines(source), start=1):
         if isinstance(raw, bytes):
             try:
                 line = raw.decode("ascii").strip()

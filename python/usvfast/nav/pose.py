@@ -22,23 +22,11 @@ from typing import Any
 
 import numpy as np
 
+from usvfast._angles import wrap_2pi, wrap_180_deg, wrap_pi
 from usvfast._core import DimensionError, TimeOrderError
 from usvfast._validate import as_float_array
 
 __all__ = ["Channel", "Pose", "PoseGapError", "PoseTrack"]
-
-TWO_PI = 2.0 * np.pi
-
-
-def _wrap_2pi(a: np.ndarray) -> np.ndarray:
-    """Angles into [0, 2π): np.mod of a tiny negative rounds to 2π itself."""
-    w = np.mod(a, TWO_PI)
-    return np.where(w >= TWO_PI, 0.0, w)
-
-
-def _wrap_pi(a: np.ndarray) -> np.ndarray:
-    """Angles into [-π, π)."""
-    return _wrap_2pi(a + np.pi) - np.pi
 
 
 class PoseGapError(ValueError):
@@ -67,13 +55,17 @@ class Channel:
         kinds: tuple[str, ...],
         clock_offset: float,
         max_gap: float,
+        time_name: str | None = None,
     ) -> Channel:
         """Validate and build; samples with any non-finite value are dropped, exact duplicate
-        times keep the first sample. Raises TimeOrderError when times go backwards."""
-        t = as_float_array(f"{name}.time", time, ndim=1)
+        times keep the first sample. Errors name `time_name` (default `<name>_time`) and the
+        column keys. Raises TimeOrderError when times go backwards, DimensionError on shapes,
+        TypeError on non-numbers, ValueError when no finite sample is left."""
+        time_name = f"{name}_time" if time_name is None else time_name
+        t = as_float_array(time_name, time, ndim=1)
         cols = []
         for col_name, col in columns.items():
-            a = np.asarray(col, dtype=np.float64).reshape(-1)
+            a = as_float_array(col_name, col, finite=False).reshape(-1)
             if a.shape != t.shape:
                 raise DimensionError(f"{col_name}: expected shape {t.shape}, got {a.shape}")
             cols.append(a)
@@ -81,7 +73,7 @@ class Channel:
         if np.any(np.diff(t) < 0):
             i = int(np.argmax(np.diff(t) < 0))
             raise TimeOrderError(
-                f"{name}.time: must be sorted ascending, element {i + 1} ({t[i + 1]}) is "
+                f"{time_name}: must be sorted ascending, element {i + 1} ({t[i + 1]}) is "
                 f"before element {i} ({t[i]})"
             )
         keep = np.all(np.isfinite(v), axis=1)
@@ -94,17 +86,26 @@ class Channel:
             t[keep] + clock_offset, v[keep], kinds, float(clock_offset), float(max_gap), name
         )
 
-    def at(self, t: np.ndarray) -> np.ndarray:
-        """Values (m, k) at reference times `t` (m,); raises PoseGapError naming the first bad
-        time."""
-        ts, v = self.time, self.values
+    def _bracket(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Indices (i, j) of the samples around each time and whether the time is covered."""
+        ts = self.time
         i = np.clip(np.searchsorted(ts, t, side="right") - 1, 0, len(ts) - 1)
         j = np.minimum(i + 1, len(ts) - 1)
         before, after = t - ts[i], ts[j] - t
         # Exactly on a sample, or between two samples at most max_gap apart.
         exact = before == 0
         inside = (before >= 0) & (after >= 0) & (j > i)
-        ok = exact | (inside & (ts[j] - ts[i] <= self.max_gap))
+        return i, j, exact | (inside & (ts[j] - ts[i] <= self.max_gap))
+
+    def covered(self, t: np.ndarray) -> np.ndarray:
+        """Boolean (m,): which reference times `t` (m,) `at` can answer."""
+        return self._bracket(t)[2]
+
+    def at(self, t: np.ndarray) -> np.ndarray:
+        """Values (m, k) at reference times `t` (m,); raises PoseGapError naming the first bad
+        time."""
+        ts, v = self.time, self.values
+        i, j, ok = self._bracket(t)
         if not np.all(ok):
             k = int(np.argmin(ok))
             raise PoseGapError(
@@ -116,13 +117,13 @@ class Channel:
         d = v[j] - v[i]
         for c, kind in enumerate(self.kinds):
             if kind == "angle":  # shortest arc, radians
-                d[:, c] = np.mod(d[:, c] + np.pi, TWO_PI) - np.pi
+                d[:, c] = wrap_pi(d[:, c])
             elif kind == "lon_deg":
-                d[:, c] = np.mod(d[:, c] + 180.0, 360.0) - 180.0
+                d[:, c] = wrap_180_deg(d[:, c])
         out = v[i] + f * d
         for c, kind in enumerate(self.kinds):
             if kind == "lon_deg":
-                out[:, c] = np.mod(out[:, c] + 180.0, 360.0) - 180.0
+                out[:, c] = wrap_180_deg(out[:, c])
         return out
 
 
@@ -164,17 +165,29 @@ class PoseTrack:
     ) -> None:
         """position_time (n,), lat_deg, lon_deg (n,), altitude (n,) or None; heading (radians)
         at heading_time; roll, pitch (radians) at attitude_time. `*_offset` seconds are added to
-        each stream's times (per-stream clock offsets)."""
-        alt = np.zeros_like(np.asarray(lat_deg, dtype=float)) if altitude is None else altitude
-        self.has_altitude = altitude is not None
+        each stream's times (per-stream clock offsets). Altitude is its own channel on the
+        position times: samples without altitude keep their position, and a query the altitude
+        samples do not cover gets a NaN altitude."""
         self.position = Channel.build(
             "position",
             position_time,
-            {"lat_deg": lat_deg, "lon_deg": lon_deg, "altitude": alt},
-            ("linear", "lon_deg", "linear"),
+            {"lat_deg": lat_deg, "lon_deg": lon_deg},
+            ("linear", "lon_deg"),
             position_offset,
             max_gap,
         )
+        self.altitude = None
+        if altitude is not None:
+            self.altitude = Channel.build(
+                "altitude",
+                position_time,
+                {"altitude": altitude},
+                ("linear",),
+                position_offset,
+                max_gap,
+                time_name="position_time",
+            )
+        self.has_altitude = self.altitude is not None
         self.heading = None
         if heading is not None:
             self.heading = Channel.build(
@@ -203,7 +216,8 @@ class PoseTrack:
         heading_offset: float = 0.0,
     ) -> PoseTrack:
         """From a `read_nmea` result: positions with a fix (quality > 0) and true headings
-        (HDT/THS). Raises ValueError when there is no fix."""
+        (HDT/THS); altitude from the fixes that have one (none: NaN altitude). Raises
+        ValueError when there is no fix."""
         p = log.positions
         fix = (p.fix_quality > 0) & np.isfinite(p.lat_deg) & np.isfinite(p.lon_deg)
         if not np.any(fix):
@@ -215,7 +229,7 @@ class PoseTrack:
             p.time[fix],
             p.lat_deg[fix],
             p.lon_deg[fix],
-            alt if np.all(np.isfinite(alt)) else None,
+            alt if np.any(np.isfinite(alt)) else None,
             heading_time=h.time[order] if len(h.time) else None,
             heading=np.radians(h.heading_deg[order]) if len(h.time) else None,
             max_gap=max_gap,
@@ -229,9 +243,14 @@ class PoseTrack:
         t = as_float_array("times", times).reshape(-1)
         pos = self.position.at(t)
         nan = np.full(t.shape, np.nan)
-        heading = _wrap_2pi(self.heading.at(t)[:, 0]) if self.heading is not None else nan
+        altitude = nan
+        if self.altitude is not None:
+            altitude = nan.copy()
+            ok = self.altitude.covered(t)
+            altitude[ok] = self.altitude.at(t[ok])[:, 0]
+        heading = wrap_2pi(self.heading.at(t)[:, 0]) if self.heading is not None else nan
         if self.attitude is not None:
-            att = _wrap_pi(self.attitude.at(t))
+            att = wrap_pi(self.attitude.at(t))
             roll, pitch = att[:, 0], att[:, 1]
         else:
             roll = pitch = nan
@@ -239,7 +258,7 @@ class PoseTrack:
             time=t,
             lat_deg=pos[:, 0],
             lon_deg=pos[:, 1],
-            altitude=pos[:, 2] if self.has_altitude else nan,
+            altitude=altitude,
             heading=heading,
             roll=roll,
             pitch=pitch,

@@ -45,6 +45,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from usvfast._core import DimensionError, NonFiniteError, NotPositiveDefiniteError, TimeOrderError
 from usvfast.frames import Mount
 from usvfast.nav._damage import DamagedRecordsWarning
 
@@ -454,12 +455,20 @@ def load_recording(path: Path | str) -> Recording:
 # --- replay ----------------------------------------------------------------------------------
 
 
+# usvfast's argument errors are ValueErrors too, but never mean "t is outside the coverage".
+_NOT_A_GAP = (DimensionError, NonFiniteError, NotPositiveDefiniteError, TimeOrderError)
+
+
 class PoseSource(Protocol):
     """Anything with `pose_at(t)` (the vessel pose at UNIX time t; None or a ValueError when t
     is outside its coverage), or with `at(times)` as usvfast.nav.pose.PoseTrack (its Pose of
     shape (1,) arrays; PoseGapError outside)."""
 
-    def pose_at(self, t: float) -> Any: ...
+    def pose_at(self, t: float) -> Any:
+        """The vessel pose at UNIX time `t` (seconds, the replay's clock), in any form the
+        consumer understands; None, PoseGapError or a plain ValueError when `t` is outside the
+        source's coverage (counted as `no_pose`). Other errors propagate."""
+        ...
 
 
 @dataclass(frozen=True)
@@ -613,7 +622,9 @@ class Replay:
                 if self._pose_at is not None:
                     try:
                         pose = self._pose_at(t)
-                    except ValueError:
+                    except _NOT_A_GAP:
+                        raise  # bad data or a broken pose source: not a gap in coverage
+                    except ValueError:  # PoseGapError, or a plain ValueError (PoseSource)
                         pose = None
                     if pose is None:
                         counts.no_pose += 1

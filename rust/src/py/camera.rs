@@ -1,6 +1,6 @@
 //! Bindings of the camera core: non-maximum suppression and water-plane georeferencing.
 
-use super::to_py_err;
+use super::{slice, to_py_err};
 use crate::error::Error;
 use crate::georef::{georeference, GeorefInput, GeorefNoise};
 use crate::nms::{batched_nms, nms};
@@ -9,15 +9,6 @@ use numpy::{
     PyUntypedArrayMethods,
 };
 use pyo3::prelude::*;
-
-fn slice<'a, T: numpy::Element, D: numpy::ndarray::Dimension>(
-    name: &str,
-    a: &'a numpy::PyReadonlyArray<'_, T, D>,
-) -> PyResult<&'a [T]> {
-    a.as_slice().map_err(|_| {
-        pyo3::exceptions::PyValueError::new_err(format!("{name}: must be a C-contiguous array"))
-    })
-}
 
 fn check_cols(name: &str, shape: &[usize], cols: usize) -> PyResult<()> {
     if shape[1] != cols {

@@ -1,20 +1,11 @@
 //! Bindings of the frames core: batch sensor → NED transform of point arrays.
 
-use super::to_py_err;
+use super::{slice, to_py_err};
 use crate::error::Error;
 use crate::frames::{self, Se3};
 use nalgebra::{Matrix3, Vector3};
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
-
-fn slice<'a, D: numpy::ndarray::Dimension>(
-    name: &str,
-    a: &'a numpy::PyReadonlyArray<'_, f64, D>,
-) -> PyResult<&'a [f64]> {
-    a.as_slice().map_err(|_| {
-        pyo3::exceptions::PyValueError::new_err(format!("{name}: must be a C-contiguous array"))
-    })
-}
 
 /// Points (n, 3) in a sensor frame → NED (n, 3): mount body ← sensor given as a row-major
 /// (3, 3) rotation and a (3,) lever arm; vessel roll/pitch/yaw (m,) and position (m, 3) with

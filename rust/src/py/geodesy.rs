@@ -2,7 +2,7 @@
 //! arrays out. Broadcasting of shapes, degrees and ellipsoid objects are handled in
 //! `usvfast.geodesy`.
 
-use super::to_py_err;
+use super::{slice, to_py_err};
 use crate::error::Error;
 use crate::geodesy::{self, Ellipsoid, LocalFrame};
 use numpy::{PyArray1, PyReadonlyArray1};
@@ -13,12 +13,6 @@ type Out<'py> = (
     Bound<'py, PyArray1<f64>>,
     Bound<'py, PyArray1<f64>>,
 );
-
-fn slice<'a>(name: &str, a: &'a PyReadonlyArray1<'_, f64>) -> PyResult<&'a [f64]> {
-    a.as_slice().map_err(|_| {
-        pyo3::exceptions::PyValueError::new_err(format!("{name}: must be a C-contiguous array"))
-    })
-}
 
 fn ellipsoid(ell: (f64, f64)) -> PyResult<Ellipsoid> {
     Ellipsoid::new(ell.0, ell.1).map_err(to_py_err)

@@ -1,6 +1,6 @@
 //! Bindings of the Kalman core: motion model matrices and the batch filter/smoother.
 
-use super::to_py_err;
+use super::{slice, to_py_err};
 use crate::error::Error;
 use crate::kalman::{run_batch, BatchInput};
 use crate::models::{Component, MotionModel};
@@ -34,15 +34,6 @@ pub(crate) fn motion_model_from_spec(spec: &[(String, f64)]) -> PyResult<MotionM
         .collect::<Result<Vec<_>, _>>()
         .map_err(to_py_err)?;
     MotionModel::new(components).map_err(to_py_err)
-}
-
-fn slice<'a, T: numpy::Element, D: numpy::ndarray::Dimension>(
-    name: &str,
-    a: &'a numpy::PyReadonlyArray<'_, T, D>,
-) -> PyResult<&'a [T]> {
-    a.as_slice().map_err(|_| {
-        pyo3::exceptions::PyValueError::new_err(format!("{name}: must be a C-contiguous array"))
-    })
 }
 
 fn array<'py>(py: Python<'py>, data: Vec<f64>, shape: &[usize]) -> PyResult<Bound<'py, PyAny>> {

@@ -1,7 +1,7 @@
 //! Bindings of the LiDAR hot paths: the line-of-sight filter (sweep and naive reference) and
 //! the flat-kernel mean shift.
 
-use super::to_py_err;
+use super::{slice, to_py_err};
 use crate::error::Error;
 use crate::line_of_sight;
 use crate::mean_shift::{self as ms, MeanShiftParams};
@@ -17,9 +17,7 @@ fn rows<'a>(name: &str, a: &'a PyReadonlyArray2<'_, f64>, cols: usize) -> PyResu
             format!("{:?}", a.shape()),
         )));
     }
-    a.as_slice().map_err(|_| {
-        pyo3::exceptions::PyValueError::new_err(format!("{name}: must be a C-contiguous array"))
-    })
+    slice(name, a)
 }
 
 type LosFn = fn(&[f64], &[f64], [f64; 2], f64) -> crate::Result<Vec<bool>>;

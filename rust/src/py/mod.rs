@@ -13,6 +13,16 @@ mod tracker;
 
 pub use errors::to_py_err;
 
+/// The data of a C-contiguous numpy array, or a `ValueError` naming the argument `name`.
+pub(crate) fn slice<'a, T: numpy::Element, D: numpy::ndarray::Dimension>(
+    name: &str,
+    a: &'a numpy::PyReadonlyArray<'_, T, D>,
+) -> PyResult<&'a [T]> {
+    a.as_slice().map_err(|_| {
+        pyo3::exceptions::PyValueError::new_err(format!("{name}: must be a C-contiguous array"))
+    })
+}
+
 /// The native module `usvfast._core`; import the public API from `usvfast` instead.
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
