@@ -231,11 +231,14 @@ def scaling(sizes: list[int]) -> None:
         )
 
 
-def joyride(path: str = "/work/shared/data/joyride/joyride.mat") -> None:
+def joyride(path: str | None = None) -> None:
     """Real radar (238 scans): Stone Soup JPDA with the issue's anchor parameters vs the same
     configuration through the drop-in and the native run(), and the chosen native parameters."""
     from usvfast.datasets import load_joyride
 
+    from conftest import SHARED_DATA
+
+    path = path or str(SHARED_DATA / "joyride" / "joyride.mat")
     if not Path(path).is_file():
         print(f"\n(joyride) skipped: {path} not found")
         return

@@ -5,8 +5,6 @@ one track."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 import ssharness as H
@@ -15,7 +13,9 @@ from usvfast import stonesoup as us
 from usvfast.datasets import load_joyride
 from usvfast.metrics import clear_mot, track_quality
 
-JOYRIDE = Path("/work/shared/data/joyride/joyride.mat")
+from conftest import SHARED_DATA
+
+JOYRIDE = SHARED_DATA / "joyride" / "joyride.mat"
 
 
 @pytest.fixture(scope="module")

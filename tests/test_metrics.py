@@ -3,8 +3,6 @@ against py-motmetrics (the Stone Soup anchor run on Joyride is in test_joyride_t
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import hypothesis.strategies as st
 import numpy as np
 import pytest
@@ -14,7 +12,9 @@ from usvfast import DimensionError, NonFiniteError
 from usvfast.datasets import load_joyride
 from usvfast.metrics import clear_mot, track_quality
 
-JOYRIDE = Path("/work/shared/data/joyride/joyride.mat")
+from conftest import SHARED_DATA
+
+JOYRIDE = SHARED_DATA / "joyride" / "joyride.mat"
 
 
 @pytest.fixture(scope="module")
