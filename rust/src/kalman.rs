@@ -288,14 +288,16 @@ pub fn run_batch(model: &MotionModel, input: &BatchInput, smooth: bool) -> Resul
     }
 }
 
-/// Appends a symmetric matrix or a vector; column-major storage equals row-major for both.
-fn extend_flat<R: Dim, C: Dim>(out: &mut Vec<f64>, items: &[OMatrix<f64, R, C>])
+/// Concatenates symmetric matrices or vectors; column-major storage equals row-major for both.
+fn flatten<R: Dim, C: Dim>(items: &[OMatrix<f64, R, C>]) -> Vec<f64>
 where
     DefaultAllocator: Allocator<R, C>,
 {
+    let mut out = Vec::with_capacity(items.len() * items.first().map_or(0, |m| m.len()));
     for m in items {
         out.extend_from_slice(m.as_slice());
     }
+    out
 }
 
 fn run_generic<N: Dim, M: Dim>(
@@ -334,7 +336,7 @@ where
     let mut log_likelihood = Vec::with_capacity(n_meas);
     let mut t_prev = input.prior_time;
     for (i, &t) in input.times.iter().enumerate() {
-        model.fill(t - t_prev, &mut f, &mut q);
+        model.fill_blocks(t - t_prev, &mut f, &mut q);
         t_prev = t;
         // Each step starts from the last filtered state (the prior before the first).
         let (x, p) = match (xf_all.last(), pf_all.last()) {
@@ -362,21 +364,22 @@ where
         xf_all.push(u.x);
         pf_all.push(u.p);
     }
-    let mut out = BatchOutput {
+    let (smoothed_states, smoothed_covariances) = if smooth {
+        let (xs, ps) = rts_smooth(model, input.times, &xp_all, &pp_all, &xf_all, &pf_all)?;
+        (flatten(&xs), flatten(&ps))
+    } else {
+        (Vec::new(), Vec::new())
+    };
+    Ok(BatchOutput {
+        predicted_states: flatten(&xp_all),
+        predicted_covariances: flatten(&pp_all),
+        filtered_states: flatten(&xf_all),
+        filtered_covariances: flatten(&pf_all),
+        smoothed_states,
+        smoothed_covariances,
         nis,
         log_likelihood,
-        ..Default::default()
-    };
-    if smooth {
-        let (xs, ps) = rts_smooth(model, input.times, &xp_all, &pp_all, &xf_all, &pf_all)?;
-        extend_flat(&mut out.smoothed_states, &xs);
-        extend_flat(&mut out.smoothed_covariances, &ps);
-    }
-    extend_flat(&mut out.predicted_states, &xp_all);
-    extend_flat(&mut out.predicted_covariances, &pp_all);
-    extend_flat(&mut out.filtered_states, &xf_all);
-    extend_flat(&mut out.filtered_covariances, &pf_all);
-    Ok(out)
+    })
 }
 
 /// Rauch–Tung–Striebel smoother over a filtered sequence. `predicted[k]` is the prediction
@@ -452,7 +455,7 @@ where
     let mut f = OMatrix::<f64, N, N>::zeros_generic(nd, nd);
     let mut q = OMatrix::<f64, N, N>::zeros_generic(nd, nd);
     for k in (0..n - 1).rev() {
-        model.fill(times[k + 1] - times[k], &mut f, &mut q);
+        model.fill_blocks(times[k + 1] - times[k], &mut f, &mut q);
         let pp = &predicted_covariances[k + 1];
         let pf = &filtered_covariances[k];
         // C = P_k Fᵀ (P⁻)⁻¹ = ((P⁻)⁻¹ F P_k)ᵀ

@@ -88,6 +88,20 @@ impl MotionModel {
     {
         f.fill(0.0);
         q.fill(0.0);
+        self.fill_blocks(dt, f, q);
+    }
+
+    /// Like [`MotionModel::fill`], but writes only the diagonal blocks: for matrices that
+    /// were zeroed once and are only ever written by this model (the hot loops).
+    #[inline]
+    pub(crate) fn fill_blocks<N: Dim>(
+        &self,
+        dt: f64,
+        f: &mut OMatrix<f64, N, N>,
+        q: &mut OMatrix<f64, N, N>,
+    ) where
+        nalgebra::DefaultAllocator: nalgebra::allocator::Allocator<N, N>,
+    {
         let mut o = 0;
         for c in &self.components {
             match *c {
