@@ -107,8 +107,57 @@ pub fn atan2(y: f64, x: f64) -> f64 {
 
 /// Runs `kernel` over `n` points in blocks of [`LANES`]: `cols` are coordinate columns of
 /// length `n` or 1 (broadcast); the three outputs have length `n`. Uses AVX2 code when the CPU
-/// supports it (detected at run time), portable SIMD otherwise.
+/// supports it (detected at run time), portable SIMD otherwise; large inputs are split over the
+/// available cores (results do not depend on the split: every point is computed alone).
 pub fn map_blocks<const NI: usize, K>(n: usize, cols: [&[f64]; NI], kernel: K) -> [Vec<f64>; 3]
+where
+    K: Fn(&[Block; NI]) -> [Block; 3] + Sync,
+{
+    const MIN_POINTS_PER_THREAD: usize = 1 << 16;
+    let threads = std::thread::available_parallelism()
+        .map_or(1, |t| t.get())
+        .min(n / MIN_POINTS_PER_THREAD)
+        .max(1);
+    if threads == 1 {
+        return map_blocks_serial(n, cols, &kernel);
+    }
+    let chunk = n.div_ceil(threads).next_multiple_of(LANES);
+    let kernel = &kernel;
+    let parts: Vec<[Vec<f64>; 3]> = std::thread::scope(|scope| {
+        let handles: Vec<_> = (0..n)
+            .step_by(chunk)
+            .map(|start| {
+                let end = (start + chunk).min(n);
+                let sub: [&[f64]; NI] = std::array::from_fn(|j| {
+                    let c = cols[j];
+                    if c.len() == 1 {
+                        c
+                    } else {
+                        &c[start..end]
+                    }
+                });
+                scope.spawn(move || map_blocks_serial(end - start, sub, kernel))
+            })
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+            .collect()
+    });
+    let mut out = [
+        Vec::with_capacity(n),
+        Vec::with_capacity(n),
+        Vec::with_capacity(n),
+    ];
+    for part in parts {
+        for (o, p) in out.iter_mut().zip(part) {
+            o.extend_from_slice(&p);
+        }
+    }
+    out
+}
+
+fn map_blocks_serial<const NI: usize, K>(n: usize, cols: [&[f64]; NI], kernel: &K) -> [Vec<f64>; 3]
 where
     K: Fn(&[Block; NI]) -> [Block; 3],
 {
@@ -116,10 +165,10 @@ where
     {
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU supports AVX2 (checked just above).
-            return unsafe { map_blocks_avx2(n, cols, &kernel) };
+            return unsafe { map_blocks_avx2(n, cols, kernel) };
         }
     }
-    map_blocks_generic(n, cols, &kernel)
+    map_blocks_generic(n, cols, kernel)
 }
 
 #[cfg(target_arch = "x86_64")]

@@ -421,7 +421,7 @@ fn prepare(
 
 /// A per-point conversion relative to an origin; a trait (not a closure) so that
 /// `#[inline(always)]` reaches the lane loop and it vectorises.
-trait OriginFn {
+trait OriginFn: Sync {
     fn apply(&self, o: &Origin, p: [f64; 3]) -> [f64; 3];
 }
 
