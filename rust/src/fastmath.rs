@@ -241,6 +241,26 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
+    #[test]
+    fn split_over_threads_equals_serial() {
+        let n = 300_001; // several threads' worth, not a multiple of LANES
+        let a: Vec<f64> = (0..n).map(|i| i as f64 * 1e-3).collect();
+        let b = [0.5];
+        let kernel = |blk: &[Block; 2]| {
+            let mut o = [[0.0; LANES]; 3];
+            for l in 0..LANES {
+                o[0][l] = blk[0][l].sin() + blk[1][l];
+                o[1][l] = blk[0][l] * 2.0;
+                o[2][l] = -blk[0][l];
+            }
+            o
+        };
+        let par = map_blocks(n, [&a, &b], kernel);
+        let ser = map_blocks_serial(n, [&a, &b], &kernel);
+        assert_eq!(par, ser);
+        assert_eq!(par[0].len(), n);
+    }
+
     fn ulps(a: f64, b: f64) -> f64 {
         // Error in units of the spacing near 1 (absolute for small values).
         (a - b).abs() / f64::EPSILON / b.abs().max(1.0)
