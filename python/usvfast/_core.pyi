@@ -172,6 +172,13 @@ class TrackerCore:
         sensor_ids: npt.NDArray[np.int64],
         scan_index: npt.NDArray[np.int64],
     ) -> dict[str, npt.NDArray[np.generic]]: ...
+    def add_sensor(
+        self,
+        measurement_matrix: npt.NDArray[np.float64],
+        measurement_noise: npt.NDArray[np.float64],
+        initiation_matrix: npt.NDArray[np.float64] | None = None,
+        initiation_noise: npt.NDArray[np.float64] | None = None,
+    ) -> int: ...
     def add_track(
         self, state: npt.NDArray[np.float64], covariance: npt.NDArray[np.float64], time: float
     ) -> int: ...

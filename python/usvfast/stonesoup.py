@@ -573,6 +573,7 @@ class _DropInTracker:
         self._sensor_specs: list[tuple] = []  # (H, R, H_init, R_init) per core sensor
         self._sensor_of_model: dict[int, int] = {}  # id(model) -> core sensor index
         self._models: list[Any] = []  # keeps the models alive while their id() is used
+        # Empty scans seen before the core exists (it is built at the first detection).
         self._replay: list[tuple[float, np.ndarray, np.ndarray]] = []
         self._t0: Any = None
         self._scan = 0
@@ -659,12 +660,9 @@ class _DropInTracker:
     def _add_core_sensor(self, spec: tuple) -> None:
         if self._core is None:
             return
-        # The core's sensor list is fixed at construction: rebuild it and replay every scan
-        # so far (deterministic, so the rebuilt core holds exactly the same tracks and ids).
-        core = self._new_core()
-        for t, z, s in self._replay:
-            core.step(t, z, s)
-        self._core = core
+        from usvfast import tracking as tk
+
+        self._core.add_sensor(tk.Sensor(*spec))
 
     def _new_core(self) -> Any:
         from usvfast import tracking as tk
@@ -702,9 +700,11 @@ class _DropInTracker:
             self._core = self._new_core()
             for args in self._replay:
                 self._core.step(*args)
+            self._replay.clear()
         if self._core is not None:
             self._core.step(t, z, sids)
-        self._replay.append((t, z, sids))
+        else:
+            self._replay.append((t, z, sids))
         self._scan_time.append(time)
         self._scan_dets.append(dets)
         self._scan += 1
@@ -762,14 +762,12 @@ class _DropInTracker:
         return self._states.make(False, f @ x0, f @ p0 @ f.T + q, time)
 
     def _hypothesis_for(self, tid: int, snap: Any, row: int, upd: bool) -> Any:
-        # Association data of the newest entry (the core gives it per track history).
-        hist = vars(self._core.history(tid))
-        offs = hist["assoc_offsets"]
-        a, b = offs[-2], offs[-1]
-        dets = hist["assoc_detection"][a:b]
-        probs = hist["assoc_probability"][a:b]
-        missed = float(hist["missed_probability"][-1])
-        det = int(hist["detection"][-1])
+        # Association data of the newest entry, from the snapshot.
+        a, b = snap.assoc_offsets[row], snap.assoc_offsets[row + 1]
+        dets = snap.assoc_detection[a:b]
+        probs = snap.assoc_probability[a:b]
+        missed = float(snap.missed_probability[row])
+        det = int(snap.detection[row])
         time = self._scan_time[-1]
         t = (time - self._t0).total_seconds()
         pred = self._prediction(tid, t, time)
@@ -845,8 +843,8 @@ class MultiTargetMixtureTracker(_DropInTracker):
     exactly, ValueError for detections off the scan time or of another dimension.
 
     Memory: every scan's detections are kept (the history of a track confirmed later refers
-    to them), and so is every scan's measurement array (to rebuild the core when a detection
-    brings a new measurement model, since the core's sensor list is fixed at construction).
+    to them). A detection with a new measurement model registers one more core sensor
+    (`Tracker.add_sensor`); no scan is replayed.
     """
 
     _mixture = True

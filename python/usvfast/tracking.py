@@ -123,6 +123,23 @@ class Sensor:
         return cls(h, np.diag(std**2))
 
 
+def _sensor_spec(s: Any, where: str) -> tuple:
+    if not isinstance(s, Sensor):
+        raise TypeError(f"{where}: expected Sensor, got {s!r}")
+    opt = [
+        None if a is None else as_float_array(f"{where}.{name}", a, ndim=2)
+        for name, a in (
+            ("initiation_matrix", s.initiation_matrix),
+            ("initiation_noise", s.initiation_noise),
+        )
+    ]
+    return (
+        as_float_array(f"{where}.measurement_matrix", s.measurement_matrix, 2),
+        as_float_array(f"{where}.measurement_noise", s.measurement_noise, 2),
+        *opt,
+    )
+
+
 @dataclass(frozen=True)
 class JPDA:
     """JPDA association with PDA hypotheses (Stone Soup `PDAHypothesiser` + `JPDA`).
@@ -311,7 +328,10 @@ def _non_negative_int(name: str, v: Any) -> int:
 class Tracks:
     """Confirmed tracks after a step: ids (k,), times (k,) of the current states, states
     (k, ndim), covariances (k, ndim, ndim), is_update (k,) whether the last state was an
-    update, n_updates (k,)."""
+    update, n_updates (k,). The newest history entry's association data (as in
+    TrackHistory): scan (k,), detection (k,), missed_probability (k,), and the hypothesised
+    detections of track i, assoc_detection/assoc_probability[assoc_offsets[i]:
+    assoc_offsets[i+1]]."""
 
     ids: np.ndarray
     times: np.ndarray
@@ -319,6 +339,12 @@ class Tracks:
     covariances: np.ndarray
     is_update: np.ndarray
     n_updates: np.ndarray
+    scan: np.ndarray
+    detection: np.ndarray
+    missed_probability: np.ndarray
+    assoc_offsets: np.ndarray
+    assoc_detection: np.ndarray
+    assoc_probability: np.ndarray
 
     def __len__(self) -> int:
         return len(self.ids)
@@ -440,24 +466,7 @@ class Tracker:
             raise TypeError(f"initiator: expected MultiMeasurementInitiator, got {initiator!r}")
         if isinstance(sensors, Sensor):
             sensors = [sensors]
-        specs = []
-        for i, s in enumerate(sensors):
-            if not isinstance(s, Sensor):
-                raise TypeError(f"sensors[{i}]: expected Sensor, got {s!r}")
-            opt = [
-                None if a is None else as_float_array(f"sensors[{i}].{name}", a, ndim=2)
-                for name, a in (
-                    ("initiation_matrix", s.initiation_matrix),
-                    ("initiation_noise", s.initiation_noise),
-                )
-            ]
-            specs.append(
-                (
-                    as_float_array(f"sensors[{i}].measurement_matrix", s.measurement_matrix, 2),
-                    as_float_array(f"sensors[{i}].measurement_noise", s.measurement_noise, 2),
-                    *opt,
-                )
-            )
+        specs = [_sensor_spec(s, f"sensors[{i}]") for i, s in enumerate(sensors)]
         self.sensors = tuple(sensors)
         self._ndim = sum(
             {"random_walk": 1, "constant_velocity": 2, "constant_acceleration": 3}[k]
@@ -531,6 +540,15 @@ class Tracker:
         out = self._core.run(t, z, ids, si)
         out.pop("detection_order")
         return RunResult(**out)
+
+    def add_sensor(self, sensor: Sensor) -> int:
+        """Register one more sensor between steps (tracks are kept); returns its index for
+        `sensor_ids`. Same checks as the constructor's `sensors` (DimensionError when H does
+        not fit the state or the shared measurement dimension)."""
+        spec = _sensor_spec(sensor, "sensor")
+        idx = self._core.add_sensor(*spec)
+        self.sensors = (*self.sensors, sensor)
+        return idx
 
     def add_track(self, state: Any, covariance: Any, time: float) -> int:
         """Add a confirmed track (state (ndim,), covariance (ndim, ndim) at `time`); its first

@@ -114,6 +114,34 @@ impl Tracker {
         self.last_time
     }
 
+    /// Registers one more sensor between scans (its detections use index
+    /// `self.config().sensors.len()` before the call); tracks are untouched. The sensor must
+    /// fit the state dimension (see [`Sensor::new`]) and share the measurement dimension of
+    /// the configured sensors. Returns the new sensor's index.
+    pub fn add_sensor(&mut self, sensor: Sensor) -> Result<usize> {
+        let n = self.cfg.motion_model.ndim();
+        let i = self.cfg.sensors.len();
+        if sensor.h.ncols() != n {
+            return Err(Error::dim(
+                "measurement_matrix",
+                format!("{n} columns (state dimension)"),
+                sensor.h.ncols(),
+            ));
+        }
+        if sensor.m() != self.m {
+            return Err(Error::dim(
+                "measurement_matrix",
+                format!(
+                    "{} rows (all sensors share one measurement dimension)",
+                    self.m
+                ),
+                sensor.m(),
+            ));
+        }
+        self.cfg.sensors.push(sensor);
+        Ok(i)
+    }
+
     /// Adds a confirmed track with state `x`, covariance `p` at time `t` (its first state is a
     /// prior, not an update). Returns its id.
     pub fn add_track(&mut self, x: &[f64], p: &[f64], t: f64) -> Result<u64> {
