@@ -147,6 +147,7 @@ def georeference_rays(
     sigma_height: float = 0.0,
     sigma_heading: float = 0.0,
 ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.uint8]]: ...
+
 # --- tracker (rust/src/py/tracker.rs) ---
 class TrackerCore:
     def __init__(
@@ -161,6 +162,7 @@ class TrackerCore:
         delete_last_prediction: bool = False,
         out_of_order: str = "raise",
         initiate_in_gates: bool = True,
+        symmetric_covariance: bool = False,
     ) -> None: ...
     def step(
         self, t: float, measurements: npt.NDArray[np.float64], sensor_ids: npt.NDArray[np.int64]

@@ -19,7 +19,8 @@ what it can reproduce exactly: any other component or setting raises
 
 - predictor: `KalmanPredictor` without control; transition model `ConstantVelocity`,
   `RandomWalk`, `ConstantAcceleration` or a `CombinedLinearGaussianTransitionModel` of them;
-- updater: `KalmanUpdater` (`use_joseph_cov` either way, no forced symmetry);
+- updater: `KalmanUpdater` (`use_joseph_cov`, `force_symmetric_covariance` either way; not
+  `force_positive_definite_covariance`);
 - measurement models: `LinearGaussian` (on the detections, or the updater's/initiator's);
 - JPDA: `PDAHypothesiser` + `JPDA`, `JPDAwithEHM`, `JPDAwithEHM2` (or pyehm's plugins);
 - GNN: `DistanceHypothesiser` (`Mahalanobis` / `SquaredMahalanobis` without mapping) +
@@ -127,6 +128,8 @@ class StoneSoupConfig:
     init_deleter: DeleterSpec
     init_delete_last_pred: bool
     notes: list[str] = field(default_factory=list)
+    symmetric_covariance: bool = False
+    init_symmetric_covariance: bool = False
 
 
 def _motion_model(transition_model: Any, where: str) -> tuple[kalman.Component, ...]:
@@ -182,14 +185,19 @@ def _sensor(model: Any, where: str) -> LinearSensor | None:
     )
 
 
-def _updater(updater: Any, where: str) -> tuple[bool, LinearSensor | None]:
+def _updater(updater: Any, where: str) -> tuple[bool, bool, LinearSensor | None]:
+    """(use_joseph_cov, force_symmetric_covariance, fallback measurement model)."""
     from stonesoup.updater.kalman import KalmanUpdater
 
     _require(updater, where, KalmanUpdater)
-    if updater.force_symmetric_covariance:
-        raise UnsupportedComponentError(f"{where}.force_symmetric_covariance=True is not supported")
-    return bool(updater.use_joseph_cov), _sensor(
-        updater.measurement_model, f"{where}.measurement_model"
+    if getattr(updater, "force_positive_definite_covariance", False):
+        raise UnsupportedComponentError(
+            f"{where}.force_positive_definite_covariance=True is not supported"
+        )
+    return (
+        bool(updater.use_joseph_cov),
+        bool(updater.force_symmetric_covariance),
+        _sensor(updater.measurement_model, f"{where}.measurement_model"),
     )
 
 
@@ -302,8 +310,8 @@ def _initiator(initiator: Any, where: str) -> dict[str, Any]:
         raise UnsupportedComponentError(f"{where}.initiator.diag_load != 0 is not supported")
     gnn, hyp = _gnn(initiator.data_associator, f"{where}.data_associator")
     init_motion = _predictor(hyp.predictor, f"{where}.data_associator.hypothesiser.predictor")
-    _, hyp_fallback = _updater(hyp.updater, f"{where}.data_associator.hypothesiser.updater")
-    joseph, upd_fallback = _updater(initiator.updater, f"{where}.updater")
+    _, _, hyp_fallback = _updater(hyp.updater, f"{where}.data_associator.hypothesiser.updater")
+    joseph, symmetric, upd_fallback = _updater(initiator.updater, f"{where}.updater")
     _same_fallback(
         hyp_fallback,
         upd_fallback,
@@ -320,6 +328,7 @@ def _initiator(initiator: Any, where: str) -> dict[str, Any]:
         init_motion_model=init_motion,
         init_gnn=gnn,
         init_use_joseph_cov=joseph,
+        init_symmetric_covariance=symmetric,
         init_fallback_sensor=_sensor(initiator.measurement_model, f"{where}.measurement_model"),
         init_update_fallback_sensor=upd_fallback,
         prior_state=x0,
@@ -354,8 +363,8 @@ def read_components(
     else:
         assoc, hyp = _gnn(data_associator, "data_associator")
     motion = _predictor(hyp.predictor, "data_associator.hypothesiser.predictor")
-    _, hyp_fallback = _updater(hyp.updater, "data_associator.hypothesiser.updater")
-    joseph, upd_fallback = _updater(updater, "updater")
+    _, _, hyp_fallback = _updater(hyp.updater, "data_associator.hypothesiser.updater")
+    joseph, symmetric, upd_fallback = _updater(updater, "updater")
     _same_fallback(
         hyp_fallback,
         upd_fallback,
@@ -380,6 +389,7 @@ def read_components(
         motion_model=motion,
         association=assoc,
         use_joseph_cov=joseph,
+        symmetric_covariance=symmetric,
         fallback_sensor=upd_fallback if upd_fallback is not None else hyp_fallback,
         deleter=_deleter(deleter, "deleter"),
         delete_last_pred=bool(deleter.delete_last_pred),
@@ -442,6 +452,7 @@ def build_native(
         updates_only=cfg.updates_only,
         motion_model=None if cfg.init_motion_model == cfg.motion_model else cfg.init_motion_model,
         use_joseph_cov=cfg.init_use_joseph_cov,
+        symmetric_covariance=cfg.init_symmetric_covariance,
     )
     return tk.Tracker(
         motion_model=cfg.motion_model,
@@ -450,6 +461,7 @@ def build_native(
         deleter=_native_deleter(cfg.deleter),
         initiator=initiator,
         use_joseph_cov=cfg.use_joseph_cov,
+        symmetric_covariance=cfg.symmetric_covariance,
         delete_last_prediction=cfg.delete_last_pred,
         out_of_order="raise",
         initiate_in_gates=initiate_in_gates,

@@ -295,6 +295,7 @@ class MultiMeasurementInitiator:
     m_of_n: tuple[int, int] | None = None
     motion_model: MotionModel | None = None
     use_joseph_cov: bool = False
+    symmetric_covariance: bool = True
 
     def _spec(self) -> dict[str, Any]:
         pc = as_float_array("prior_covariance", self.prior_covariance, ndim=2)
@@ -315,6 +316,7 @@ class MultiMeasurementInitiator:
             else tuple(_non_negative_int("m_of_n", v) for v in self.m_of_n),
             "motion_model": None if self.motion_model is None else model_spec(self.motion_model),
             "use_joseph_cov": bool(self.use_joseph_cov),
+            "symmetric_covariance": bool(self.symmetric_covariance),
         }
 
 
@@ -438,7 +440,10 @@ class Tracker:
     motion_model: usvfast.kalman components (e.g. constant_velocity_2d(q)); sensors: list of
     `Sensor` (all with the same measurement dimension); association: `JPDA(...)` or `GNN(...)`;
     deleter of confirmed tracks; initiator: `MultiMeasurementInitiator`; use_joseph_cov:
-    Joseph-form covariance update (Stone Soup's default is P − K S Kᵀ); delete_last_prediction:
+    Joseph-form covariance update (Stone Soup's default is P − K S Kᵀ); symmetric_covariance:
+    replace updated covariances by (P + Pᵀ)/2 (Stone Soup's force_symmetric_covariance, off
+    there; on here: without it rounding asymmetry grows through long predictions and makes P
+    indefinite, e.g. constant-acceleration models on Joyride); delete_last_prediction:
     Stone Soup's `delete_last_pred`; out_of_order: "raise" (TimeOrderError) or "drop";
     initiate_in_gates: see the module docstring.
 
@@ -456,6 +461,7 @@ class Tracker:
         deleter: Any,
         initiator: MultiMeasurementInitiator,
         use_joseph_cov: bool = False,
+        symmetric_covariance: bool = True,
         delete_last_prediction: bool = False,
         out_of_order: Literal["raise", "drop"] = "raise",
         initiate_in_gates: bool = True,
@@ -480,6 +486,7 @@ class Tracker:
             _deleter_spec(deleter),
             initiator._spec(),
             use_joseph_cov=bool(use_joseph_cov),
+            symmetric_covariance=bool(symmetric_covariance),
             delete_last_prediction=bool(delete_last_prediction),
             out_of_order=out_of_order,
             initiate_in_gates=bool(initiate_in_gates),

@@ -88,7 +88,12 @@ where
     let s = h * &pht + &sensor.r;
     let chol = Cholesky::new(s.clone()).ok_or_else(|| Error::NotPositiveDefinite {
         arg: "innovation covariance".into(),
-        reason: "H P Hᵀ + R is not positive definite".into(),
+        reason: "H P Hᵀ + R of a track is not positive definite: the track covariance P has \
+                 lost positive definiteness (rounding asymmetry of P − K S Kᵀ grows through \
+                 long predictions, fastest with constant-acceleration models); set \
+                 symmetric_covariance (Stone Soup: force_symmetric_covariance) or \
+                 use_joseph_cov"
+            .into(),
     })?;
     let ln_det = chol.l_dirty().diagonal().iter().map(|d| 2.0 * d.ln()).sum();
     let k = chol.solve(&pht.transpose()).transpose();
@@ -101,22 +106,37 @@ where
     })
 }
 
+/// How an updater forms the posterior covariance (Stone Soup `KalmanUpdater` flags).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct CovForm {
+    /// Joseph form `(I − K H) P (I − K H)ᵀ + K R Kᵀ` instead of `P − K S Kᵀ`.
+    pub joseph: bool,
+    /// Replace the result by `(P + Pᵀ) / 2` (`force_symmetric_covariance`).
+    pub symmetric: bool,
+}
+
 /// Posterior covariance of a Kalman update (same for every detection of a sensor).
 pub(crate) fn posterior_cov<N: Dim, M: Dim>(
     p: &OMatrix<f64, N, N>,
     inn: &Innovation<N, M>,
     sensor: &SensorT<N, M>,
-    joseph: bool,
+    form: CovForm,
 ) -> OMatrix<f64, N, N>
 where
     DefaultAllocator: Alloc<N, M>,
 {
-    if joseph {
+    let out = if form.joseph {
         let (n, _) = p.shape_generic();
         let ikh = OMatrix::<f64, N, N>::identity_generic(n, n) - &inn.k * &sensor.h;
         &ikh * p * ikh.transpose() + &inn.k * &sensor.r * inn.k.transpose()
     } else {
         p - &inn.k * &inn.s * inn.k.transpose()
+    };
+    if form.symmetric {
+        let t = out.transpose();
+        (out + t) / 2.0
+    } else {
+        out
     }
 }
 
@@ -282,7 +302,7 @@ pub(crate) fn gnn_step<N: Dim, M: Dim>(
     model: &MotionModel,
     sensors: &[SensorT<N, M>],
     g: &GnnParams,
-    joseph: bool,
+    form: CovForm,
     t: f64,
     z: &[f64],
     (n, m): (N, M),
@@ -345,7 +365,7 @@ where
                         - &inn.zhat;
                 let nis = d2s[ti][hyps[ti].iter().position(|h| h.0 == d).expect("hyp")];
                 let xu = &xp + &inn.k * y;
-                let pu = posterior_cov(&pp, inn, &sensors[s], joseph);
+                let pu = posterior_cov(&pp, inn, &sensors[s], form);
                 entry.is_update = true;
                 entry.sensor = s as i64;
                 entry.detection = d as i64;

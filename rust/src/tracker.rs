@@ -25,8 +25,8 @@
 use crate::error::{check_finite, Error, Result};
 use crate::gating::{chi2_quantile, validation_volume};
 use crate::hypothesise::{
-    gate_pairs, gnn_step, order_cluster, posterior_cov, predict_all, sensors_t, Alloc, Innovation,
-    Pred, SensorT,
+    gate_pairs, gnn_step, order_cluster, posterior_cov, predict_all, sensors_t, Alloc, CovForm,
+    Innovation, Pred, SensorT,
 };
 use crate::jpda::{clusters, marginals, TrackHypotheses};
 use crate::kalman::check_covariance;
@@ -249,7 +249,10 @@ impl Tracker {
                     &model,
                     &sensors,
                     &g,
-                    self.cfg.use_joseph_cov,
+                    CovForm {
+                        joseph: self.cfg.use_joseph_cov,
+                        symmetric: self.cfg.symmetric_covariance,
+                    },
                     t,
                     z,
                     dims,
@@ -360,7 +363,10 @@ impl Tracker {
         }
         let mut associated = vec![false; k];
         let mut in_gate = vec![false; k];
-        let joseph = self.cfg.use_joseph_cov;
+        let form = CovForm {
+            joseph: self.cfg.use_joseph_cov,
+            symmetric: self.cfg.symmetric_covariance,
+        };
         let mut entry = Entry {
             time: t,
             is_update: false,
@@ -404,7 +410,7 @@ impl Tracker {
                         &pp,
                         innov[ti * ns + *s].as_ref().expect("gated"),
                         &sensors[*s],
-                        joseph,
+                        form,
                     )
                 });
                 let dx = xu - &mean;
@@ -465,7 +471,10 @@ impl Tracker {
                 &model,
                 sensors,
                 &init.gnn,
-                init.use_joseph_cov,
+                CovForm {
+                    joseph: init.use_joseph_cov,
+                    symmetric: init.symmetric_covariance,
+                },
                 t,
                 z,
                 dims,
@@ -676,6 +685,7 @@ mod tests {
             sensors: vec![Sensor::new(h, r, None, 4, "sensors[0]").unwrap()],
             association: assoc,
             use_joseph_cov: false,
+            symmetric_covariance: false,
             deleter: Deleter::StepsSinceUpdate(3),
             delete_last_prediction: false,
             initiator: InitiatorConfig {
@@ -696,6 +706,7 @@ mod tests {
                 },
                 motion_model: None,
                 use_joseph_cov: false,
+                symmetric_covariance: false,
             },
             out_of_order: OutOfOrder::Raise,
             initiate_in_gates: true,

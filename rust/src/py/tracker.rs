@@ -174,7 +174,7 @@ impl TrackerCore {
     #[pyo3(signature = (
         motion_model, sensors, association, deleter_spec, initiator, *,
         use_joseph_cov=false, delete_last_prediction=false, out_of_order="raise",
-        initiate_in_gates=true
+        initiate_in_gates=true, symmetric_covariance=false
     ))]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -187,6 +187,7 @@ impl TrackerCore {
         delete_last_prediction: bool,
         out_of_order: &str,
         initiate_in_gates: bool,
+        symmetric_covariance: bool,
     ) -> PyResult<Self> {
         let model = motion_model_from_spec(&motion_model)?;
         let n = model.ndim();
@@ -253,6 +254,10 @@ impl TrackerCore {
             },
             motion_model: init_model.map(|m| motion_model_from_spec(&m)).transpose()?,
             use_joseph_cov: get_bool(initiator, "use_joseph_cov")?,
+            symmetric_covariance: match initiator.get_item("symmetric_covariance")? {
+                Some(v) => v.extract()?,
+                None => false,
+            },
         };
         let out_of_order = match out_of_order {
             "raise" => OutOfOrder::Raise,
@@ -268,6 +273,7 @@ impl TrackerCore {
             sensors,
             association,
             use_joseph_cov,
+            symmetric_covariance,
             deleter: deleter(deleter_spec)?,
             delete_last_prediction,
             initiator: init,
