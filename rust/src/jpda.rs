@@ -63,15 +63,16 @@ pub fn clusters(tracks: &[TrackHypotheses], n_detections: usize) -> Vec<Vec<usiz
             }
         }
     }
-    let mut index: HashMap<usize, usize> = HashMap::new();
+    // Cluster number of each root, in order of first track.
+    let mut index = vec![usize::MAX; n];
     let mut out: Vec<Vec<usize>> = Vec::new();
     for t in 0..n {
         let r = find(&mut parent, t);
-        let k = *index.entry(r).or_insert_with(|| {
+        if index[r] == usize::MAX {
+            index[r] = out.len();
             out.push(Vec::new());
-            out.len() - 1
-        });
-        out[k].push(t);
+        }
+        out[index[r]].push(t);
     }
     out
 }
@@ -219,7 +220,7 @@ impl BitKey for Vec<u64> {
 
 /// A multiplicative hasher for the integer keys of EHM nodes (no DoS concern here).
 #[derive(Default, Clone, Copy)]
-struct FastHasher(u64);
+pub(crate) struct FastHasher(u64);
 
 impl std::hash::Hasher for FastHasher {
     fn finish(&self) -> u64 {
@@ -242,7 +243,7 @@ impl std::hash::Hasher for FastHasher {
     }
 }
 
-type FastMap<K, V> = HashMap<K, V, std::hash::BuildHasherDefault<FastHasher>>;
+pub(crate) type FastMap<K, V> = HashMap<K, V, std::hash::BuildHasherDefault<FastHasher>>;
 
 /// Exact marginals by Efficient Hypothesis Management: tracks are processed in the order
 /// given; a node of level `i` is the set of already-used detections that tracks `i..` could

@@ -267,20 +267,21 @@ impl Tracker {
                 associated
             }
         };
-        // Delete confirmed tracks.
-        let mut kept = Vec::with_capacity(self.tracks.len());
-        for mut tr in std::mem::take(&mut self.tracks) {
-            if self.cfg.deleter.check(&tr) {
+        // Delete confirmed tracks (in place: surviving tracks are not moved unless a track
+        // before them is deleted).
+        let mut i = 0;
+        while i < self.tracks.len() {
+            if self.cfg.deleter.check(&self.tracks[i]) {
+                let mut tr = self.tracks.remove(i);
                 if self.cfg.delete_last_prediction {
                     tr.drop_last_prediction();
                 }
                 tr.deleted_time = t;
                 self.deleted.push(tr);
             } else {
-                kept.push(tr);
+                i += 1;
             }
         }
-        self.tracks = kept;
         let free: Vec<usize> = (0..k).filter(|&d| !associated[d]).collect();
         self.initiate(t, z, sensor_ids, &free, &sensors, dims)
     }
