@@ -287,64 +287,73 @@ fn ehm<K: BitKey>(
         acc[i] = k;
     }
     // Forward pass: nodes of each level with forward weights, and the edges to the next level
-    // (hypothesis index, or usize::MAX for missed; child node).
-    let mut nodes: Vec<Vec<K>> = vec![Vec::new(); n + 1];
+    // stored flat: node `ni` of level `i` owns `edges[i][off[i][ni]..off[i][ni + 1]]`, each
+    // (hypothesis index or MISSED, child node).
+    const MISSED: u32 = u32::MAX;
     let mut fw: Vec<Vec<f64>> = vec![Vec::new(); n + 1];
-    let mut edges: Vec<Vec<Vec<(usize, usize)>>> = vec![Vec::new(); n];
-    nodes[0].push(K::empty(n_bits));
+    let mut off: Vec<Vec<u32>> = vec![Vec::new(); n];
+    let mut edges: Vec<Vec<(u32, u32)>> = vec![Vec::new(); n];
+    let mut nodes: Vec<K> = vec![K::empty(n_bits)];
     fw[0].push(1.0);
+    let mut index: FastMap<K, u32> = FastMap::default();
     for i in 0..n {
-        let mut index: FastMap<K, usize> = FastMap::default();
-        let mut next_nodes: Vec<K> = Vec::new();
-        let mut next_fw: Vec<f64> = Vec::new();
-        let mut level_edges = Vec::with_capacity(nodes[i].len());
-        for (ni, key) in nodes[i].iter().enumerate() {
+        index.clear();
+        let mut next_nodes: Vec<K> = Vec::with_capacity(nodes.len());
+        let mut next_fw: Vec<f64> = Vec::with_capacity(nodes.len());
+        let mut lo = Vec::with_capacity(nodes.len() + 1);
+        let mut le: Vec<(u32, u32)> = Vec::with_capacity(nodes.len() * (hyps[i].len() + 1));
+        lo.push(0u32);
+        let missed = cluster[i].missed;
+        for (ni, key) in nodes.iter().enumerate() {
             let f = fw[i][ni];
-            let mut e = Vec::with_capacity(hyps[i].len() + 1);
-            let mut push = |mut child: K, h: usize, w: f64, e: &mut Vec<(usize, usize)>| {
+            let mut push = |mut child: K, h: u32, w: f64| {
                 child.and(&acc[i + 1]);
                 let c = match index.get(&child) {
                     Some(&c) => c,
                     None => {
-                        index.insert(child.clone(), next_nodes.len());
+                        let c = next_nodes.len() as u32;
+                        index.insert(child.clone(), c);
                         next_nodes.push(child);
                         next_fw.push(0.0);
-                        next_fw.len() - 1
+                        c
                     }
                 };
-                next_fw[c] += f * w;
-                e.push((h, c));
+                next_fw[c as usize] += f * w;
+                le.push((h, c));
             };
-            push(key.clone(), usize::MAX, cluster[i].missed, &mut e);
+            push(key.clone(), MISSED, missed);
             for (h, &(d, w)) in hyps[i].iter().enumerate() {
                 if !key.has(d) {
                     let mut child = key.clone();
                     child.set(d);
-                    push(child, h, w, &mut e);
+                    push(child, h as u32, w);
                 }
             }
-            level_edges.push(e);
+            lo.push(le.len() as u32);
         }
-        nodes[i + 1] = next_nodes;
+        nodes = next_nodes;
         fw[i + 1] = next_fw;
-        edges[i] = level_edges;
+        off[i] = lo;
+        edges[i] = le;
     }
+    let weight = |i: usize, h: u32| {
+        if h == MISSED {
+            cluster[i].missed
+        } else {
+            hyps[i][h as usize].1
+        }
+    };
     // Backward pass.
     let mut bw: Vec<Vec<f64>> = vec![Vec::new(); n + 1];
-    bw[n] = vec![1.0; nodes[n].len()];
+    bw[n] = vec![1.0; nodes.len()];
     for i in (0..n).rev() {
-        bw[i] = edges[i]
-            .iter()
-            .map(|e| {
-                e.iter()
-                    .map(|&(h, c)| {
-                        let w = if h == usize::MAX {
-                            cluster[i].missed
-                        } else {
-                            hyps[i][h].1
-                        };
-                        w * bw[i + 1][c]
-                    })
+        let next = &bw[i + 1];
+        bw[i] = off[i]
+            .windows(2)
+            .map(|r| {
+                edges[i][r[0] as usize..r[1] as usize]
+                    .iter()
+                    .map(|&(h, c)| weight(i, h) * next[c as usize])
                     .sum()
             })
             .collect();
@@ -356,13 +365,14 @@ fn ehm<K: BitKey>(
             missed: 0.0,
             detections: vec![0.0; hyps[i].len()],
         };
-        for (ni, e) in edges[i].iter().enumerate() {
+        for (ni, r) in off[i].windows(2).enumerate() {
             let f = fw[i][ni];
-            for &(h, c) in e {
-                if h == usize::MAX {
-                    m.missed += f * cluster[i].missed * bw[i + 1][c];
+            for &(h, c) in &edges[i][r[0] as usize..r[1] as usize] {
+                let v = f * weight(i, h) * bw[i + 1][c as usize];
+                if h == MISSED {
+                    m.missed += v;
                 } else {
-                    m.detections[h] += f * hyps[i][h].1 * bw[i + 1][c];
+                    m.detections[h as usize] += v;
                 }
             }
         }
