@@ -382,6 +382,44 @@ fn ehm<K: BitKey>(
     Ok(out)
 }
 
+/// A rough size of the EHM net for tracks taken in `order`: at each cut, the detections
+/// shared by tracks on both sides (the frontier, `f`) can be used in at most
+/// `Σ_{k ≤ min(i, f)} C(f, k)` ways by the first `i` tracks, and in at most `Π (1 + gated)` ways.
+/// Capped at 1e18 per cut.
+pub fn ehm_size_estimate(tracks: &[TrackHypotheses], order: &[usize], n_detections: usize) -> f64 {
+    const CAP: f64 = 1e18;
+    let mut total = vec![0u32; n_detections];
+    for &t in order {
+        for &(d, _) in &tracks[t].detections {
+            total[d] += 1;
+        }
+    }
+    let mut seen = vec![0u32; n_detections];
+    let (mut frontier, mut prod, mut sum) = (0usize, 1.0f64, 0.0f64);
+    for (i, &t) in order.iter().enumerate() {
+        for &(d, _) in &tracks[t].detections {
+            seen[d] += 1;
+            if seen[d] == 1 && total[d] > 1 {
+                frontier += 1;
+            }
+            if seen[d] == total[d] && total[d] > 1 {
+                frontier -= 1;
+            }
+        }
+        prod = (prod * (1.0 + tracks[t].detections.len() as f64)).min(CAP);
+        let (mut c, mut reach) = (1.0f64, 1.0f64);
+        for k in 1..=frontier.min(i + 1) {
+            c = c * (frontier + 1 - k) as f64 / k as f64;
+            reach += c;
+            if reach >= CAP {
+                break;
+            }
+        }
+        sum += reach.min(prod);
+    }
+    sum
+}
+
 /// Marginals of a cluster by the chosen method.
 pub fn marginals(cluster: &[TrackHypotheses], method: Method) -> Result<Vec<Marginals>> {
     match method {

@@ -28,7 +28,7 @@ use crate::hypothesise::{
     gate_pairs, gnn_step, order_cluster, posterior_cov, predict_all, sensors_t, Alloc, CovForm,
     Innovation, Pred, SensorT,
 };
-use crate::jpda::{clusters, marginals, TrackHypotheses};
+use crate::jpda::{clusters, ehm_size_estimate, marginals, Method, TrackHypotheses};
 use crate::kalman::check_covariance;
 use crate::track::{Entry, Track};
 pub use crate::tracker_config::{
@@ -355,7 +355,15 @@ impl Tracker {
                 };
                 continue;
             }
-            let ordered = order_cluster(&c, &preds);
+            let mut ordered = order_cluster(&c, &preds);
+            // EHM's net depends on the direction: take the cheaper one (same marginals).
+            if matches!(j.method, Method::Ehm) {
+                let fwd = ehm_size_estimate(&th, &ordered, k);
+                ordered.reverse();
+                if ehm_size_estimate(&th, &ordered, k) >= fwd {
+                    ordered.reverse();
+                }
+            }
             let sub: Vec<TrackHypotheses> = ordered.iter().map(|&i| th[i].clone()).collect();
             let r = marginals(&sub, j.method)?;
             for (i, mm) in ordered.into_iter().zip(r) {
@@ -674,7 +682,6 @@ impl Tracker {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::jpda::Method;
     use crate::models::MotionModel;
     use crate::track::Deleter;
 
