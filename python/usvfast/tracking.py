@@ -43,7 +43,9 @@ Native API (stable; the Stone Soup drop-in builds on it)::
     result = tracker.run(times, measurements, sensor_ids, scan_index)   # whole recording
 
 Also: ``tracker.add_track(state, covariance, time)`` seeds a confirmed track (first state a
-prior, not an update); ``tracker.tentative_tracks``, ``tracker.deleted_track_ids``,
+prior, not an update); ``tracker.add_sensor(Sensor(...))`` registers a sensor between steps
+(returns its id); ``tracker.tracks`` also carries each track's newest association data;
+``tracker.tentative_tracks``, ``tracker.deleted_track_ids``,
 ``tracker.history(id).to_dataframe()``, ``tracker.dropped_scans``. Track ids are stable
 integers counted in order of confirmation. Kernels: ``usvfast._core.linear_sum_assignment``,
 ``jpda_marginals`` (EHM or brute force) and ``chi2_gate``.
@@ -59,7 +61,10 @@ of a scan have the scan's time; GNN is distance-based only (Mahalanobis or squar
 native option ``initiate_in_gates=False`` avoids Stone Soup's duplicate tracks on one target:
 it withholds from the initiator every detection inside a confirmed track's gate, and drops a
 tentative track about to be confirmed when its position lies inside the gate of a confirmed
-track (or of one confirmed before it in the same scan).
+track (or of one confirmed before it in the same scan). Updated covariances are symmetrised
+by default (``symmetric_covariance=True``; Stone Soup's ``force_symmetric_covariance`` is off):
+otherwise rounding asymmetry of ``P − K S Kᵀ`` grows through long predictions and makes
+constant-acceleration tracks indefinite (NotPositiveDefiniteError naming the option).
 """
 
 from __future__ import annotations
@@ -280,7 +285,8 @@ class MultiMeasurementInitiator:
     prior_state (ndim,) and prior_covariance (ndim, ndim): the entries a sensor measures are
     replaced by H⁺ z and H⁺ R H⁺ᵀ. deleter drops tentative tracks (ignored with m_of_n).
     missed_distance/measure/include_all: the tentative tracks' `DistanceHypothesiser`.
-    motion_model: the initiator predictor's model (default: the tracker's).
+    motion_model: the initiator predictor's model (default: the tracker's). use_joseph_cov /
+    symmetric_covariance: the initiator updater's covariance form (as the tracker's).
     """
 
     prior_state: Any
