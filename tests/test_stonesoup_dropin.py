@@ -291,3 +291,27 @@ def test_readme_example_runs():
     scope: dict = {}
     exec(compile(block, "README.md", "exec"), scope)
     assert len(scope["tracks"]) == 2
+
+
+def test_streaming_keeps_only_recent_scans_and_no_replay():
+    # Two sensors: the camera's model first shows up mid-run and is registered with
+    # add_sensor (the core is not rebuilt); detections of scans no tentative track refers to
+    # are freed, and the tracks are still Stone Soup's.
+    scenario = H.two_sensors(0)
+    scans = H.stonesoup_scans(scenario)
+    ref_tracker, _ = H.build_stonesoup(H.Code57(**SHORT), detector=scans)
+    ref = H.run_tracker(ref_tracker)
+    our_tracker, _ = H.build_stonesoup(H.Code57(**SHORT))
+    dropin = dropin_for(our_tracker, scans)
+    cores = set()
+
+    def spy():
+        for item in dropin:
+            cores.add(id(dropin._core))
+            yield item
+
+    ours = H.run_tracker(spy())
+    assert H.compare_runs(ours, ref) == []
+    assert len(cores) == 1 and len(dropin._core.sensors) == 2
+    kept = sum(d is not None for d in dropin._scan_dets)
+    assert len(dropin._scan_dets) > 40 and kept <= 8

@@ -590,7 +590,9 @@ class _DropInTracker:
         self._t0: Any = None
         self._scan = 0
         self._scan_time: list[Any] = []
-        self._scan_dets: list[list[Any]] = []
+        # Detections per scan; scans no history entry can refer to any more are freed (None).
+        self._scan_dets: list[list[Any] | None] = []
+        self._freed = 0
         self._tracks: dict[int, Any] = {}
         self._prev: dict[int, tuple[float, np.ndarray, np.ndarray]] = {}
 
@@ -722,7 +724,17 @@ class _DropInTracker:
         self._scan += 1
         if self._core is not None:
             self._collect(time)
+            self._free_scans()
         return time, self.tracks
+
+    def _free_scans(self) -> None:
+        # Later states refer to this scan's detections or to those of the tentative tracks'
+        # first scans (a track confirmed later brings its whole tentative history).
+        first = self._core.tentative_tracks.first_scan
+        oldest = min(int(first.min()) if len(first) else self._scan, self._scan - 1)
+        for k in range(self._freed, max(oldest, self._freed)):
+            self._scan_dets[k] = None
+        self._freed = max(oldest, self._freed)
 
     def _collect(self, time: Any) -> None:
         from stonesoup.types.track import Track
@@ -854,9 +866,9 @@ class MultiTargetMixtureTracker(_DropInTracker):
     deleters. Raises UnsupportedComponentError for components usvfast cannot reproduce
     exactly, ValueError for detections off the scan time or of another dimension.
 
-    Memory: every scan's detections are kept (the history of a track confirmed later refers
-    to them). A detection with a new measurement model registers one more core sensor
-    (`Tracker.add_sensor`); no scan is replayed.
+    Memory: a scan's detections are kept while a tentative track's history refers to them (a
+    track confirmed later brings its tentative states). A detection with a new measurement
+    model registers one more core sensor (`Tracker.add_sensor`); no scan is replayed.
     """
 
     _mixture = True

@@ -336,10 +336,10 @@ def _non_negative_int(name: str, v: Any) -> int:
 class Tracks:
     """Confirmed tracks after a step: ids (k,), times (k,) of the current states, states
     (k, ndim), covariances (k, ndim, ndim), is_update (k,) whether the last state was an
-    update, n_updates (k,). The newest history entry's association data (as in
-    TrackHistory): scan (k,), detection (k,), missed_probability (k,), and the hypothesised
-    detections of track i, assoc_detection/assoc_probability[assoc_offsets[i]:
-    assoc_offsets[i+1]]."""
+    update, n_updates (k,), first_scan (k,) the scan of the first state. The newest history
+    entry's association data (as in TrackHistory): scan (k,), detection (k,),
+    missed_probability (k,), and the hypothesised detections of track i,
+    assoc_detection/assoc_probability[assoc_offsets[i]:assoc_offsets[i+1]]."""
 
     ids: np.ndarray
     times: np.ndarray
@@ -347,6 +347,7 @@ class Tracks:
     covariances: np.ndarray
     is_update: np.ndarray
     n_updates: np.ndarray
+    first_scan: np.ndarray
     scan: np.ndarray
     detection: np.ndarray
     missed_probability: np.ndarray

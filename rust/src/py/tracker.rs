@@ -505,6 +505,16 @@ impl TrackerCore {
             list.iter().map(|t| f(&t.history)[last(t)]).collect()
         };
         d.set_item("scan", arr_i(py, lasti(|h| &h.scan), &[k])?)?;
+        d.set_item(
+            "first_scan",
+            arr_i(
+                py,
+                list.iter()
+                    .map(|t| *t.history.scan.first().unwrap_or(&-1))
+                    .collect(),
+                &[k],
+            )?,
+        )?;
         d.set_item("detection", arr_i(py, lasti(|h| &h.detection), &[k])?)?;
         d.set_item(
             "missed_probability",
