@@ -464,6 +464,31 @@ mod tests {
     }
 
     #[test]
+    fn size_estimate_follows_the_frontier() {
+        let t = |d: &[usize]| TrackHypotheses {
+            missed: 1.0,
+            detections: d.iter().map(|&i| (i, 1.0)).collect(),
+        };
+        // A chain (track i gates detections i, i + 1): frontier 1 at every cut.
+        let chain: Vec<_> = (0..50).map(|i| t(&[i, i + 1])).collect();
+        let order: Vec<usize> = (0..50).collect();
+        let e = ehm_size_estimate(&chain, &order, 51);
+        assert!(e <= 2.0 * 50.0, "{e}");
+        // One track gating 10 detections and 10 tracks gating one each: with the wide track
+        // first the net has ~11 nodes per level; with it last, the first i tracks leave 2^i
+        // distinct sets of used detections for it.
+        let mut star = vec![t(&(0..10).collect::<Vec<_>>())];
+        star.extend((0..10).map(|i| t(&[i])));
+        let wide_first: Vec<usize> = (0..11).collect();
+        let wide_last: Vec<usize> = (1..11).chain([0]).collect();
+        let (a, b) = (
+            ehm_size_estimate(&star, &wide_first, 10),
+            ehm_size_estimate(&star, &wide_last, 10),
+        );
+        assert!(a < 400.0 && b > 1000.0, "{a} {b}");
+    }
+
+    #[test]
     fn clusters_follow_shared_detections() {
         let t = |d: &[usize]| TrackHypotheses {
             missed: 1.0,
