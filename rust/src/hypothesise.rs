@@ -294,6 +294,23 @@ where
     out
 }
 
+/// The cluster sorted along each state axis (both directions): candidate EHM orders.
+pub(crate) fn axis_orders<N: Dim>(c: &[usize], preds: &[Pred<N>]) -> Vec<Vec<usize>>
+where
+    DefaultAllocator: Allocator<N, N> + Allocator<N>,
+{
+    let n = preds[c[0]].0.len();
+    let mut out = Vec::with_capacity(2 * n);
+    for axis in 0..n {
+        let mut o = c.to_vec();
+        o.sort_by(|&a, &b| preds[a].0[axis].total_cmp(&preds[b].0[axis]));
+        let r: Vec<usize> = o.iter().rev().copied().collect();
+        out.push(o);
+        out.push(r);
+    }
+    out
+}
+
 /// Distance hypotheses + GNN + update/predict on `tracks` (confirmed or tentative). Returns
 /// the detection assigned to each track.
 #[allow(clippy::too_many_arguments)]

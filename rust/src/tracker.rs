@@ -25,8 +25,8 @@
 use crate::error::{check_finite, Error, Result};
 use crate::gating::{chi2_quantile, validation_volume};
 use crate::hypothesise::{
-    gate_pairs, gnn_step, order_cluster, posterior_cov, predict_all, sensors_t, Alloc, CovForm,
-    Innovation, Pred, SensorT,
+    axis_orders, gate_pairs, gnn_step, order_cluster, posterior_cov, predict_all, sensors_t, Alloc,
+    CovForm, Innovation, Pred, SensorT,
 };
 use crate::jpda::{clusters, ehm_size_estimate, marginals, Method, TrackHypotheses};
 use crate::kalman::check_covariance;
@@ -356,12 +356,16 @@ impl Tracker {
                 continue;
             }
             let mut ordered = order_cluster(&c, &preds);
-            // EHM's net depends on the direction: take the cheaper one (same marginals).
-            if matches!(j.method, Method::Ehm) {
-                let fwd = ehm_size_estimate(&th, &ordered, k);
-                ordered.reverse();
-                if ehm_size_estimate(&th, &ordered, k) >= fwd {
-                    ordered.reverse();
+            // EHM's net depends on the order (the marginals do not): of the orders along each
+            // state axis, both ways, take the one with the smallest estimated net.
+            if matches!(j.method, Method::Ehm) && c.len() > 2 {
+                let mut best = ehm_size_estimate(&th, &ordered, k);
+                for o in axis_orders(&c, &preds) {
+                    let e = ehm_size_estimate(&th, &o, k);
+                    if e < best {
+                        best = e;
+                        ordered = o;
+                    }
                 }
             }
             let sub: Vec<TrackHypotheses> = ordered.iter().map(|&i| th[i].clone()).collect();
