@@ -42,6 +42,7 @@ fn config() -> TrackerConfig {
             method: Method::Ehm,
         }),
         use_joseph_cov: false,
+        symmetric_covariance: false,
         deleter: Deleter::Composite {
             deleters: vec![
                 Deleter::CovarianceTrace {
@@ -69,6 +70,7 @@ fn config() -> TrackerConfig {
             },
             motion_model: None,
             use_joseph_cov: false,
+            symmetric_covariance: false,
         },
         out_of_order: OutOfOrder::Raise,
         initiate_in_gates: true,

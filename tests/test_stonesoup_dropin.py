@@ -154,6 +154,22 @@ def test_jpda_with_ehm_and_variants_match_stonesoup():
     assert any(r.died is not None for r in ref)
 
 
+@pytest.mark.parametrize("associator", ["jpda", "gnn"])
+def test_force_symmetric_covariance_matches_stonesoup(associator):
+    # The updater (shared by the tracker and its initiator) symmetrises every update.
+    def build_symmetric(cfg, detector=None):
+        tracker, comp = H.build_stonesoup(cfg, detector=detector)
+        tracker.updater.force_symmetric_covariance = True
+        assert tracker.initiator.updater.force_symmetric_covariance
+        return tracker, comp
+
+    for scenario in (H.crossing(0), H.two_sensors(1)):
+        cfg = H.Code57(associator=associator, **SHORT)
+        ours, ref, _, _ = both(scenario, cfg, build=build_symmetric)
+        assert H.compare_runs(ours, ref) == []
+        assert ours
+
+
 def test_update_tracker_and_empty_scans():
     scans = H.stonesoup_scans(H.separated(2, seed=3))
     ss, _ = H.build_stonesoup(H.Code57(**SHORT))
@@ -239,10 +255,12 @@ def test_unsupported_components_are_named():
 
     _refuse(euclid, r"initiator.data_associator.hypothesiser.measure: .*Euclidean")
 
-    def symmetric(t):
-        t.updater = KalmanUpdater(t.updater.measurement_model, force_symmetric_covariance=True)
+    def nearest_pd(t):
+        t.updater = KalmanUpdater(
+            t.updater.measurement_model, force_positive_definite_covariance=True
+        )
 
-    _refuse(symmetric, "force_symmetric_covariance")
+    _refuse(nearest_pd, "force_positive_definite_covariance")
 
     def diag_load(t):
         i = t.initiator
@@ -273,3 +291,27 @@ def test_readme_example_runs():
     scope: dict = {}
     exec(compile(block, "README.md", "exec"), scope)
     assert len(scope["tracks"]) == 2
+
+
+def test_streaming_keeps_only_recent_scans_and_no_replay():
+    # Two sensors: the camera's model first shows up mid-run and is registered with
+    # add_sensor (the core is not rebuilt); detections of scans no tentative track refers to
+    # are freed, and the tracks are still Stone Soup's.
+    scenario = H.two_sensors(0)
+    scans = H.stonesoup_scans(scenario)
+    ref_tracker, _ = H.build_stonesoup(H.Code57(**SHORT), detector=scans)
+    ref = H.run_tracker(ref_tracker)
+    our_tracker, _ = H.build_stonesoup(H.Code57(**SHORT))
+    dropin = dropin_for(our_tracker, scans)
+    cores = set()
+
+    def spy():
+        for item in dropin:
+            cores.add(id(dropin._core))
+            yield item
+
+    ours = H.run_tracker(spy())
+    assert H.compare_runs(ours, ref) == []
+    assert len(cores) == 1 and len(dropin._core.sensors) == 2
+    kept = sum(d is not None for d in dropin._scan_dets)
+    assert len(dropin._scan_dets) > 40 and kept <= 8

@@ -417,3 +417,65 @@ def test_brute_force_and_ehm_trackers_agree(seed):
     for a, b in zip(*runs, strict=True):
         np.testing.assert_array_equal(a.ids, b.ids)
         np.testing.assert_allclose(a.states, b.states, rtol=1e-10, atol=1e-12)
+
+
+@pytest.mark.parametrize("seed", [0, 3])
+def test_add_sensor_between_steps_equals_configured_sensors(seed):
+    """A sensor registered mid-run (before its first detection) gives exactly the tracks of a
+    tracker built with it; the snapshot's association data is the newest history entry's."""
+    # Sensor 1 first reports at scan 8, when tracks of sensor 0 exist.
+    scans = [
+        (t, z[s == 0], s[s == 0]) if i < 8 else (t, z, s)
+        for i, (t, z, s) in enumerate(scenario(seed))
+    ]
+    first = next(i for i, (_, _, s) in enumerate(scans) if (s == 1).any())
+    assert first >= 8
+    ref = code57(T.JPDA(0.85, 0.95, 0.125))
+    late = T.Tracker(
+        motion_model=constant_velocity_2d(0.001),
+        sensors=[T.Sensor.position(NOISE[0])],
+        association=T.JPDA(0.85, 0.95, 0.125),
+        deleter=T.AnyOf(T.CovarianceTrace(1.5), T.StepsSinceUpdate(35)),
+        initiator=T.MultiMeasurementInitiator(
+            np.zeros(4),
+            np.diag([0, 0.3, 0, 0.3]),
+            min_points=2,
+            deleter=T.StepsSinceUpdate(3),
+            missed_distance=0.3,
+        ),
+    )
+    for i, (t, z, s) in enumerate(scans):
+        if i == first:
+            assert late.add_sensor(T.Sensor.position(NOISE[1])) == 1
+        a, b = ref.step(t, z, s), late.step(t, z, s)
+        np.testing.assert_array_equal(a.ids, b.ids)
+        np.testing.assert_array_equal(a.states, b.states)
+        np.testing.assert_array_equal(a.covariances, b.covariances)
+        for k, tid in enumerate(b.ids):
+            h = ref.history(tid)
+            lo, hi = b.assoc_offsets[k], b.assoc_offsets[k + 1]
+            np.testing.assert_array_equal(
+                b.assoc_detection[lo:hi],
+                h.assoc_detection[h.assoc_offsets[-2] : h.assoc_offsets[-1]],
+            )
+            np.testing.assert_array_equal(
+                b.assoc_probability[lo:hi],
+                h.assoc_probability[h.assoc_offsets[-2] : h.assoc_offsets[-1]],
+            )
+            assert b.detection[k] == h.detection[-1] and b.scan[k] == h.scan[-1]
+            np.testing.assert_array_equal(b.missed_probability[k], h.missed_probability[-1])
+    # The late sensor did update tracks.
+    assert any((late.history(tid).sensor == 1).any() for tid in late.tracks.ids)
+
+
+def test_add_sensor_rejects_other_dimensions():
+    tr = code57(T.JPDA(0.85, 0.95, 0.125))
+    with pytest.raises(DimensionError, match="measurement_matrix"):
+        tr.add_sensor(T.Sensor(np.eye(3, 4), np.eye(3)))
+    with pytest.raises(DimensionError, match="measurement_matrix"):
+        tr.add_sensor(T.Sensor(np.eye(2, 6), np.eye(2)))
+    with pytest.raises(NotPositiveDefiniteError):
+        tr.add_sensor(T.Sensor(np.eye(2, 4), -np.eye(2)))
+    with pytest.raises(TypeError, match="sensor"):
+        tr.add_sensor((np.eye(2, 4), np.eye(2)))
+    assert len(tr.sensors) == 2

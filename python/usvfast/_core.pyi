@@ -162,6 +162,7 @@ class TrackerCore:
         delete_last_prediction: bool = False,
         out_of_order: str = "raise",
         initiate_in_gates: bool = True,
+        symmetric_covariance: bool = False,
     ) -> None: ...
     def step(
         self, t: float, measurements: npt.NDArray[np.float64], sensor_ids: npt.NDArray[np.int64]
@@ -173,6 +174,13 @@ class TrackerCore:
         sensor_ids: npt.NDArray[np.int64],
         scan_index: npt.NDArray[np.int64],
     ) -> dict[str, npt.NDArray[np.generic]]: ...
+    def add_sensor(
+        self,
+        measurement_matrix: npt.NDArray[np.float64],
+        measurement_noise: npt.NDArray[np.float64],
+        initiation_matrix: npt.NDArray[np.float64] | None = None,
+        initiation_noise: npt.NDArray[np.float64] | None = None,
+    ) -> int: ...
     def add_track(
         self, state: npt.NDArray[np.float64], covariance: npt.NDArray[np.float64], time: float
     ) -> int: ...

@@ -19,7 +19,8 @@ what it can reproduce exactly: any other component or setting raises
 
 - predictor: `KalmanPredictor` without control; transition model `ConstantVelocity`,
   `RandomWalk`, `ConstantAcceleration` or a `CombinedLinearGaussianTransitionModel` of them;
-- updater: `KalmanUpdater` (`use_joseph_cov` either way, no forced symmetry);
+- updater: `KalmanUpdater` (`use_joseph_cov`, `force_symmetric_covariance` either way; not
+  `force_positive_definite_covariance`);
 - measurement models: `LinearGaussian` (on the detections, or the updater's/initiator's);
 - JPDA: `PDAHypothesiser` + `JPDA`, `JPDAwithEHM`, `JPDAwithEHM2` (or pyehm's plugins);
 - GNN: `DistanceHypothesiser` (`Mahalanobis` / `SquaredMahalanobis` without mapping) +
@@ -127,6 +128,8 @@ class StoneSoupConfig:
     init_deleter: DeleterSpec
     init_delete_last_pred: bool
     notes: list[str] = field(default_factory=list)
+    symmetric_covariance: bool = False
+    init_symmetric_covariance: bool = False
 
 
 def _motion_model(transition_model: Any, where: str) -> tuple[kalman.Component, ...]:
@@ -182,14 +185,19 @@ def _sensor(model: Any, where: str) -> LinearSensor | None:
     )
 
 
-def _updater(updater: Any, where: str) -> tuple[bool, LinearSensor | None]:
+def _updater(updater: Any, where: str) -> tuple[bool, bool, LinearSensor | None]:
+    """(use_joseph_cov, force_symmetric_covariance, fallback measurement model)."""
     from stonesoup.updater.kalman import KalmanUpdater
 
     _require(updater, where, KalmanUpdater)
-    if updater.force_symmetric_covariance:
-        raise UnsupportedComponentError(f"{where}.force_symmetric_covariance=True is not supported")
-    return bool(updater.use_joseph_cov), _sensor(
-        updater.measurement_model, f"{where}.measurement_model"
+    if getattr(updater, "force_positive_definite_covariance", False):
+        raise UnsupportedComponentError(
+            f"{where}.force_positive_definite_covariance=True is not supported"
+        )
+    return (
+        bool(updater.use_joseph_cov),
+        bool(updater.force_symmetric_covariance),
+        _sensor(updater.measurement_model, f"{where}.measurement_model"),
     )
 
 
@@ -302,8 +310,8 @@ def _initiator(initiator: Any, where: str) -> dict[str, Any]:
         raise UnsupportedComponentError(f"{where}.initiator.diag_load != 0 is not supported")
     gnn, hyp = _gnn(initiator.data_associator, f"{where}.data_associator")
     init_motion = _predictor(hyp.predictor, f"{where}.data_associator.hypothesiser.predictor")
-    _, hyp_fallback = _updater(hyp.updater, f"{where}.data_associator.hypothesiser.updater")
-    joseph, upd_fallback = _updater(initiator.updater, f"{where}.updater")
+    _, _, hyp_fallback = _updater(hyp.updater, f"{where}.data_associator.hypothesiser.updater")
+    joseph, symmetric, upd_fallback = _updater(initiator.updater, f"{where}.updater")
     _same_fallback(
         hyp_fallback,
         upd_fallback,
@@ -320,6 +328,7 @@ def _initiator(initiator: Any, where: str) -> dict[str, Any]:
         init_motion_model=init_motion,
         init_gnn=gnn,
         init_use_joseph_cov=joseph,
+        init_symmetric_covariance=symmetric,
         init_fallback_sensor=_sensor(initiator.measurement_model, f"{where}.measurement_model"),
         init_update_fallback_sensor=upd_fallback,
         prior_state=x0,
@@ -354,8 +363,8 @@ def read_components(
     else:
         assoc, hyp = _gnn(data_associator, "data_associator")
     motion = _predictor(hyp.predictor, "data_associator.hypothesiser.predictor")
-    _, hyp_fallback = _updater(hyp.updater, "data_associator.hypothesiser.updater")
-    joseph, upd_fallback = _updater(updater, "updater")
+    _, _, hyp_fallback = _updater(hyp.updater, "data_associator.hypothesiser.updater")
+    joseph, symmetric, upd_fallback = _updater(updater, "updater")
     _same_fallback(
         hyp_fallback,
         upd_fallback,
@@ -380,6 +389,7 @@ def read_components(
         motion_model=motion,
         association=assoc,
         use_joseph_cov=joseph,
+        symmetric_covariance=symmetric,
         fallback_sensor=upd_fallback if upd_fallback is not None else hyp_fallback,
         deleter=_deleter(deleter, "deleter"),
         delete_last_pred=bool(deleter.delete_last_pred),
@@ -442,6 +452,7 @@ def build_native(
         updates_only=cfg.updates_only,
         motion_model=None if cfg.init_motion_model == cfg.motion_model else cfg.init_motion_model,
         use_joseph_cov=cfg.init_use_joseph_cov,
+        symmetric_covariance=cfg.init_symmetric_covariance,
     )
     return tk.Tracker(
         motion_model=cfg.motion_model,
@@ -450,6 +461,7 @@ def build_native(
         deleter=_native_deleter(cfg.deleter),
         initiator=initiator,
         use_joseph_cov=cfg.use_joseph_cov,
+        symmetric_covariance=cfg.symmetric_covariance,
         delete_last_prediction=cfg.delete_last_pred,
         out_of_order="raise",
         initiate_in_gates=initiate_in_gates,
@@ -573,11 +585,14 @@ class _DropInTracker:
         self._sensor_specs: list[tuple] = []  # (H, R, H_init, R_init) per core sensor
         self._sensor_of_model: dict[int, int] = {}  # id(model) -> core sensor index
         self._models: list[Any] = []  # keeps the models alive while their id() is used
+        # Empty scans seen before the core exists (it is built at the first detection).
         self._replay: list[tuple[float, np.ndarray, np.ndarray]] = []
         self._t0: Any = None
         self._scan = 0
         self._scan_time: list[Any] = []
-        self._scan_dets: list[list[Any]] = []
+        # Detections per scan; scans no history entry can refer to any more are freed (None).
+        self._scan_dets: list[list[Any] | None] = []
+        self._freed = 0
         self._tracks: dict[int, Any] = {}
         self._prev: dict[int, tuple[float, np.ndarray, np.ndarray]] = {}
 
@@ -659,12 +674,9 @@ class _DropInTracker:
     def _add_core_sensor(self, spec: tuple) -> None:
         if self._core is None:
             return
-        # The core's sensor list is fixed at construction: rebuild it and replay every scan
-        # so far (deterministic, so the rebuilt core holds exactly the same tracks and ids).
-        core = self._new_core()
-        for t, z, s in self._replay:
-            core.step(t, z, s)
-        self._core = core
+        from usvfast import tracking as tk
+
+        self._core.add_sensor(tk.Sensor(*spec))
 
     def _new_core(self) -> Any:
         from usvfast import tracking as tk
@@ -702,15 +714,27 @@ class _DropInTracker:
             self._core = self._new_core()
             for args in self._replay:
                 self._core.step(*args)
+            self._replay.clear()
         if self._core is not None:
             self._core.step(t, z, sids)
-        self._replay.append((t, z, sids))
+        else:
+            self._replay.append((t, z, sids))
         self._scan_time.append(time)
         self._scan_dets.append(dets)
         self._scan += 1
         if self._core is not None:
             self._collect(time)
+            self._free_scans()
         return time, self.tracks
+
+    def _free_scans(self) -> None:
+        # Later states refer to this scan's detections or to those of the tentative tracks'
+        # first scans (a track confirmed later brings its whole tentative history).
+        first = self._core.tentative_tracks.first_scan
+        oldest = min(int(first.min()) if len(first) else self._scan, self._scan - 1)
+        for k in range(self._freed, max(oldest, self._freed)):
+            self._scan_dets[k] = None
+        self._freed = max(oldest, self._freed)
 
     def _collect(self, time: Any) -> None:
         from stonesoup.types.track import Track
@@ -762,14 +786,12 @@ class _DropInTracker:
         return self._states.make(False, f @ x0, f @ p0 @ f.T + q, time)
 
     def _hypothesis_for(self, tid: int, snap: Any, row: int, upd: bool) -> Any:
-        # Association data of the newest entry (the core gives it per track history).
-        hist = vars(self._core.history(tid))
-        offs = hist["assoc_offsets"]
-        a, b = offs[-2], offs[-1]
-        dets = hist["assoc_detection"][a:b]
-        probs = hist["assoc_probability"][a:b]
-        missed = float(hist["missed_probability"][-1])
-        det = int(hist["detection"][-1])
+        # Association data of the newest entry, from the snapshot.
+        a, b = snap.assoc_offsets[row], snap.assoc_offsets[row + 1]
+        dets = snap.assoc_detection[a:b]
+        probs = snap.assoc_probability[a:b]
+        missed = float(snap.missed_probability[row])
+        det = int(snap.detection[row])
         time = self._scan_time[-1]
         t = (time - self._t0).total_seconds()
         pred = self._prediction(tid, t, time)
@@ -844,9 +866,9 @@ class MultiTargetMixtureTracker(_DropInTracker):
     deleters. Raises UnsupportedComponentError for components usvfast cannot reproduce
     exactly, ValueError for detections off the scan time or of another dimension.
 
-    Memory: every scan's detections are kept (the history of a track confirmed later refers
-    to them), and so is every scan's measurement array (to rebuild the core when a detection
-    brings a new measurement model, since the core's sensor list is fixed at construction).
+    Memory: a scan's detections are kept while a tentative track's history refers to them (a
+    track confirmed later brings its tentative states). A detection with a new measurement
+    model registers one more core sensor (`Tracker.add_sensor`); no scan is replayed.
     """
 
     _mixture = True

@@ -43,7 +43,9 @@ Native API (stable; the Stone Soup drop-in builds on it)::
     result = tracker.run(times, measurements, sensor_ids, scan_index)   # whole recording
 
 Also: ``tracker.add_track(state, covariance, time)`` seeds a confirmed track (first state a
-prior, not an update); ``tracker.tentative_tracks``, ``tracker.deleted_track_ids``,
+prior, not an update); ``tracker.add_sensor(Sensor(...))`` registers a sensor between steps
+(returns its id); ``tracker.tracks`` also carries each track's newest association data;
+``tracker.tentative_tracks``, ``tracker.deleted_track_ids``,
 ``tracker.history(id).to_dataframe()``, ``tracker.dropped_scans``. Track ids are stable
 integers counted in order of confirmation. Kernels: ``usvfast._core.linear_sum_assignment``,
 ``jpda_marginals`` (EHM or brute force) and ``chi2_gate``.
@@ -59,7 +61,10 @@ of a scan have the scan's time; GNN is distance-based only (Mahalanobis or squar
 native option ``initiate_in_gates=False`` avoids Stone Soup's duplicate tracks on one target:
 it withholds from the initiator every detection inside a confirmed track's gate, and drops a
 tentative track about to be confirmed when its position lies inside the gate of a confirmed
-track (or of one confirmed before it in the same scan).
+track (or of one confirmed before it in the same scan). Updated covariances are symmetrised
+by default (``symmetric_covariance=True``; Stone Soup's ``force_symmetric_covariance`` is off):
+otherwise rounding asymmetry of ``P − K S Kᵀ`` grows through long predictions and makes
+constant-acceleration tracks indefinite (NotPositiveDefiniteError naming the option).
 """
 
 from __future__ import annotations
@@ -121,6 +126,23 @@ class Sensor:
         h = np.zeros((len(mapping), ndim_state))
         h[np.arange(len(mapping)), list(mapping)] = 1.0
         return cls(h, np.diag(std**2))
+
+
+def _sensor_spec(s: Any, where: str) -> tuple:
+    if not isinstance(s, Sensor):
+        raise TypeError(f"{where}: expected Sensor, got {s!r}")
+    opt = [
+        None if a is None else as_float_array(f"{where}.{name}", a, ndim=2)
+        for name, a in (
+            ("initiation_matrix", s.initiation_matrix),
+            ("initiation_noise", s.initiation_noise),
+        )
+    ]
+    return (
+        as_float_array(f"{where}.measurement_matrix", s.measurement_matrix, 2),
+        as_float_array(f"{where}.measurement_noise", s.measurement_noise, 2),
+        *opt,
+    )
 
 
 @dataclass(frozen=True)
@@ -263,7 +285,8 @@ class MultiMeasurementInitiator:
     prior_state (ndim,) and prior_covariance (ndim, ndim): the entries a sensor measures are
     replaced by H⁺ z and H⁺ R H⁺ᵀ. deleter drops tentative tracks (ignored with m_of_n).
     missed_distance/measure/include_all: the tentative tracks' `DistanceHypothesiser`.
-    motion_model: the initiator predictor's model (default: the tracker's).
+    motion_model: the initiator predictor's model (default: the tracker's). use_joseph_cov /
+    symmetric_covariance: the initiator updater's covariance form (as the tracker's).
     """
 
     prior_state: Any
@@ -278,6 +301,7 @@ class MultiMeasurementInitiator:
     m_of_n: tuple[int, int] | None = None
     motion_model: MotionModel | None = None
     use_joseph_cov: bool = False
+    symmetric_covariance: bool = True
 
     def _spec(self) -> dict[str, Any]:
         pc = as_float_array("prior_covariance", self.prior_covariance, ndim=2)
@@ -298,6 +322,7 @@ class MultiMeasurementInitiator:
             else tuple(_non_negative_int("m_of_n", v) for v in self.m_of_n),
             "motion_model": None if self.motion_model is None else model_spec(self.motion_model),
             "use_joseph_cov": bool(self.use_joseph_cov),
+            "symmetric_covariance": bool(self.symmetric_covariance),
         }
 
 
@@ -311,7 +336,10 @@ def _non_negative_int(name: str, v: Any) -> int:
 class Tracks:
     """Confirmed tracks after a step: ids (k,), times (k,) of the current states, states
     (k, ndim), covariances (k, ndim, ndim), is_update (k,) whether the last state was an
-    update, n_updates (k,)."""
+    update, n_updates (k,), first_scan (k,) the scan of the first state. The newest history
+    entry's association data (as in TrackHistory): scan (k,), detection (k,),
+    missed_probability (k,), and the hypothesised detections of track i,
+    assoc_detection/assoc_probability[assoc_offsets[i]:assoc_offsets[i+1]]."""
 
     ids: np.ndarray
     times: np.ndarray
@@ -319,6 +347,13 @@ class Tracks:
     covariances: np.ndarray
     is_update: np.ndarray
     n_updates: np.ndarray
+    first_scan: np.ndarray
+    scan: np.ndarray
+    detection: np.ndarray
+    missed_probability: np.ndarray
+    assoc_offsets: np.ndarray
+    assoc_detection: np.ndarray
+    assoc_probability: np.ndarray
 
     def __len__(self) -> int:
         return len(self.ids)
@@ -412,7 +447,10 @@ class Tracker:
     motion_model: usvfast.kalman components (e.g. constant_velocity_2d(q)); sensors: list of
     `Sensor` (all with the same measurement dimension); association: `JPDA(...)` or `GNN(...)`;
     deleter of confirmed tracks; initiator: `MultiMeasurementInitiator`; use_joseph_cov:
-    Joseph-form covariance update (Stone Soup's default is P − K S Kᵀ); delete_last_prediction:
+    Joseph-form covariance update (Stone Soup's default is P − K S Kᵀ); symmetric_covariance:
+    replace updated covariances by (P + Pᵀ)/2 (Stone Soup's force_symmetric_covariance, off
+    there; on here: without it rounding asymmetry grows through long predictions and makes P
+    indefinite, e.g. constant-acceleration models on Joyride); delete_last_prediction:
     Stone Soup's `delete_last_pred`; out_of_order: "raise" (TimeOrderError) or "drop";
     initiate_in_gates: see the module docstring.
 
@@ -430,6 +468,7 @@ class Tracker:
         deleter: Any,
         initiator: MultiMeasurementInitiator,
         use_joseph_cov: bool = False,
+        symmetric_covariance: bool = True,
         delete_last_prediction: bool = False,
         out_of_order: Literal["raise", "drop"] = "raise",
         initiate_in_gates: bool = True,
@@ -440,24 +479,7 @@ class Tracker:
             raise TypeError(f"initiator: expected MultiMeasurementInitiator, got {initiator!r}")
         if isinstance(sensors, Sensor):
             sensors = [sensors]
-        specs = []
-        for i, s in enumerate(sensors):
-            if not isinstance(s, Sensor):
-                raise TypeError(f"sensors[{i}]: expected Sensor, got {s!r}")
-            opt = [
-                None if a is None else as_float_array(f"sensors[{i}].{name}", a, ndim=2)
-                for name, a in (
-                    ("initiation_matrix", s.initiation_matrix),
-                    ("initiation_noise", s.initiation_noise),
-                )
-            ]
-            specs.append(
-                (
-                    as_float_array(f"sensors[{i}].measurement_matrix", s.measurement_matrix, 2),
-                    as_float_array(f"sensors[{i}].measurement_noise", s.measurement_noise, 2),
-                    *opt,
-                )
-            )
+        specs = [_sensor_spec(s, f"sensors[{i}]") for i, s in enumerate(sensors)]
         self.sensors = tuple(sensors)
         self._ndim = sum(
             {"random_walk": 1, "constant_velocity": 2, "constant_acceleration": 3}[k]
@@ -471,6 +493,7 @@ class Tracker:
             _deleter_spec(deleter),
             initiator._spec(),
             use_joseph_cov=bool(use_joseph_cov),
+            symmetric_covariance=bool(symmetric_covariance),
             delete_last_prediction=bool(delete_last_prediction),
             out_of_order=out_of_order,
             initiate_in_gates=bool(initiate_in_gates),
@@ -531,6 +554,15 @@ class Tracker:
         out = self._core.run(t, z, ids, si)
         out.pop("detection_order")
         return RunResult(**out)
+
+    def add_sensor(self, sensor: Sensor) -> int:
+        """Register one more sensor between steps (tracks are kept); returns its index for
+        `sensor_ids`. Same checks as the constructor's `sensors` (DimensionError when H does
+        not fit the state or the shared measurement dimension)."""
+        spec = _sensor_spec(sensor, "sensor")
+        idx = self._core.add_sensor(*spec)
+        self.sensors = (*self.sensors, sensor)
+        return idx
 
     def add_track(self, state: Any, covariance: Any, time: float) -> int:
         """Add a confirmed track (state (ndim,), covariance (ndim, ndim) at `time`); its first

@@ -8,7 +8,7 @@
 //! ones) in time linear in tracks + detections + candidates when gates are small.
 
 use crate::error::{Error, Result};
-use std::collections::HashMap;
+use crate::jpda::FastMap;
 
 /// `ln Γ(x)` for `x > 0` (Lanczos approximation, relative error < 1e-14).
 fn ln_gamma(x: f64) -> f64 {
@@ -154,7 +154,9 @@ pub struct CandidateGrid<'a> {
     ids: &'a [usize],
     cell: f64,
     dims: usize,
-    cells: HashMap<(i64, i64), Vec<u32>>,
+    /// Rows sorted by cell; `cells[key] = (start, end)` into `order`.
+    order: Vec<u32>,
+    cells: FastMap<(i64, i64), (u32, u32)>,
 }
 
 impl<'a> CandidateGrid<'a> {
@@ -168,10 +170,26 @@ impl<'a> CandidateGrid<'a> {
         } else {
             f64::INFINITY
         };
-        let mut cells: HashMap<(i64, i64), Vec<u32>> = HashMap::new();
-        for k in 0..ids.len() {
-            let key = Self::key_of(&points[k * m..(k + 1) * m], dims, cell);
-            cells.entry(key).or_default().push(k as u32);
+        let mut keyed: Vec<((i64, i64), u32)> = (0..ids.len())
+            .map(|k| {
+                (
+                    Self::key_of(&points[k * m..(k + 1) * m], dims, cell),
+                    k as u32,
+                )
+            })
+            .collect();
+        keyed.sort_unstable();
+        let mut cells: FastMap<(i64, i64), (u32, u32)> = FastMap::default();
+        cells.reserve(keyed.len());
+        let mut start = 0;
+        while start < keyed.len() {
+            let key = keyed[start].0;
+            let mut end = start + 1;
+            while end < keyed.len() && keyed[end].0 == key {
+                end += 1;
+            }
+            cells.insert(key, (start as u32, end as u32));
+            start = end;
         }
         Self {
             points,
@@ -179,6 +197,7 @@ impl<'a> CandidateGrid<'a> {
             ids,
             cell,
             dims,
+            order: keyed.into_iter().map(|(_, k)| k).collect(),
             cells,
         }
     }
@@ -203,12 +222,11 @@ impl<'a> CandidateGrid<'a> {
             let z = &self.points[k * self.m..(k + 1) * self.m];
             (0..self.m).all(|i| (z[i] - center[i]).abs() <= half_width[i])
         };
-        let lo: Vec<i64> = (0..self.dims)
-            .map(|i| Self::coord(center[i] - half_width[i], self.cell))
-            .collect();
-        let hi: Vec<i64> = (0..self.dims)
-            .map(|i| Self::coord(center[i] + half_width[i], self.cell))
-            .collect();
+        let (mut lo, mut hi) = ([0i64; 2], [0i64; 2]);
+        for i in 0..self.dims {
+            lo[i] = Self::coord(center[i] - half_width[i], self.cell);
+            hi[i] = Self::coord(center[i] + half_width[i], self.cell);
+        }
         let span = |i: usize| (hi[i] - lo[i]).saturating_add(1).max(1) as u128;
         let n_cells = (0..self.dims).map(span).product::<u128>();
         if n_cells > self.cells.len() as u128 {
@@ -227,8 +245,8 @@ impl<'a> CandidateGrid<'a> {
         };
         for a in lo[0]..=hi[0] {
             for b in b_lo..=b_hi {
-                if let Some(list) = self.cells.get(&(a, b)) {
-                    for &k in list {
+                if let Some(&(s, e)) = self.cells.get(&(a, b)) {
+                    for &k in &self.order[s as usize..e as usize] {
                         if inside(k as usize) {
                             f(self.ids[k as usize]);
                         }

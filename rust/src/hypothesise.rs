@@ -8,29 +8,92 @@ use crate::gating::CandidateGrid;
 use crate::models::MotionModel;
 use crate::track::{Entry, Track};
 use crate::tracker_config::{GnnParams, Measure, Sensor};
-use nalgebra::{Cholesky, DMatrix, DVector, Dyn};
+use nalgebra::allocator::Allocator;
+use nalgebra::{Cholesky, DefaultAllocator, Dim, OMatrix, OVector, U1};
 
-/// Per (track, sensor) quantities of a prediction.
-pub(crate) struct Innovation {
-    pub zhat: DVector<f64>,
-    pub s: DMatrix<f64>,
-    pub chol: Cholesky<f64, Dyn>,
-    pub ln_det: f64,
-    /// Kalman gain `P⁻ Hᵀ S⁻¹`.
-    pub k: DMatrix<f64>,
+/// The allocator bounds of the per-scan kernels, generic over the state dimension `N` and the
+/// measurement dimension `M` (static `U4`/`U2` for the common 2-D case: no heap allocation
+/// per track; `Dyn` for any other size).
+pub(crate) trait Alloc<N: Dim, M: Dim>:
+    Allocator<N, N>
+    + Allocator<N>
+    + Allocator<U1, N>
+    + Allocator<M, M>
+    + Allocator<M>
+    + Allocator<M, N>
+    + Allocator<N, M>
+{
 }
 
-pub(crate) fn innovation(
-    x: &DVector<f64>,
-    p: &DMatrix<f64>,
-    sensor: &Sensor,
-) -> Result<Innovation> {
+impl<N: Dim, M: Dim> Alloc<N, M> for DefaultAllocator where
+    DefaultAllocator: Allocator<N, N>
+        + Allocator<N>
+        + Allocator<U1, N>
+        + Allocator<M, M>
+        + Allocator<M>
+        + Allocator<M, N>
+        + Allocator<N, M>
+{
+}
+
+/// A sensor's `H`, `R` in the kernel's dimensions.
+pub(crate) struct SensorT<N: Dim, M: Dim>
+where
+    DefaultAllocator: Alloc<N, M>,
+{
+    pub h: OMatrix<f64, M, N>,
+    pub r: OMatrix<f64, M, M>,
+}
+
+/// The configured sensors converted to the kernel's dimensions (once per scan).
+pub(crate) fn sensors_t<N: Dim, M: Dim>(sensors: &[Sensor], n: N, m: M) -> Vec<SensorT<N, M>>
+where
+    DefaultAllocator: Alloc<N, M>,
+{
+    sensors
+        .iter()
+        .map(|s| SensorT {
+            h: OMatrix::from_iterator_generic(m, n, s.h.iter().copied()),
+            r: OMatrix::from_iterator_generic(m, m, s.r.iter().copied()),
+        })
+        .collect()
+}
+
+/// A predicted state `(x⁻, P⁻)`.
+pub(crate) type Pred<N> = (OVector<f64, N>, OMatrix<f64, N, N>);
+
+/// Per (track, sensor) quantities of a prediction.
+pub(crate) struct Innovation<N: Dim, M: Dim>
+where
+    DefaultAllocator: Alloc<N, M>,
+{
+    pub zhat: OVector<f64, M>,
+    pub s: OMatrix<f64, M, M>,
+    pub chol: Cholesky<f64, M>,
+    pub ln_det: f64,
+    /// Kalman gain `P⁻ Hᵀ S⁻¹`.
+    pub k: OMatrix<f64, N, M>,
+}
+
+pub(crate) fn innovation<N: Dim, M: Dim>(
+    x: &OVector<f64, N>,
+    p: &OMatrix<f64, N, N>,
+    sensor: &SensorT<N, M>,
+) -> Result<Innovation<N, M>>
+where
+    DefaultAllocator: Alloc<N, M>,
+{
     let h = &sensor.h;
     let pht = p * h.transpose();
     let s = h * &pht + &sensor.r;
     let chol = Cholesky::new(s.clone()).ok_or_else(|| Error::NotPositiveDefinite {
         arg: "innovation covariance".into(),
-        reason: "H P Hᵀ + R is not positive definite".into(),
+        reason: "H P Hᵀ + R of a track is not positive definite: the track covariance P has \
+                 lost positive definiteness (rounding asymmetry of P − K S Kᵀ grows through \
+                 long predictions, fastest with constant-acceleration models); set \
+                 symmetric_covariance (Stone Soup: force_symmetric_covariance) or \
+                 use_joseph_cov"
+            .into(),
     })?;
     let ln_det = chol.l_dirty().diagonal().iter().map(|d| 2.0 * d.ln()).sum();
     let k = chol.solve(&pht.transpose()).transpose();
@@ -43,74 +106,114 @@ pub(crate) fn innovation(
     })
 }
 
+/// How an updater forms the posterior covariance (Stone Soup `KalmanUpdater` flags).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct CovForm {
+    /// Joseph form `(I − K H) P (I − K H)ᵀ + K R Kᵀ` instead of `P − K S Kᵀ`.
+    pub joseph: bool,
+    /// Replace the result by `(P + Pᵀ) / 2` (`force_symmetric_covariance`).
+    pub symmetric: bool,
+}
+
 /// Posterior covariance of a Kalman update (same for every detection of a sensor).
-pub(crate) fn posterior_cov(
-    p: &DMatrix<f64>,
-    inn: &Innovation,
-    sensor: &Sensor,
-    joseph: bool,
-) -> DMatrix<f64> {
-    if joseph {
-        let n = p.nrows();
-        let ikh = DMatrix::identity(n, n) - &inn.k * &sensor.h;
+pub(crate) fn posterior_cov<N: Dim, M: Dim>(
+    p: &OMatrix<f64, N, N>,
+    inn: &Innovation<N, M>,
+    sensor: &SensorT<N, M>,
+    form: CovForm,
+) -> OMatrix<f64, N, N>
+where
+    DefaultAllocator: Alloc<N, M>,
+{
+    let out = if form.joseph {
+        let (n, _) = p.shape_generic();
+        let ikh = OMatrix::<f64, N, N>::identity_generic(n, n) - &inn.k * &sensor.h;
         &ikh * p * ikh.transpose() + &inn.k * &sensor.r * inn.k.transpose()
     } else {
         p - &inn.k * &inn.s * inn.k.transpose()
+    };
+    if form.symmetric {
+        let t = out.transpose();
+        (out + t) / 2.0
+    } else {
+        out
     }
 }
 
 /// Predicts every track to `t` (`x⁻ = F x`, `P⁻ = F P Fᵀ + Q`), computing `F`, `Q` once per
 /// distinct time step.
-pub(crate) fn predict_all(
+pub(crate) fn predict_all<N: Dim>(
     model: &MotionModel,
     tracks: &[Track],
     t: f64,
-) -> Vec<(DVector<f64>, DMatrix<f64>)> {
+    n: N,
+) -> Vec<Pred<N>>
+where
+    DefaultAllocator: Allocator<N, N> + Allocator<N>,
+{
+    let fq = |dt: f64| {
+        let mut f = OMatrix::<f64, N, N>::zeros_generic(n, n);
+        let mut q = OMatrix::<f64, N, N>::zeros_generic(n, n);
+        model.fill(dt, &mut f, &mut q);
+        (f, q)
+    };
     // (dt bits, F, Fᵀ, Q)
-    type Step = (u64, DMatrix<f64>, DMatrix<f64>, DMatrix<f64>);
-    let mut cache: Vec<Step> = Vec::new();
+    type Step<N> = (
+        u64,
+        OMatrix<f64, N, N>,
+        OMatrix<f64, N, N>,
+        OMatrix<f64, N, N>,
+    );
+    let mut cache: Vec<Step<N>> = Vec::new();
     tracks
         .iter()
         .map(|tr| {
+            let x = OVector::<f64, N>::from_column_slice_generic(n, U1, tr.x.as_slice());
+            let p = OMatrix::<f64, N, N>::from_column_slice_generic(n, n, tr.p.as_slice());
             let dt = t - tr.t;
             let key = dt.to_bits();
             let k = match cache.iter().position(|c| c.0 == key) {
                 Some(k) => k,
                 None if cache.len() >= 8 => {
                     // Many distinct steps (tracks at scattered times): no caching.
-                    let (f, q) = model.matrices(dt);
-                    return (&f * &tr.x, &f * &tr.p * f.transpose() + q);
+                    let (f, q) = fq(dt);
+                    return (&f * &x, &f * &p * f.transpose() + q);
                 }
                 None => {
-                    let (f, q) = model.matrices(dt);
+                    let (f, q) = fq(dt);
                     let ft = f.transpose();
                     cache.push((key, f, ft, q));
                     cache.len() - 1
                 }
             };
             let (_, f, ft, q) = &cache[k];
-            (f * &tr.x, f * &tr.p * ft + q)
+            (f * &x, f * &p * ft + q)
         })
         .collect()
 }
 
 #[allow(clippy::too_many_arguments)]
 /// Candidate `(track, detection, squared Mahalanobis)` pairs within `gate` (squared), for
-/// predictions `preds[t] = (x⁻, P⁻)`; `innov[t][s]` is filled lazily per sensor.
-pub(crate) fn gate_pairs(
-    preds: &[(DVector<f64>, DMatrix<f64>)],
-    sensors: &[Sensor],
+/// predictions `preds[t] = (x⁻, P⁻)`; `innov[t * n_sensors + s]` is filled lazily per sensor.
+pub(crate) fn gate_pairs<N: Dim, M: Dim>(
+    preds: &[Pred<N>],
+    sensors: &[SensorT<N, M>],
     z: &[f64],
-    m: usize,
+    m: M,
     det_sensor: &[usize],
     dets: &[usize],
     gate: f64,
-    innov: &mut [Vec<Option<Innovation>>],
-) -> Result<Vec<(usize, usize, f64)>> {
+    innov: &mut [Option<Innovation<N, M>>],
+) -> Result<Vec<(usize, usize, f64)>>
+where
+    DefaultAllocator: Alloc<N, M>,
+{
     let mut pairs = Vec::new();
     if preds.is_empty() || dets.is_empty() {
         return Ok(pairs);
     }
+    let ns = sensors.len();
+    let md = m.value();
     for (s, sensor) in sensors.iter().enumerate() {
         let ids: Vec<usize> = dets
             .iter()
@@ -121,20 +224,19 @@ pub(crate) fn gate_pairs(
             continue;
         }
         for (t, (x, p)) in preds.iter().enumerate() {
-            if innov[t][s].is_none() {
-                innov[t][s] = Some(innovation(x, p, sensor)?);
+            if innov[t * ns + s].is_none() {
+                innov[t * ns + s] = Some(innovation(x, p, sensor)?);
             }
         }
         let pts: Vec<f64> = ids
             .iter()
-            .flat_map(|&d| z[d * m..(d + 1) * m].iter().copied())
+            .flat_map(|&d| z[d * md..(d + 1) * md].iter().copied())
             .collect();
         // Cell side: median gate box width over tracks.
-        let mut widths: Vec<f64> = innov
-            .iter()
-            .map(|v| {
-                let inn = v[s].as_ref().expect("filled above");
-                let w = (0..m.min(2)).map(|i| inn.s[(i, i)]).fold(0.0, f64::max);
+        let mut widths: Vec<f64> = (0..preds.len())
+            .map(|t| {
+                let inn = innov[t * ns + s].as_ref().expect("filled above");
+                let w = (0..md.min(2)).map(|i| inn.s[(i, i)]).fold(0.0, f64::max);
                 2.0 * (gate * w).sqrt()
             })
             .collect();
@@ -145,10 +247,10 @@ pub(crate) fn gate_pairs(
             f64::INFINITY
         };
         let local: Vec<usize> = (0..ids.len()).collect();
-        let grid = CandidateGrid::new(&pts, m, &local, cell);
-        let mut half = vec![0.0; m];
-        for (t, v) in innov.iter().enumerate() {
-            let inn = v[s].as_ref().expect("filled above");
+        let grid = CandidateGrid::new(&pts, md, &local, cell);
+        let mut half = vec![0.0; md];
+        for t in 0..preds.len() {
+            let inn = innov[t * ns + s].as_ref().expect("filled above");
             for (i, h) in half.iter_mut().enumerate() {
                 *h = (gate * inn.s[(i, i)]).sqrt();
                 if h.is_nan() {
@@ -157,7 +259,9 @@ pub(crate) fn gate_pairs(
             }
             grid.query(inn.zhat.as_slice(), &half, |k| {
                 let d = ids[k];
-                let y = DVector::from_column_slice(&z[d * m..(d + 1) * m]) - &inn.zhat;
+                let y =
+                    OVector::<f64, M>::from_column_slice_generic(m, U1, &z[d * md..(d + 1) * md])
+                        - &inn.zhat;
                 let d2 = y.dot(&inn.chol.solve(&y));
                 if d2 <= gate {
                     pairs.push((t, d, d2));
@@ -171,7 +275,10 @@ pub(crate) fn gate_pairs(
 
 /// Orders a cluster's tracks along the axis of largest spread of their predicted states, so
 /// that EHM's sets of pending detections stay small.
-pub(crate) fn order_cluster(c: &[usize], preds: &[(DVector<f64>, DMatrix<f64>)]) -> Vec<usize> {
+pub(crate) fn order_cluster<N: Dim>(c: &[usize], preds: &[Pred<N>]) -> Vec<usize>
+where
+    DefaultAllocator: Allocator<N, N> + Allocator<N>,
+{
     let mut out = c.to_vec();
     let n = preds[c[0]].0.len();
     let spread = |i: usize| {
@@ -187,26 +294,45 @@ pub(crate) fn order_cluster(c: &[usize], preds: &[(DVector<f64>, DMatrix<f64>)])
     out
 }
 
+/// The cluster sorted along each state axis (both directions): candidate EHM orders.
+pub(crate) fn axis_orders<N: Dim>(c: &[usize], preds: &[Pred<N>]) -> Vec<Vec<usize>>
+where
+    DefaultAllocator: Allocator<N, N> + Allocator<N>,
+{
+    let n = preds[c[0]].0.len();
+    let mut out = Vec::with_capacity(2 * n);
+    for axis in 0..n {
+        let mut o = c.to_vec();
+        o.sort_by(|&a, &b| preds[a].0[axis].total_cmp(&preds[b].0[axis]));
+        let r: Vec<usize> = o.iter().rev().copied().collect();
+        out.push(o);
+        out.push(r);
+    }
+    out
+}
+
 /// Distance hypotheses + GNN + update/predict on `tracks` (confirmed or tentative). Returns
 /// the detection assigned to each track.
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn gnn_step(
+pub(crate) fn gnn_step<N: Dim, M: Dim>(
     tracks: &mut [Track],
     model: &MotionModel,
-    sensors: &[Sensor],
+    sensors: &[SensorT<N, M>],
     g: &GnnParams,
-    joseph: bool,
+    form: CovForm,
     t: f64,
     z: &[f64],
-    m: usize,
+    (n, m): (N, M),
     det_sensor: &[usize],
     dets: &[usize],
     scan: i64,
-) -> Result<Vec<Option<usize>>> {
-    let preds = predict_all(model, tracks, t);
-    let mut innov: Vec<Vec<Option<Innovation>>> = (0..preds.len())
-        .map(|_| (0..sensors.len()).map(|_| None).collect())
-        .collect();
+) -> Result<Vec<Option<usize>>>
+where
+    DefaultAllocator: Alloc<N, M>,
+{
+    let preds = predict_all(model, tracks, t, n);
+    let ns = sensors.len();
+    let mut innov: Vec<Option<Innovation<N, M>>> = (0..preds.len() * ns).map(|_| None).collect();
     let gate = if g.include_all {
         f64::INFINITY
     } else {
@@ -229,48 +355,49 @@ pub(crate) fn gnn_step(
         }
     }
     let assign = gnn_assign(&hyps, det_sensor.len(), g.missed_distance)?;
+    let md = m.value();
+    let mut entry = Entry {
+        time: t,
+        is_update: false,
+        scan,
+        sensor: -1,
+        detection: -1,
+        nis: f64::NAN,
+        missed_probability: 1.0,
+        assoc: Vec::new(),
+    };
     for (ti, ((xp, pp), tr)) in preds.into_iter().zip(tracks.iter_mut()).enumerate() {
-        let assoc: Vec<(i64, f64)> = hyps[ti]
-            .iter()
-            .map(|&(d, _)| (d as i64, if assign[ti] == Some(d) { 1.0 } else { 0.0 }))
-            .collect();
+        entry.assoc.clear();
+        entry.assoc.extend(
+            hyps[ti]
+                .iter()
+                .map(|&(d, _)| (d as i64, if assign[ti] == Some(d) { 1.0 } else { 0.0 })),
+        );
         match assign[ti] {
             Some(d) => {
                 let s = det_sensor[d];
-                let inn = innov[ti][s].as_ref().expect("gated");
-                let y = DVector::from_column_slice(&z[d * m..(d + 1) * m]) - &inn.zhat;
+                let inn = innov[ti * ns + s].as_ref().expect("gated");
+                let y =
+                    OVector::<f64, M>::from_column_slice_generic(m, U1, &z[d * md..(d + 1) * md])
+                        - &inn.zhat;
                 let nis = d2s[ti][hyps[ti].iter().position(|h| h.0 == d).expect("hyp")];
                 let xu = &xp + &inn.k * y;
-                let pu = posterior_cov(&pp, inn, &sensors[s], joseph);
-                tr.append(
-                    xu,
-                    pu,
-                    Entry {
-                        time: t,
-                        is_update: true,
-                        scan,
-                        sensor: s as i64,
-                        detection: d as i64,
-                        nis,
-                        missed_probability: 0.0,
-                        assoc,
-                    },
-                );
+                let pu = posterior_cov(&pp, inn, &sensors[s], form);
+                entry.is_update = true;
+                entry.sensor = s as i64;
+                entry.detection = d as i64;
+                entry.nis = nis;
+                entry.missed_probability = 0.0;
+                tr.append_slices(xu.as_slice(), pu.as_slice(), &entry);
             }
-            None => tr.append(
-                xp,
-                pp,
-                Entry {
-                    time: t,
-                    is_update: false,
-                    scan,
-                    sensor: -1,
-                    detection: -1,
-                    nis: f64::NAN,
-                    missed_probability: 1.0,
-                    assoc,
-                },
-            ),
+            None => {
+                entry.is_update = false;
+                entry.sensor = -1;
+                entry.detection = -1;
+                entry.nis = f64::NAN;
+                entry.missed_probability = 1.0;
+                tr.append_slices(xp.as_slice(), pp.as_slice(), &entry);
+            }
         }
     }
     Ok(assign)

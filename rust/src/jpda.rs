@@ -63,15 +63,16 @@ pub fn clusters(tracks: &[TrackHypotheses], n_detections: usize) -> Vec<Vec<usiz
             }
         }
     }
-    let mut index: HashMap<usize, usize> = HashMap::new();
+    // Cluster number of each root, in order of first track.
+    let mut index = vec![usize::MAX; n];
     let mut out: Vec<Vec<usize>> = Vec::new();
     for t in 0..n {
         let r = find(&mut parent, t);
-        let k = *index.entry(r).or_insert_with(|| {
+        if index[r] == usize::MAX {
+            index[r] = out.len();
             out.push(Vec::new());
-            out.len() - 1
-        });
-        out[k].push(t);
+        }
+        out[index[r]].push(t);
     }
     out
 }
@@ -219,7 +220,7 @@ impl BitKey for Vec<u64> {
 
 /// A multiplicative hasher for the integer keys of EHM nodes (no DoS concern here).
 #[derive(Default, Clone, Copy)]
-struct FastHasher(u64);
+pub(crate) struct FastHasher(u64);
 
 impl std::hash::Hasher for FastHasher {
     fn finish(&self) -> u64 {
@@ -242,7 +243,7 @@ impl std::hash::Hasher for FastHasher {
     }
 }
 
-type FastMap<K, V> = HashMap<K, V, std::hash::BuildHasherDefault<FastHasher>>;
+pub(crate) type FastMap<K, V> = HashMap<K, V, std::hash::BuildHasherDefault<FastHasher>>;
 
 /// Exact marginals by Efficient Hypothesis Management: tracks are processed in the order
 /// given; a node of level `i` is the set of already-used detections that tracks `i..` could
@@ -286,64 +287,73 @@ fn ehm<K: BitKey>(
         acc[i] = k;
     }
     // Forward pass: nodes of each level with forward weights, and the edges to the next level
-    // (hypothesis index, or usize::MAX for missed; child node).
-    let mut nodes: Vec<Vec<K>> = vec![Vec::new(); n + 1];
+    // stored flat: node `ni` of level `i` owns `edges[i][off[i][ni]..off[i][ni + 1]]`, each
+    // (hypothesis index or MISSED, child node).
+    const MISSED: u32 = u32::MAX;
     let mut fw: Vec<Vec<f64>> = vec![Vec::new(); n + 1];
-    let mut edges: Vec<Vec<Vec<(usize, usize)>>> = vec![Vec::new(); n];
-    nodes[0].push(K::empty(n_bits));
+    let mut off: Vec<Vec<u32>> = vec![Vec::new(); n];
+    let mut edges: Vec<Vec<(u32, u32)>> = vec![Vec::new(); n];
+    let mut nodes: Vec<K> = vec![K::empty(n_bits)];
     fw[0].push(1.0);
+    let mut index: FastMap<K, u32> = FastMap::default();
     for i in 0..n {
-        let mut index: FastMap<K, usize> = FastMap::default();
-        let mut next_nodes: Vec<K> = Vec::new();
-        let mut next_fw: Vec<f64> = Vec::new();
-        let mut level_edges = Vec::with_capacity(nodes[i].len());
-        for (ni, key) in nodes[i].iter().enumerate() {
+        index.clear();
+        let mut next_nodes: Vec<K> = Vec::with_capacity(nodes.len());
+        let mut next_fw: Vec<f64> = Vec::with_capacity(nodes.len());
+        let mut lo = Vec::with_capacity(nodes.len() + 1);
+        let mut le: Vec<(u32, u32)> = Vec::with_capacity(nodes.len() * (hyps[i].len() + 1));
+        lo.push(0u32);
+        let missed = cluster[i].missed;
+        for (ni, key) in nodes.iter().enumerate() {
             let f = fw[i][ni];
-            let mut e = Vec::with_capacity(hyps[i].len() + 1);
-            let mut push = |mut child: K, h: usize, w: f64, e: &mut Vec<(usize, usize)>| {
+            let mut push = |mut child: K, h: u32, w: f64| {
                 child.and(&acc[i + 1]);
                 let c = match index.get(&child) {
                     Some(&c) => c,
                     None => {
-                        index.insert(child.clone(), next_nodes.len());
+                        let c = next_nodes.len() as u32;
+                        index.insert(child.clone(), c);
                         next_nodes.push(child);
                         next_fw.push(0.0);
-                        next_fw.len() - 1
+                        c
                     }
                 };
-                next_fw[c] += f * w;
-                e.push((h, c));
+                next_fw[c as usize] += f * w;
+                le.push((h, c));
             };
-            push(key.clone(), usize::MAX, cluster[i].missed, &mut e);
+            push(key.clone(), MISSED, missed);
             for (h, &(d, w)) in hyps[i].iter().enumerate() {
                 if !key.has(d) {
                     let mut child = key.clone();
                     child.set(d);
-                    push(child, h, w, &mut e);
+                    push(child, h as u32, w);
                 }
             }
-            level_edges.push(e);
+            lo.push(le.len() as u32);
         }
-        nodes[i + 1] = next_nodes;
+        nodes = next_nodes;
         fw[i + 1] = next_fw;
-        edges[i] = level_edges;
+        off[i] = lo;
+        edges[i] = le;
     }
+    let weight = |i: usize, h: u32| {
+        if h == MISSED {
+            cluster[i].missed
+        } else {
+            hyps[i][h as usize].1
+        }
+    };
     // Backward pass.
     let mut bw: Vec<Vec<f64>> = vec![Vec::new(); n + 1];
-    bw[n] = vec![1.0; nodes[n].len()];
+    bw[n] = vec![1.0; nodes.len()];
     for i in (0..n).rev() {
-        bw[i] = edges[i]
-            .iter()
-            .map(|e| {
-                e.iter()
-                    .map(|&(h, c)| {
-                        let w = if h == usize::MAX {
-                            cluster[i].missed
-                        } else {
-                            hyps[i][h].1
-                        };
-                        w * bw[i + 1][c]
-                    })
+        let next = &bw[i + 1];
+        bw[i] = off[i]
+            .windows(2)
+            .map(|r| {
+                edges[i][r[0] as usize..r[1] as usize]
+                    .iter()
+                    .map(|&(h, c)| weight(i, h) * next[c as usize])
                     .sum()
             })
             .collect();
@@ -355,13 +365,14 @@ fn ehm<K: BitKey>(
             missed: 0.0,
             detections: vec![0.0; hyps[i].len()],
         };
-        for (ni, e) in edges[i].iter().enumerate() {
+        for (ni, r) in off[i].windows(2).enumerate() {
             let f = fw[i][ni];
-            for &(h, c) in e {
-                if h == usize::MAX {
-                    m.missed += f * cluster[i].missed * bw[i + 1][c];
+            for &(h, c) in &edges[i][r[0] as usize..r[1] as usize] {
+                let v = f * weight(i, h) * bw[i + 1][c as usize];
+                if h == MISSED {
+                    m.missed += v;
                 } else {
-                    m.detections[h] += f * hyps[i][h].1 * bw[i + 1][c];
+                    m.detections[h as usize] += v;
                 }
             }
         }
@@ -369,6 +380,44 @@ fn ehm<K: BitKey>(
     }
     normalise(&mut out, total)?;
     Ok(out)
+}
+
+/// A rough size of the EHM net for tracks taken in `order`: at each cut, the detections
+/// shared by tracks on both sides (the frontier, `f`) can be used in at most
+/// `Σ_{k ≤ min(i, f)} C(f, k)` ways by the first `i` tracks, and in at most `Π (1 + gated)` ways.
+/// Capped at 1e18 per cut.
+pub fn ehm_size_estimate(tracks: &[TrackHypotheses], order: &[usize], n_detections: usize) -> f64 {
+    const CAP: f64 = 1e18;
+    let mut total = vec![0u32; n_detections];
+    for &t in order {
+        for &(d, _) in &tracks[t].detections {
+            total[d] += 1;
+        }
+    }
+    let mut seen = vec![0u32; n_detections];
+    let (mut frontier, mut prod, mut sum) = (0usize, 1.0f64, 0.0f64);
+    for (i, &t) in order.iter().enumerate() {
+        for &(d, _) in &tracks[t].detections {
+            seen[d] += 1;
+            if seen[d] == 1 && total[d] > 1 {
+                frontier += 1;
+            }
+            if seen[d] == total[d] && total[d] > 1 {
+                frontier -= 1;
+            }
+        }
+        prod = (prod * (1.0 + tracks[t].detections.len() as f64)).min(CAP);
+        let (mut c, mut reach) = (1.0f64, 1.0f64);
+        for k in 1..=frontier.min(i + 1) {
+            c = c * (frontier + 1 - k) as f64 / k as f64;
+            reach += c;
+            if reach >= CAP {
+                break;
+            }
+        }
+        sum += reach.min(prod);
+    }
+    sum
 }
 
 /// Marginals of a cluster by the chosen method.
@@ -412,6 +461,31 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn size_estimate_follows_the_frontier() {
+        let t = |d: &[usize]| TrackHypotheses {
+            missed: 1.0,
+            detections: d.iter().map(|&i| (i, 1.0)).collect(),
+        };
+        // A chain (track i gates detections i, i + 1): frontier 1 at every cut.
+        let chain: Vec<_> = (0..50).map(|i| t(&[i, i + 1])).collect();
+        let order: Vec<usize> = (0..50).collect();
+        let e = ehm_size_estimate(&chain, &order, 51);
+        assert!(e <= 2.0 * 50.0, "{e}");
+        // One track gating 10 detections and 10 tracks gating one each: with the wide track
+        // first the net has ~11 nodes per level; with it last, the first i tracks leave 2^i
+        // distinct sets of used detections for it.
+        let mut star = vec![t(&(0..10).collect::<Vec<_>>())];
+        star.extend((0..10).map(|i| t(&[i])));
+        let wide_first: Vec<usize> = (0..11).collect();
+        let wide_last: Vec<usize> = (1..11).chain([0]).collect();
+        let (a, b) = (
+            ehm_size_estimate(&star, &wide_first, 10),
+            ehm_size_estimate(&star, &wide_last, 10),
+        );
+        assert!(a < 400.0 && b > 1000.0, "{a} {b}");
     }
 
     #[test]

@@ -73,7 +73,7 @@ impl History {
         self.assoc_probability.reserve(4 * k);
     }
 
-    fn push(&mut self, e: Entry, x: &DVector<f64>, p: &DMatrix<f64>) {
+    fn push(&mut self, e: &Entry, x: &DVector<f64>, p: &DMatrix<f64>) {
         if self.assoc_offsets.is_empty() {
             self.assoc_offsets.push(0);
         }
@@ -91,7 +91,7 @@ impl History {
         self.detection.push(e.detection);
         self.nis.push(e.nis);
         self.missed_probability.push(e.missed_probability);
-        for (d, pr) in e.assoc {
+        for &(d, pr) in &e.assoc {
             self.assoc_detection.push(d);
             self.assoc_probability.push(pr);
         }
@@ -149,16 +149,28 @@ impl Track {
             confirmed_time: f64::NAN,
             deleted_time: f64::NAN,
         };
-        t.history.push(entry, &x, &p);
+        // Room for a few scans up front: growing 12 vectors one by one dominated the cost of
+        // appending.
+        t.history.reserve(8, x.len());
+        t.history.push(&entry, &x, &p);
         t
     }
 
     /// Appends a state and makes it current.
     pub fn append(&mut self, x: DVector<f64>, p: DMatrix<f64>, entry: Entry) {
         self.t = entry.time;
-        self.history.push(entry, &x, &p);
+        self.history.push(&entry, &x, &p);
         self.x = x;
         self.p = p;
+    }
+
+    /// Appends a state given as slices (`x` `(ndim,)`, `p` column-major `(ndim, ndim)`)
+    /// copied into the track's buffers (no allocation), and makes it current.
+    pub fn append_slices(&mut self, x: &[f64], p: &[f64], entry: &Entry) {
+        self.t = entry.time;
+        self.x.copy_from_slice(x);
+        self.p.copy_from_slice(p);
+        self.history.push(entry, &self.x, &self.p);
     }
 
     /// Removes the last history entry if it is a prediction (Stone Soup's `delete_last_pred`).

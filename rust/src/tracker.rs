@@ -25,16 +25,17 @@
 use crate::error::{check_finite, Error, Result};
 use crate::gating::{chi2_quantile, validation_volume};
 use crate::hypothesise::{
-    gate_pairs, gnn_step, order_cluster, posterior_cov, predict_all, Innovation,
+    axis_orders, gate_pairs, gnn_step, order_cluster, posterior_cov, predict_all, sensors_t, Alloc,
+    CovForm, Innovation, Pred, SensorT,
 };
-use crate::jpda::{clusters, marginals, TrackHypotheses};
+use crate::jpda::{clusters, ehm_size_estimate, marginals, Method, TrackHypotheses};
 use crate::kalman::check_covariance;
 use crate::track::{Entry, Track};
 pub use crate::tracker_config::{
     Association, Confirmation, GnnParams, InitiatorConfig, JpdaParams, Measure, OutOfOrder, Sensor,
     TrackerConfig,
 };
-use nalgebra::{DMatrix, DVector};
+use nalgebra::{DMatrix, DVector, DefaultAllocator, Dim, Dyn, OMatrix, OVector, U1, U2, U4, U6};
 
 /// `ln(2π)`.
 const LN_2PI: f64 = 1.837_877_066_409_345_5;
@@ -114,6 +115,34 @@ impl Tracker {
         self.last_time
     }
 
+    /// Registers one more sensor between scans (its detections use index
+    /// `self.config().sensors.len()` before the call); tracks are untouched. The sensor must
+    /// fit the state dimension (see [`Sensor::new`]) and share the measurement dimension of
+    /// the configured sensors. Returns the new sensor's index.
+    pub fn add_sensor(&mut self, sensor: Sensor) -> Result<usize> {
+        let n = self.cfg.motion_model.ndim();
+        let i = self.cfg.sensors.len();
+        if sensor.h.ncols() != n {
+            return Err(Error::dim(
+                "measurement_matrix",
+                format!("{n} columns (state dimension)"),
+                sensor.h.ncols(),
+            ));
+        }
+        if sensor.m() != self.m {
+            return Err(Error::dim(
+                "measurement_matrix",
+                format!(
+                    "{} rows (all sensors share one measurement dimension)",
+                    self.m
+                ),
+                sensor.m(),
+            ));
+        }
+        self.cfg.sensors.push(sensor);
+        Ok(i)
+    }
+
     /// Adds a confirmed track with state `x`, covariance `p` at time `t` (its first state is a
     /// prior, not an update). Returns its id.
     pub fn add_track(&mut self, x: &[f64], p: &[f64], t: f64) -> Result<u64> {
@@ -186,68 +215,108 @@ impl Tracker {
                 };
             }
         }
+        let nd = self.cfg.motion_model.ndim();
+        match (nd, m) {
+            (4, 2) => self.step_dims((U4, U2), t, z, sensor_ids)?,
+            (6, 2) => self.step_dims((U6, U2), t, z, sensor_ids)?,
+            _ => self.step_dims((Dyn(nd), Dyn(m)), t, z, sensor_ids)?,
+        }
+        self.last_time = Some(t);
+        self.scan += 1;
+        Ok(StepOutcome::Processed)
+    }
+
+    /// The scan in the kernels' dimensions (state `N`, measurement `M`).
+    fn step_dims<N: Dim, M: Dim>(
+        &mut self,
+        dims: (N, M),
+        t: f64,
+        z: &[f64],
+        sensor_ids: &[usize],
+    ) -> Result<()>
+    where
+        DefaultAllocator: Alloc<N, M>,
+    {
         let k = sensor_ids.len();
         let all: Vec<usize> = (0..k).collect();
+        let sensors = sensors_t(&self.cfg.sensors, dims.0, dims.1);
         let associated = match self.cfg.association {
-            Association::Jpda(j) => self.step_jpda(t, z, sensor_ids, &all, &j)?,
-            Association::Gnn(g) => self.step_gnn(t, z, sensor_ids, &all, &g)?,
+            Association::Jpda(j) => self.step_jpda(t, z, sensor_ids, &all, &j, &sensors, dims)?,
+            Association::Gnn(g) => {
+                let model = self.cfg.motion_model.clone();
+                let assoc = gnn_step(
+                    &mut self.tracks,
+                    &model,
+                    &sensors,
+                    &g,
+                    CovForm {
+                        joseph: self.cfg.use_joseph_cov,
+                        symmetric: self.cfg.symmetric_covariance,
+                    },
+                    t,
+                    z,
+                    dims,
+                    sensor_ids,
+                    &all,
+                    self.scan,
+                )?;
+                let mut associated = vec![false; k];
+                for d in assoc.into_iter().flatten() {
+                    associated[d] = true;
+                }
+                associated
+            }
         };
-        // Delete confirmed tracks.
-        let mut kept = Vec::with_capacity(self.tracks.len());
-        for mut tr in std::mem::take(&mut self.tracks) {
-            if self.cfg.deleter.check(&tr) {
+        // Delete confirmed tracks (in place: surviving tracks are not moved unless a track
+        // before them is deleted).
+        let mut i = 0;
+        while i < self.tracks.len() {
+            if self.cfg.deleter.check(&self.tracks[i]) {
+                let mut tr = self.tracks.remove(i);
                 if self.cfg.delete_last_prediction {
                     tr.drop_last_prediction();
                 }
                 tr.deleted_time = t;
                 self.deleted.push(tr);
             } else {
-                kept.push(tr);
+                i += 1;
             }
         }
-        self.tracks = kept;
         let free: Vec<usize> = (0..k).filter(|&d| !associated[d]).collect();
-        self.initiate(t, z, sensor_ids, &free)?;
-        self.last_time = Some(t);
-        self.scan += 1;
-        Ok(StepOutcome::Processed)
+        self.initiate(t, z, sensor_ids, &free, &sensors, dims)
     }
 
-    fn step_jpda(
+    #[allow(clippy::too_many_arguments)]
+    fn step_jpda<N: Dim, M: Dim>(
         &mut self,
         t: f64,
         z: &[f64],
         det_sensor: &[usize],
         dets: &[usize],
         j: &JpdaParams,
-    ) -> Result<Vec<bool>> {
+        sensors: &[SensorT<N, M>],
+        (n, md): (N, M),
+    ) -> Result<Vec<bool>>
+    where
+        DefaultAllocator: Alloc<N, M>,
+    {
         let m = self.m;
         let k = det_sensor.len();
-        let ns = self.cfg.sensors.len();
-        let preds = predict_all(&self.cfg.motion_model, &self.tracks, t);
-        let mut innov: Vec<Vec<Option<Innovation>>> = (0..preds.len())
-            .map(|_| (0..ns).map(|_| None).collect())
-            .collect();
+        let ns = sensors.len();
+        let preds = predict_all(&self.cfg.motion_model, &self.tracks, t, n);
+        let mut innov: Vec<Option<Innovation<N, M>>> =
+            (0..preds.len() * ns).map(|_| None).collect();
         let gate = if j.include_all {
             f64::INFINITY
         } else {
             self.gate
         };
-        let pairs = gate_pairs(
-            &preds,
-            &self.cfg.sensors,
-            z,
-            m,
-            det_sensor,
-            dets,
-            gate,
-            &mut innov,
-        )?;
+        let pairs = gate_pairs(&preds, sensors, z, md, det_sensor, dets, gate, &mut innov)?;
         // Log weights per track: missed, then gated detections.
         let ln_missed = (1.0 - j.prob_detect * j.prob_gate).ln();
         let mut hyps: Vec<Vec<(usize, f64, f64)>> = vec![Vec::new(); preds.len()]; // (det, ln w, d2)
         for &(ti, d, d2) in &pairs {
-            let inn = innov[ti][det_sensor[d]].as_ref().expect("gated");
+            let inn = innov[ti * ns + det_sensor[d]].as_ref().expect("gated");
             let logpdf = -0.5 * (d2 + inn.ln_det + m as f64 * LN_2PI);
             let mut lw = logpdf + j.prob_detect.ln();
             if let Some(l) = j.clutter_density {
@@ -259,7 +328,7 @@ impl Tracker {
             for (ti, h) in hyps.iter_mut().enumerate() {
                 let n_valid = h.iter().filter(|x| x.2 <= self.gate).count() as f64;
                 for e in h.iter_mut() {
-                    let inn = innov[ti][det_sensor[e.0]].as_ref().expect("gated");
+                    let inn = innov[ti * ns + det_sensor[e.0]].as_ref().expect("gated");
                     let vol = validation_volume(m, self.gate, inn.ln_det.exp());
                     e.1 += vol.ln() - n_valid.ln();
                 }
@@ -286,7 +355,19 @@ impl Tracker {
                 };
                 continue;
             }
-            let ordered = order_cluster(&c, &preds);
+            let mut ordered = order_cluster(&c, &preds);
+            // EHM's net depends on the order (the marginals do not): of the orders along each
+            // state axis, both ways, take the one with the smallest estimated net.
+            if matches!(j.method, Method::Ehm) && c.len() > 2 {
+                let mut best = ehm_size_estimate(&th, &ordered, k);
+                for o in axis_orders(&c, &preds) {
+                    let e = ehm_size_estimate(&th, &o, k);
+                    if e < best {
+                        best = e;
+                        ordered = o;
+                    }
+                }
+            }
             let sub: Vec<TrackHypotheses> = ordered.iter().map(|&i| th[i].clone()).collect();
             let r = marginals(&sub, j.method)?;
             for (i, mm) in ordered.into_iter().zip(r) {
@@ -295,20 +376,39 @@ impl Tracker {
         }
         let mut associated = vec![false; k];
         let mut in_gate = vec![false; k];
-        let joseph = self.cfg.use_joseph_cov;
+        let form = CovForm {
+            joseph: self.cfg.use_joseph_cov,
+            symmetric: self.cfg.symmetric_covariance,
+        };
+        let mut entry = Entry {
+            time: t,
+            is_update: false,
+            scan: self.scan,
+            sensor: -1,
+            detection: -1,
+            nis: f64::NAN,
+            missed_probability: f64::NAN,
+            assoc: Vec::new(),
+        };
+        // Scratch reused across tracks: mixture components, posterior covariance per sensor.
+        let mut comps: Vec<(f64, OVector<f64, N>, usize)> = Vec::new();
+        let mut post_by_sensor: Vec<Option<OMatrix<f64, N, N>>> = (0..ns).map(|_| None).collect();
         for (ti, ((xp, pp), tr)) in preds.into_iter().zip(self.tracks.iter_mut()).enumerate() {
             let mg = &marg[ti];
             let h = &hyps[ti];
-            let n = xp.len();
             let b0 = mg.missed;
             let tot: f64 = b0 + mg.detections.iter().sum::<f64>();
             // Components: prediction, then one Kalman update per gated detection.
             let mut mean = &xp * (b0 / tot);
-            let mut comps: Vec<(f64, DVector<f64>, usize)> = Vec::with_capacity(h.len());
+            comps.clear();
             for (e, &b) in h.iter().zip(&mg.detections) {
                 let s = det_sensor[e.0];
-                let inn = innov[ti][s].as_ref().expect("gated");
-                let y = DVector::from_column_slice(&z[e.0 * m..(e.0 + 1) * m]) - &inn.zhat;
+                let inn = innov[ti * ns + s].as_ref().expect("gated");
+                let y = OVector::<f64, M>::from_column_slice_generic(
+                    md,
+                    U1,
+                    &z[e.0 * m..(e.0 + 1) * m],
+                ) - &inn.zhat;
                 let xu = &xp + &inn.k * y;
                 mean += &xu * (b / tot);
                 comps.push((b / tot, xu, s));
@@ -316,20 +416,19 @@ impl Tracker {
             }
             let dx = &xp - &mean;
             let mut cov = &pp * (b0 / tot) + (&dx * dx.transpose()) * (b0 / tot);
-            let mut post_by_sensor: Vec<Option<DMatrix<f64>>> = vec![None; self.cfg.sensors.len()];
+            post_by_sensor.iter_mut().for_each(|p| *p = None);
             for (w, xu, s) in &comps {
                 let pu = post_by_sensor[*s].get_or_insert_with(|| {
                     posterior_cov(
                         &pp,
-                        innov[ti][*s].as_ref().expect("gated"),
-                        &self.cfg.sensors[*s],
-                        joseph,
+                        innov[ti * ns + *s].as_ref().expect("gated"),
+                        &sensors[*s],
+                        form,
                     )
                 });
                 let dx = xu - &mean;
                 cov += &*pu * *w + (&dx * dx.transpose()) * *w;
             }
-            debug_assert_eq!(cov.nrows(), n);
             let mut best: Option<usize> = None;
             for (i, &b) in mg.detections.iter().enumerate() {
                 if b > b0 {
@@ -339,21 +438,18 @@ impl Tracker {
                     }
                 }
             }
-            let entry = Entry {
-                time: t,
-                is_update: best.is_some(),
-                scan: self.scan,
-                sensor: best.map_or(-1, |i| det_sensor[h[i].0] as i64),
-                detection: best.map_or(-1, |i| h[i].0 as i64),
-                nis: best.map_or(f64::NAN, |i| h[i].2),
-                missed_probability: b0 / tot,
-                assoc: h
-                    .iter()
+            entry.is_update = best.is_some();
+            entry.sensor = best.map_or(-1, |i| det_sensor[h[i].0] as i64);
+            entry.detection = best.map_or(-1, |i| h[i].0 as i64);
+            entry.nis = best.map_or(f64::NAN, |i| h[i].2);
+            entry.missed_probability = b0 / tot;
+            entry.assoc.clear();
+            entry.assoc.extend(
+                h.iter()
                     .zip(&mg.detections)
-                    .map(|(e, &b)| (e.0 as i64, b / tot))
-                    .collect(),
-            };
-            tr.append(mean, cov, entry);
+                    .map(|(e, &b)| (e.0 as i64, b / tot)),
+            );
+            tr.append_slices(mean.as_slice(), cov.as_slice(), &entry);
         }
         if !self.cfg.initiate_in_gates {
             for d in 0..k {
@@ -363,39 +459,18 @@ impl Tracker {
         Ok(associated)
     }
 
-    fn step_gnn(
+    fn initiate<N: Dim, M: Dim>(
         &mut self,
         t: f64,
         z: &[f64],
         det_sensor: &[usize],
-        dets: &[usize],
-        g: &GnnParams,
-    ) -> Result<Vec<bool>> {
-        let model = self.cfg.motion_model.clone();
-        let joseph = self.cfg.use_joseph_cov;
-        let scan = self.scan;
-        let sensors = self.cfg.sensors.clone();
-        let assoc = gnn_step(
-            &mut self.tracks,
-            &model,
-            &sensors,
-            g,
-            joseph,
-            t,
-            z,
-            self.m,
-            det_sensor,
-            dets,
-            scan,
-        )?;
-        let mut associated = vec![false; det_sensor.len()];
-        for d in assoc.into_iter().flatten() {
-            associated[d] = true;
-        }
-        Ok(associated)
-    }
-
-    fn initiate(&mut self, t: f64, z: &[f64], det_sensor: &[usize], free: &[usize]) -> Result<()> {
+        free: &[usize],
+        sensors: &[SensorT<N, M>],
+        dims: (N, M),
+    ) -> Result<()>
+    where
+        DefaultAllocator: Alloc<N, M>,
+    {
         let m = self.m;
         let init = self.cfg.initiator.clone();
         let model = init
@@ -407,12 +482,15 @@ impl Tracker {
             let assoc = gnn_step(
                 &mut self.tentative,
                 &model,
-                &self.cfg.sensors,
+                sensors,
                 &init.gnn,
-                init.use_joseph_cov,
+                CovForm {
+                    joseph: init.use_joseph_cov,
+                    symmetric: init.symmetric_covariance,
+                },
                 t,
                 z,
-                m,
+                dims,
                 det_sensor,
                 free,
                 self.scan,
@@ -460,23 +538,34 @@ impl Tracker {
             }
             self.tentative = keep;
         }
-        // New tentative tracks from every detection left.
+        // New tentative tracks from every detection left. Per sensor (computed once):
+        // H⁺, H⁺ R H⁺ᵀ and the mapped state axes.
+        type InitModel = (DMatrix<f64>, DMatrix<f64>, Vec<bool>);
+        let mut init_of: Vec<Option<InitModel>> = vec![None; self.cfg.sensors.len()];
         for &d in free {
             if used[d] {
                 continue;
             }
-            let sensor = &self.cfg.sensors[det_sensor[d]];
-            let (hi, ri) = &sensor.init;
-            let pinv = hi
-                .clone()
-                .pseudo_inverse(1e-15)
-                .map_err(|e| Error::param("initiation_measurement_matrix", e))?;
+            let s = det_sensor[d];
+            if init_of[s].is_none() {
+                let (hi, ri) = &self.cfg.sensors[s].init;
+                let pinv = hi
+                    .clone()
+                    .pseudo_inverse(1e-15)
+                    .map_err(|e| Error::param("initiation_measurement_matrix", e))?;
+                let cov = &pinv * ri * pinv.transpose();
+                let mapped = (0..hi.ncols())
+                    .map(|c| (0..hi.nrows()).any(|r| hi[(r, c)] != 0.0))
+                    .collect();
+                init_of[s] = Some((pinv, cov, mapped));
+            }
+            let (pinv, pcov, mapped) = init_of[s].as_ref().expect("filled above");
             let zd = DVector::from_column_slice(&z[d * m..(d + 1) * m]);
             let mut x = init.prior_state.clone();
             let mut p = init.prior_covariance.clone();
             let n = x.len();
             for c in 0..n {
-                if (0..hi.nrows()).any(|r| hi[(r, c)] != 0.0) {
+                if mapped[c] {
                     x[c] = 0.0;
                     for r in 0..n {
                         p[(c, r)] = 0.0;
@@ -484,8 +573,8 @@ impl Tracker {
                     }
                 }
             }
-            x += &pinv * zd;
-            p += &pinv * ri * pinv.transpose();
+            x += pinv * zd;
+            p += pcov;
             for i in 0..n {
                 p[(i, i)] += init.diag_load;
             }
@@ -499,7 +588,7 @@ impl Tracker {
                     time: t,
                     is_update: true,
                     scan: self.scan,
-                    sensor: det_sensor[d] as i64,
+                    sensor: s as i64,
                     detection: d as i64,
                     nis: f64::NAN,
                     missed_probability: f64::NAN,
@@ -558,43 +647,24 @@ impl Tracker {
             .collect();
         let all: Vec<usize> = (0..cands.len()).collect();
         let ns = self.cfg.sensors.len();
-        let existing: Vec<(DVector<f64>, DMatrix<f64>)> = self
+        let (nd, md) = (Dyn(self.cfg.motion_model.ndim()), Dyn(m));
+        let sensors = sensors_t(&self.cfg.sensors, nd, md);
+        let existing: Vec<Pred<Dyn>> = self
             .tracks
             .iter()
             .map(|t| (t.x.clone(), t.p.clone()))
             .collect();
-        let mut innov: Vec<Vec<Option<Innovation>>> = (0..existing.len())
-            .map(|_| (0..ns).map(|_| None).collect())
-            .collect();
+        let mut innov: Vec<Option<Innovation<Dyn, Dyn>>> =
+            (0..existing.len() * ns).map(|_| None).collect();
         let mut reject = vec![false; cands.len()];
-        for (_, d, _) in gate_pairs(
-            &existing,
-            &self.cfg.sensors,
-            &z,
-            m,
-            &sens,
-            &all,
-            gate,
-            &mut innov,
-        )? {
+        for (_, d, _) in gate_pairs(&existing, &sensors, &z, md, &sens, &all, gate, &mut innov)? {
             reject[d] = true;
         }
-        let own: Vec<(DVector<f64>, DMatrix<f64>)> =
-            cands.iter().map(|t| (t.x.clone(), t.p.clone())).collect();
-        let mut innov: Vec<Vec<Option<Innovation>>> = (0..own.len())
-            .map(|_| (0..ns).map(|_| None).collect())
-            .collect();
+        let own: Vec<Pred<Dyn>> = cands.iter().map(|t| (t.x.clone(), t.p.clone())).collect();
+        let mut innov: Vec<Option<Innovation<Dyn, Dyn>>> =
+            (0..own.len() * ns).map(|_| None).collect();
         let mut gated_by: Vec<Vec<usize>> = vec![Vec::new(); cands.len()];
-        for (i, d, _) in gate_pairs(
-            &own,
-            &self.cfg.sensors,
-            &z,
-            m,
-            &sens,
-            &all,
-            gate,
-            &mut innov,
-        )? {
+        for (i, d, _) in gate_pairs(&own, &sensors, &z, md, &sens, &all, gate, &mut innov)? {
             if i != d {
                 gated_by[d].push(i);
             }
@@ -616,7 +686,6 @@ impl Tracker {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::jpda::Method;
     use crate::models::MotionModel;
     use crate::track::Deleter;
 
@@ -628,6 +697,7 @@ mod tests {
             sensors: vec![Sensor::new(h, r, None, 4, "sensors[0]").unwrap()],
             association: assoc,
             use_joseph_cov: false,
+            symmetric_covariance: false,
             deleter: Deleter::StepsSinceUpdate(3),
             delete_last_prediction: false,
             initiator: InitiatorConfig {
@@ -648,6 +718,7 @@ mod tests {
                 },
                 motion_model: None,
                 use_joseph_cov: false,
+                symmetric_covariance: false,
             },
             out_of_order: OutOfOrder::Raise,
             initiate_in_gates: true,

@@ -142,6 +142,8 @@ pub struct InitiatorConfig {
     pub motion_model: Option<MotionModel>,
     /// Joseph-form covariance in the initiator's updater.
     pub use_joseph_cov: bool,
+    /// Symmetrise the initiator updater's posterior covariances.
+    pub symmetric_covariance: bool,
 }
 
 /// What to do with a scan older than the previous one.
@@ -162,6 +164,12 @@ pub struct TrackerConfig {
     /// Joseph-form covariance in the updater (Stone Soup's `use_joseph_cov`; default form is
     /// `P − K S Kᵀ`).
     pub use_joseph_cov: bool,
+    /// Replace every updated covariance `P` by `(P + Pᵀ) / 2` (Stone Soup's
+    /// `force_symmetric_covariance`). Without it the rounding asymmetry of `P − K S Kᵀ` is
+    /// never removed and grows through the prediction `F P Fᵀ` — polynomially in the coasting
+    /// time for constant-acceleration models, until `P` is indefinite after a few hundred
+    /// seconds (Joyride with a CA model fails at t ≈ 400 s).
+    pub symmetric_covariance: bool,
     pub deleter: Deleter,
     /// Drop the last state of a deleted track if it is a prediction (`delete_last_pred`).
     pub delete_last_prediction: bool,

@@ -174,7 +174,7 @@ impl TrackerCore {
     #[pyo3(signature = (
         motion_model, sensors, association, deleter_spec, initiator, *,
         use_joseph_cov=false, delete_last_prediction=false, out_of_order="raise",
-        initiate_in_gates=true
+        initiate_in_gates=true, symmetric_covariance=false
     ))]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -187,6 +187,7 @@ impl TrackerCore {
         delete_last_prediction: bool,
         out_of_order: &str,
         initiate_in_gates: bool,
+        symmetric_covariance: bool,
     ) -> PyResult<Self> {
         let model = motion_model_from_spec(&motion_model)?;
         let n = model.ndim();
@@ -253,6 +254,10 @@ impl TrackerCore {
             },
             motion_model: init_model.map(|m| motion_model_from_spec(&m)).transpose()?,
             use_joseph_cov: get_bool(initiator, "use_joseph_cov")?,
+            symmetric_covariance: match initiator.get_item("symmetric_covariance")? {
+                Some(v) => v.extract()?,
+                None => false,
+            },
         };
         let out_of_order = match out_of_order {
             "raise" => OutOfOrder::Raise,
@@ -268,6 +273,7 @@ impl TrackerCore {
             sensors,
             association,
             use_joseph_cov,
+            symmetric_covariance,
             deleter: deleter(deleter_spec)?,
             delete_last_prediction,
             initiator: init,
@@ -397,6 +403,32 @@ impl TrackerCore {
         Ok(d)
     }
 
+    /// Registers one more sensor between scans; returns its index.
+    #[pyo3(signature = (measurement_matrix, measurement_noise, initiation_matrix=None, initiation_noise=None))]
+    fn add_sensor(
+        &mut self,
+        measurement_matrix: PyReadonlyArray2<'_, f64>,
+        measurement_noise: PyReadonlyArray2<'_, f64>,
+        initiation_matrix: Option<PyReadonlyArray2<'_, f64>>,
+        initiation_noise: Option<PyReadonlyArray2<'_, f64>>,
+    ) -> PyResult<usize> {
+        let n = self.inner.config().motion_model.ndim();
+        let i = self.inner.config().sensors.len();
+        let h = matrix("measurement_matrix", &measurement_matrix)?;
+        let r = matrix("measurement_noise", &measurement_noise)?;
+        let init = match (&initiation_matrix, &initiation_noise) {
+            (None, None) => None,
+            (hi, ri) => Some((
+                hi.as_ref()
+                    .map_or(Ok(h.clone()), |a| matrix("initiation_matrix", a))?,
+                ri.as_ref()
+                    .map_or(Ok(r.clone()), |a| matrix("initiation_noise", a))?,
+            )),
+        };
+        let sensor = Sensor::new(h, r, init, n, &format!("sensors[{i}]")).map_err(to_py_err)?;
+        self.inner.add_sensor(sensor).map_err(to_py_err)
+    }
+
     /// Adds a confirmed track; returns its id.
     fn add_track(
         &mut self,
@@ -467,6 +499,47 @@ impl TrackerCore {
                 &[k],
             )?,
         )?;
+        // The newest history entry's association data, flattened over the tracks.
+        let last = |t: &Track| t.history.len().saturating_sub(1);
+        let lasti = |f: fn(&crate::track::History) -> &Vec<i64>| -> Vec<i64> {
+            list.iter().map(|t| f(&t.history)[last(t)]).collect()
+        };
+        d.set_item("scan", arr_i(py, lasti(|h| &h.scan), &[k])?)?;
+        d.set_item(
+            "first_scan",
+            arr_i(
+                py,
+                list.iter()
+                    .map(|t| *t.history.scan.first().unwrap_or(&-1))
+                    .collect(),
+                &[k],
+            )?,
+        )?;
+        d.set_item("detection", arr_i(py, lasti(|h| &h.detection), &[k])?)?;
+        d.set_item(
+            "missed_probability",
+            arr_f(
+                py,
+                list.iter()
+                    .map(|t| t.history.missed_probability[last(t)])
+                    .collect(),
+                &[k],
+            )?,
+        )?;
+        let mut offsets = Vec::with_capacity(k + 1);
+        let (mut dets, mut probs) = (Vec::new(), Vec::new());
+        offsets.push(0i64);
+        for t in list {
+            let h = &t.history;
+            let (a, b) = (h.assoc_offsets[last(t)], h.assoc_offsets[last(t) + 1]);
+            dets.extend_from_slice(&h.assoc_detection[a..b]);
+            probs.extend_from_slice(&h.assoc_probability[a..b]);
+            offsets.push(dets.len() as i64);
+        }
+        let nd = dets.len();
+        d.set_item("assoc_offsets", arr_i(py, offsets, &[k + 1])?)?;
+        d.set_item("assoc_detection", arr_i(py, dets, &[nd])?)?;
+        d.set_item("assoc_probability", arr_f(py, probs, &[nd])?)?;
         Ok(d)
     }
 
