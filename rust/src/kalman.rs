@@ -288,16 +288,16 @@ pub fn run_batch(model: &MotionModel, input: &BatchInput, smooth: bool) -> Resul
     }
 }
 
-/// Concatenates symmetric matrices or vectors; column-major storage equals row-major for both.
-fn flatten<R: Dim, C: Dim>(items: &[OMatrix<f64, R, C>]) -> Vec<f64>
+/// Appends a matrix or vector to a flat row-major output.
+fn push_matrix<R: Dim, C: Dim>(out: &mut Vec<f64>, m: &OMatrix<f64, R, C>)
 where
     DefaultAllocator: Allocator<R, C>,
 {
-    let mut out = Vec::with_capacity(items.len() * items.first().map_or(0, |m| m.len()));
-    for m in items {
-        out.extend_from_slice(m.as_slice());
+    for i in 0..m.nrows() {
+        for j in 0..m.ncols() {
+            out.push(m[(i, j)]);
+        }
     }
-    out
 }
 
 fn run_generic<N: Dim, M: Dim>(
@@ -323,27 +323,25 @@ where
         .chunks(m * m)
         .map(|r| OMatrix::<f64, M, M>::from_row_slice_generic(md, md, r))
         .collect();
-    let x0 = OVector::<f64, N>::from_row_slice_generic(nd, U1, input.prior_state);
-    let p0 = OMatrix::<f64, N, N>::from_row_slice_generic(nd, nd, input.prior_covariance);
+    let mut x = OVector::<f64, N>::from_row_slice_generic(nd, U1, input.prior_state);
+    let mut p = OMatrix::<f64, N, N>::from_row_slice_generic(nd, nd, input.prior_covariance);
     let mut f = OMatrix::<f64, N, N>::zeros_generic(nd, nd);
     let mut q = OMatrix::<f64, N, N>::zeros_generic(nd, nd);
 
-    let mut xp_all = Vec::with_capacity(n_meas);
-    let mut pp_all = Vec::with_capacity(n_meas);
-    let mut xf_all = Vec::with_capacity(n_meas);
-    let mut pf_all = Vec::with_capacity(n_meas);
-    let mut nis = Vec::with_capacity(n_meas);
-    let mut log_likelihood = Vec::with_capacity(n_meas);
+    let mut out = BatchOutput {
+        predicted_states: Vec::with_capacity(n_meas * ndim),
+        predicted_covariances: Vec::with_capacity(n_meas * ndim * ndim),
+        filtered_states: Vec::with_capacity(n_meas * ndim),
+        filtered_covariances: Vec::with_capacity(n_meas * ndim * ndim),
+        nis: Vec::with_capacity(n_meas),
+        log_likelihood: Vec::with_capacity(n_meas),
+        ..Default::default()
+    };
     let mut t_prev = input.prior_time;
     for (i, &t) in input.times.iter().enumerate() {
         model.fill_blocks(t - t_prev, &mut f, &mut q);
         t_prev = t;
-        // Each step starts from the last filtered state (the prior before the first).
-        let (x, p) = match (xf_all.last(), pf_all.last()) {
-            (Some(x), Some(p)) => (x, p),
-            _ => (&x0, &p0),
-        };
-        let (xp, pp) = predict(x, p, &f, &q);
+        let (xp, pp) = predict(&x, &p, &f, &q);
         let z = OVector::<f64, M>::from_row_slice_generic(
             md,
             U1,
@@ -357,109 +355,55 @@ where
             },
             other => other,
         })?;
-        nis.push(u.nis);
-        log_likelihood.push(u.log_likelihood);
-        xp_all.push(xp);
-        pp_all.push(pp);
-        xf_all.push(u.x);
-        pf_all.push(u.p);
+        push_matrix(&mut out.predicted_states, &xp);
+        push_matrix(&mut out.predicted_covariances, &pp);
+        push_matrix(&mut out.filtered_states, &u.x);
+        push_matrix(&mut out.filtered_covariances, &u.p);
+        out.nis.push(u.nis);
+        out.log_likelihood.push(u.log_likelihood);
+        x = u.x;
+        p = u.p;
     }
-    let (smoothed_states, smoothed_covariances) = if smooth {
-        let (xs, ps) = rts_smooth(model, input.times, &xp_all, &pp_all, &xf_all, &pf_all)?;
-        (flatten(&xs), flatten(&ps))
-    } else {
-        (Vec::new(), Vec::new())
-    };
-    Ok(BatchOutput {
-        predicted_states: flatten(&xp_all),
-        predicted_covariances: flatten(&pp_all),
-        filtered_states: flatten(&xf_all),
-        filtered_covariances: flatten(&pf_all),
-        smoothed_states,
-        smoothed_covariances,
-        nis,
-        log_likelihood,
-    })
+    if smooth {
+        rts_smooth_flat::<N>(model, input.times, &mut out)?;
+    }
+    Ok(out)
 }
 
-/// Rauch–Tung–Striebel smoother over a filtered sequence. `predicted[k]` is the prediction
-/// to `times[k]` from the filtered state `k − 1`; returns the smoothed states and covariances:
+/// Rauch–Tung–Striebel smoother over flat batch outputs (fills the smoothed fields):
 /// `C_k = P_k Fᵀ (P⁻_{k+1})⁻¹`, `x̂_k = x_k + C_k (x̂_{k+1} − x⁻_{k+1})`,
 /// `P̂_k = P_k + C_k (P̂_{k+1} − P⁻_{k+1}) C_kᵀ`.
-///
-/// All four sequences must have one entry per time, states of the model's dimension and
-/// covariances square of that dimension; otherwise fails with [`Error::Dimension`]. Fails with
-/// [`Error::NotPositiveDefinite`] when a predicted covariance is singular.
-#[allow(clippy::type_complexity)]
-pub fn rts_smooth<N: Dim>(
-    model: &MotionModel,
-    times: &[f64],
-    predicted_states: &[OVector<f64, N>],
-    predicted_covariances: &[OMatrix<f64, N, N>],
-    filtered_states: &[OVector<f64, N>],
-    filtered_covariances: &[OMatrix<f64, N, N>],
-) -> Result<(Vec<OVector<f64, N>>, Vec<OMatrix<f64, N, N>>)>
+fn rts_smooth_flat<N: Dim>(model: &MotionModel, times: &[f64], out: &mut BatchOutput) -> Result<()>
 where
     DefaultAllocator: Allocator<N, N> + Allocator<N>,
 {
-    let n = times.len();
     let ndim = model.ndim();
-    for (name, len) in [
-        ("predicted_states", predicted_states.len()),
-        ("predicted_covariances", predicted_covariances.len()),
-        ("filtered_states", filtered_states.len()),
-        ("filtered_covariances", filtered_covariances.len()),
-    ] {
-        if len != n {
-            return Err(Error::dim(
-                name,
-                format!("{n} entries (one per time)"),
-                format!("{len} entries"),
-            ));
-        }
-    }
-    for (name, states) in [
-        ("predicted_states", predicted_states),
-        ("filtered_states", filtered_states),
-    ] {
-        if let Some((k, x)) = states.iter().enumerate().find(|(_, x)| x.nrows() != ndim) {
-            return Err(Error::dim(
-                name,
-                format!("states of {ndim} values"),
-                format!("{} values at entry {k}", x.nrows()),
-            ));
-        }
-    }
-    for (name, covs) in [
-        ("predicted_covariances", predicted_covariances),
-        ("filtered_covariances", filtered_covariances),
-    ] {
-        if let Some((k, c)) = covs
-            .iter()
-            .enumerate()
-            .find(|(_, c)| c.shape() != (ndim, ndim))
-        {
-            return Err(Error::dim(
-                name,
-                format!("({ndim}, {ndim}) matrices"),
-                format!("{:?} at entry {k}", c.shape()),
-            ));
-        }
-    }
-    let mut xs = filtered_states.to_vec();
-    let mut ps = filtered_covariances.to_vec();
+    let n = times.len();
+    let nd = N::from_usize(ndim);
+    let (s2, s1) = (ndim * ndim, ndim);
+    out.smoothed_states = out.filtered_states.clone();
+    out.smoothed_covariances = out.filtered_covariances.clone();
     if n < 2 {
-        return Ok((xs, ps));
+        return Ok(());
     }
-    let (nd, _) = filtered_covariances[0].shape_generic();
     let mut f = OMatrix::<f64, N, N>::zeros_generic(nd, nd);
     let mut q = OMatrix::<f64, N, N>::zeros_generic(nd, nd);
+    let vec_at = |v: &[f64], k: usize| {
+        OVector::<f64, N>::from_row_slice_generic(nd, U1, &v[k * s1..(k + 1) * s1])
+    };
+    let mat_at = |v: &[f64], k: usize| {
+        OMatrix::<f64, N, N>::from_row_slice_generic(nd, nd, &v[k * s2..(k + 1) * s2])
+    };
+    let mut xs_next = vec_at(&out.smoothed_states, n - 1);
+    let mut ps_next = mat_at(&out.smoothed_covariances, n - 1);
     for k in (0..n - 1).rev() {
         model.fill_blocks(times[k + 1] - times[k], &mut f, &mut q);
-        let pp = &predicted_covariances[k + 1];
-        let pf = &filtered_covariances[k];
+        let xf = vec_at(&out.filtered_states, k);
+        let pf = mat_at(&out.filtered_covariances, k);
+        let xp = vec_at(&out.predicted_states, k + 1);
+        let pp = mat_at(&out.predicted_covariances, k + 1);
         // C = P_k Fᵀ (P⁻)⁻¹ = ((P⁻)⁻¹ F P_k)ᵀ
-        let fp = &f * pf;
+        let fp = &f * &pf;
         let c = match Cholesky::new(pp.clone()) {
             Some(ch) => ch.solve(&fp).transpose(),
             None => pp
@@ -471,13 +415,19 @@ where
                     reason: "is singular, the RTS smoother cannot invert it".into(),
                 })?,
         };
-        let x_new = &filtered_states[k] + &c * (&xs[k + 1] - &predicted_states[k + 1]);
-        let mut p_new = pf + &c * (&ps[k + 1] - pp) * c.transpose();
-        symmetrise(&mut p_new);
-        xs[k] = x_new;
-        ps[k] = p_new;
+        let xs = &xf + &c * (&xs_next - &xp);
+        let mut ps = &pf + &c * (&ps_next - &pp) * c.transpose();
+        symmetrise(&mut ps);
+        out.smoothed_states[k * s1..(k + 1) * s1].copy_from_slice(xs.as_slice());
+        for i in 0..ndim {
+            for j in 0..ndim {
+                out.smoothed_covariances[k * s2 + i * ndim + j] = ps[(i, j)];
+            }
+        }
+        xs_next = xs;
+        ps_next = ps;
     }
-    Ok((xs, ps))
+    Ok(())
 }
 
 #[cfg(test)]
@@ -540,56 +490,6 @@ mod tests {
         let p_simple = &p - &k * s * k.transpose();
         assert!((&u.p - p_simple).abs().max() < 1e-14);
         assert!((u.nis - 0.49 / s).abs() < 1e-14);
-    }
-
-    #[test]
-    fn rts_smooth_checks_lengths_and_shapes() {
-        let model = MotionModel::new(vec![Component::ConstantVelocity { q: 0.3 }]).unwrap();
-        let times = [0.0, 1.0, 2.0];
-        let x = DVector::from_vec(vec![0.0, 1.0]);
-        let p = DMatrix::<f64>::identity(2, 2);
-        let (xs, ps) = (vec![x.clone(); 3], vec![p.clone(); 3]);
-        assert!(rts_smooth(&model, &times, &xs, &ps, &xs, &ps).is_ok());
-        let short_x = vec![x.clone(); 2];
-        let short_p = vec![p.clone(); 2];
-        let name = |r: Result<_>| match r {
-            Err(Error::Dimension { arg, .. }) => arg,
-            other => panic!("expected a dimension error, got {other:?}"),
-        };
-        let cases = [
-            (
-                rts_smooth(&model, &times, &short_x, &ps, &xs, &ps),
-                "predicted_states",
-            ),
-            (
-                rts_smooth(&model, &times, &xs, &short_p, &xs, &ps),
-                "predicted_covariances",
-            ),
-            (
-                rts_smooth(&model, &times, &xs, &ps, &short_x, &ps),
-                "filtered_states",
-            ),
-            (
-                rts_smooth(&model, &times, &xs, &ps, &xs, &short_p),
-                "filtered_covariances",
-            ),
-        ];
-        for (got, want) in cases {
-            assert_eq!(name(got), want);
-        }
-        // Wrong state dimension (dynamic matrices would otherwise panic in nalgebra).
-        let mut bad_x = xs.clone();
-        bad_x[1] = DVector::from_vec(vec![0.0]);
-        assert_eq!(
-            name(rts_smooth(&model, &times, &xs, &ps, &bad_x, &ps)),
-            "filtered_states"
-        );
-        let mut bad_p = ps.clone();
-        bad_p[2] = DMatrix::<f64>::identity(3, 3);
-        assert_eq!(
-            name(rts_smooth(&model, &times, &xs, &bad_p, &xs, &ps)),
-            "predicted_covariances"
-        );
     }
 
     #[test]
