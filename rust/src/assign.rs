@@ -119,37 +119,11 @@ pub fn gnn_assign(
 ) -> Result<Vec<Option<usize>>> {
     let n = hyps.len();
     let mut out = vec![None; n];
-    // Union-find over tracks via shared detections.
-    let mut parent: Vec<usize> = (0..n).collect();
-    fn find(p: &mut [usize], mut x: usize) -> usize {
-        while p[x] != x {
-            p[x] = p[p[x]];
-            x = p[x];
-        }
-        x
-    }
-    let mut owner = vec![usize::MAX; n_detections];
-    for (t, h) in hyps.iter().enumerate() {
-        for &(d, _) in h {
-            if owner[d] == usize::MAX {
-                owner[d] = t;
-            } else {
-                let (a, b) = (find(&mut parent, owner[d]), find(&mut parent, t));
-                if a != b {
-                    parent[a] = b;
-                }
-            }
-        }
-    }
-    let mut groups: std::collections::BTreeMap<usize, Vec<usize>> = Default::default();
-    for (t, h) in hyps.iter().enumerate() {
-        if !h.is_empty() {
-            let r = find(&mut parent, t);
-            groups.entry(r).or_default().push(t);
-        }
-    }
+    let groups = crate::jpda::group_by_shared_detections(n, n_detections, |t| {
+        hyps[t].iter().map(|&(d, _)| d)
+    });
     let mut local = vec![usize::MAX; n_detections];
-    for tracks in groups.values() {
+    for tracks in groups.iter().filter(|g| !hyps[g[0]].is_empty()) {
         let mut dets: Vec<usize> = Vec::new();
         for &t in tracks {
             for &(d, _) in &hyps[t] {
