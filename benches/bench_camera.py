@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 from pathlib import Path
 
 import cv2
@@ -22,14 +21,7 @@ from usvfast import _core
 from usvfast.camera import mount_rotation, nms
 from usvfast.camera.calibration import CameraModel
 
-
-def best(fn, repeat):
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t)
-    return min(times), out
+from timing import best_of
 
 
 def numpy_nms(boxes, scores, thr):
@@ -126,8 +118,8 @@ def bench_nms(repeat):
     wh = rng.uniform(10, 100, (n, 2))
     boxes = np.hstack([xy, xy + wh])
     scores = rng.uniform(0, 1, n)
-    t_ours, ours = best(lambda: nms(boxes, scores, 0.45), repeat)
-    t_np, ref = best(lambda: numpy_nms(boxes, scores, 0.45), repeat)
+    t_ours, ours = best_of(lambda: nms(boxes, scores, 0.45), repeat)
+    t_np, ref = best_of(lambda: numpy_nms(boxes, scores, 0.45), repeat)
     assert np.array_equal(ours, ref), "NMS differs from the numpy reference"
     print(
         f"NMS 10,000 boxes: usvfast {t_ours * 1e3:.2f} ms, numpy {t_np * 1e3:.2f} ms, "
@@ -135,7 +127,7 @@ def bench_nms(repeat):
     )
     xywh = [[float(b[0]), float(b[1]), float(b[2] - b[0]), float(b[3] - b[1])] for b in boxes]
     sc = [float(s) for s in scores]
-    t_cv, cvk = best(lambda: cv2.dnn.NMSBoxes(xywh, sc, 0.0, 0.45), repeat)
+    t_cv, cvk = best_of(lambda: cv2.dnn.NMSBoxes(xywh, sc, 0.0, 0.45), repeat)
     same = set(np.asarray(cvk).ravel().tolist()) == set(ours.tolist())
     print(
         f"  cv2.dnn.NMSBoxes {t_cv * 1e3:.2f} ms, ratio {t_cv / t_ours:.1f}x "
@@ -163,8 +155,8 @@ def bench_georef(repeat):
     def ref():
         return numpy_georef(norm, jac, roll, pitch, h, r_bc, t_b, (1.0, 1.0), (0.005, 0.005), 0.05)
 
-    t_ours, (p, c, _) = best(ours, repeat)
-    t_np, (pr, cr) = best(ref, repeat)
+    t_ours, (p, c, _) = best_of(ours, repeat)
+    t_np, (pr, cr) = best_of(ref, repeat)
     np.testing.assert_allclose(p, pr, rtol=1e-9, atol=1e-9)
     np.testing.assert_allclose(c, cr, rtol=1e-7, atol=1e-12)
     print(
@@ -173,7 +165,7 @@ def bench_georef(repeat):
     )
     from usvfast.camera import georeference
 
-    t_full, _ = best(
+    t_full, _ = best_of(
         lambda: georeference(
             px,
             cam,
@@ -206,10 +198,10 @@ def bench_yolo(repeat):
     det = YoloDetector(KnownBoxesYolo(torch.zeros(1, 1, 7)), device="cpu")
     frame = np.random.default_rng(0).integers(0, 255, (720, 1280, 3), dtype=np.uint8)
     det([frame])
-    t, _ = best(lambda: det([frame]), repeat)
+    t, _ = best_of(lambda: det([frame]), repeat)
     x = torch.zeros(1, 3, 640, 640)
     with torch.inference_mode():
-        t_net, _ = best(lambda: det.model(x), repeat)
+        t_net, _ = best_of(lambda: det.model(x), repeat)
     print(
         f"YOLO test network, CPU 1 thread, 640x640: {t * 1e3:.1f} ms per frame end to end "
         f"(letterbox + net + decode + NMS), network alone {t_net * 1e3:.1f} ms"

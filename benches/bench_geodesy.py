@@ -8,21 +8,13 @@ pymap3d is given numpy arrays, so it runs vectorised; the best of `repeat` runs 
 from __future__ import annotations
 
 import argparse
-import time
 
 import numpy as np
 import pymap3d
 
 from usvfast import geodesy
 
-
-def best(fn, repeat):
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t0)
-    return min(times), out
+from timing import best_of
 
 
 def main() -> None:
@@ -52,8 +44,8 @@ def main() -> None:
     print(f"{args.n:,} points, best of {args.repeat}")
     print(f"{'function':16s} {'usvfast':>10s} {'pymap3d':>10s} {'ratio':>7s} {'max diff':>10s}")
     for name, a in cases:
-        t_ours, ours = best(lambda: getattr(geodesy, name)(*a), args.repeat)  # noqa: B023
-        t_peer, peer = best(lambda: getattr(pymap3d, name)(*a), args.repeat)  # noqa: B023
+        t_ours, ours = best_of(lambda: getattr(geodesy, name)(*a), args.repeat)  # noqa: B023
+        t_peer, peer = best_of(lambda: getattr(pymap3d, name)(*a), args.repeat)  # noqa: B023
         # Largest difference in the third output (metres) as a sanity check.
         diff = float(np.max(np.abs(np.asarray(ours[2]) - np.asarray(peer[2]))))
         print(

@@ -16,6 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
+from timing import best_of
+
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from usvfast.kalman import ConstantVelocity, kalman_filter
@@ -30,15 +32,6 @@ def make_input(n: int, seed: int = 0):
     idx = rng.integers(0, 2, n)
     z = (40.0 + 0.05 * (times - times[0]) + rng.normal(0, 0.8, n)).reshape(-1, 1)
     return times, z, idx, np.array([40.0, 0.0]), np.diag([10.0, 1.0])
-
-
-def best_of(fn, repeat: int) -> float:
-    best = float("inf")
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def ours(times, z, idx, x0, p0, smooth=True):
@@ -141,8 +134,8 @@ def main() -> None:
     times, z, idx, x0, p0 = make_input(args.n)
     n = args.n
 
-    t_both = best_of(lambda: ours(times, z, idx, x0, p0), 20)
-    t_filter = best_of(lambda: ours(times, z, idx, x0, p0, smooth=False), 20)
+    t_both, _ = best_of(lambda: ours(times, z, idx, x0, p0), 20)
+    t_filter, _ = best_of(lambda: ours(times, z, idx, x0, p0, smooth=False), 20)
     rows = [("usvfast (Rust, batch)", t_filter / n, (t_both - t_filter) / n, n)]
 
     from peers import stonesoup_kf_rts

@@ -12,7 +12,6 @@ the best-of-N times and the ratios.
 from __future__ import annotations
 
 import argparse
-import time
 
 import numpy as np
 
@@ -21,6 +20,8 @@ from usvfast.lidar import (
     line_of_sight_filter_naive,
     line_of_sight_filter_numpy,
 )
+
+from timing import best_of
 
 
 def harbour_scene(n: int, m: int, seed: int = 42) -> tuple[np.ndarray, np.ndarray]:
@@ -67,15 +68,6 @@ def line_of_sight_matmul(points, segments, tolerance=0.1, chunk=4096):
         near = d2 <= tolerance * tolerance
         keep[s : s + chunk] = ~(hidden | near).any(axis=1)
     return keep
-
-
-def best_of(fn, repeat):
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t)
-    return min(times), out
 
 
 def main() -> None:

@@ -10,12 +10,13 @@ give the same centres and labels, prints best-of-N times and the ratios.
 from __future__ import annotations
 
 import argparse
-import time
 
 import numpy as np
 from sklearn.cluster import MeanShift
 
 from usvfast.lidar import mean_shift
+
+from timing import best_of
 
 
 def buffered_detections(n: int, k: int = 8, seed: int = 7) -> np.ndarray:
@@ -24,15 +25,6 @@ def buffered_detections(n: int, k: int = 8, seed: int = 7) -> np.ndarray:
     clutter = n // 10
     objects = centres[np.arange(n - clutter) % k] + rng.normal(0, 0.15, (n - clutter, 2))
     return np.vstack([objects, rng.uniform(-10, 10, (clutter, 2))])
-
-
-def best_of(fn, repeat):
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t)
-    return min(times), out
 
 
 def main() -> None:
