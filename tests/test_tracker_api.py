@@ -479,3 +479,26 @@ def test_add_sensor_rejects_other_dimensions():
     with pytest.raises(TypeError, match="sensor"):
         tr.add_sensor((np.eye(2, 4), np.eye(2)))
     assert len(tr.sensors) == 2
+
+
+def test_jpda_without_a_chance_of_an_empty_scan_is_rejected():
+    # P_D * P_G = 1 would give ln(0) for the missed hypothesis: NaN states on an empty scan.
+    with pytest.raises(ValueError, match=r"prob_detect.*prob_gate"):
+        code57(T.JPDA(prob_detect=1.0, prob_gate=1.0, clutter_density=0.1))
+    # Either one below 1 is fine, and an empty scan keeps the states finite.
+    tr = code57(T.JPDA(prob_detect=1.0, prob_gate=0.99, clutter_density=0.1))
+    tr.add_track([0.0, 1.0, 0.0, 1.0], 0.1 * np.eye(4), 0.0)
+    tr.step(1.0)
+    s = tr.tracks
+    assert len(s.ids) == 1 and np.all(np.isfinite(s.states)) and np.all(np.isfinite(s.covariances))
+
+
+def test_jpda_estimated_clutter_needs_a_finite_gate():
+    with pytest.raises(ValueError, match="prob_gate"):
+        code57(T.JPDA(prob_detect=0.9, prob_gate=1.0, clutter_density=None))
+    # With a given clutter density an infinite gate is allowed.
+    tr = code57(T.JPDA(prob_detect=0.9, prob_gate=1.0, clutter_density=0.1))
+    tr.add_track([0.0, 1.0, 0.0, 1.0], 0.1 * np.eye(4), 0.0)
+    tr.step(1.0, [[1.0, 1.0]], [0])
+    s = tr.tracks
+    assert len(s.ids) == 1 and np.all(np.isfinite(s.states)) and np.all(np.isfinite(s.covariances))

@@ -226,6 +226,23 @@ impl TrackerConfig {
             Association::Jpda(j) => {
                 prob(j.prob_detect, "prob_detect")?;
                 prob(j.prob_gate, "prob_gate")?;
+                if j.prob_detect * j.prob_gate >= 1.0 {
+                    return Err(Error::param(
+                        "prob_detect",
+                        format!(
+                            "prob_detect * prob_gate must be < 1 (a scan without detections \
+                             would have zero probability), got prob_detect={} and prob_gate={}",
+                            j.prob_detect, j.prob_gate
+                        ),
+                    ));
+                }
+                if j.clutter_density.is_none() && j.prob_gate >= 1.0 {
+                    return Err(Error::param(
+                        "prob_gate",
+                        "must be < 1 when clutter_density is None (the clutter density is \
+                         estimated from the gate volume, which is infinite at prob_gate=1)",
+                    ));
+                }
                 if let Some(l) = j.clutter_density {
                     if !(l > 0.0 && l.is_finite()) {
                         return Err(Error::param(
