@@ -295,3 +295,14 @@ def test_horizon_line_separates_valid_from_rejected(cam, roll, pitch):
     assert below.valid.all() and not above.valid.any()
     if cam is CAM and roll == 0.0 and pitch == 0.0:
         assert (a, b) == pytest.approx((0.0, 760.0 - 4.0 / 60.0 * 1520.0), abs=1e-9)
+
+
+def test_rays_at_the_horizon_and_overflow_are_not_ok():
+    # Rolled 90 degrees the optical axis is horizontal up to round-off (was ~1e17 m, "ok").
+    g = georeference([[1344.0, 760.0]], CAM, height=H, roll=np.pi / 2)
+    assert REASONS[g.reason[0]] == "above_horizon"
+    assert np.all(np.isnan(g.positions)) and np.all(np.isnan(g.covariances))
+    # A height that overflows the position is not "ok" with inf either.
+    g = georeference([[1344.0, 1200.0]], CAM, height=1e308, height_sigma=1.0)
+    assert REASONS[g.reason[0]] == "above_horizon"
+    assert np.all(np.isnan(g.positions)) and np.all(np.isnan(g.covariances))

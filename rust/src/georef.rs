@@ -208,8 +208,9 @@ pub fn georeference(input: &GeorefInput) -> Result<GeorefOutput> {
         let d_c = Vector3::new(input.normalized[2 * i], input.normalized[2 * i + 1], 1.0);
         let d_b = r_bc * d_c;
         let d = r_lb * d_b;
-        // Reject rays at or above the horizon (or shallower than the minimum depression).
-        if d.z <= 0.0 || d.z <= sin_min * d.norm() {
+        // Reject rays at or above the horizon (or shallower than the minimum depression); the
+        // 1e-9 floor keeps round-off at the horizon (d_z ~ 1e-17) from giving ~1e17 m positions.
+        if d.z <= sin_min.max(1e-9) * d.norm() {
             continue;
         }
         let c = r_lb * t_b;
@@ -256,6 +257,10 @@ pub fn georeference(input: &GeorefInput) -> Result<GeorefOutput> {
         }
         // Symmetrise against round-off.
         let cov = (cov + cov.transpose()) * 0.5;
+        // Overflow (e.g. an enormous height) is reported like a ray above the horizon.
+        if !(p.iter().all(|v| v.is_finite()) && cov.iter().all(|v| v.is_finite())) {
+            continue;
+        }
         out.positions[2 * i] = p.x;
         out.positions[2 * i + 1] = p.y;
         out.covariances[4 * i] = cov[(0, 0)];
@@ -303,6 +308,18 @@ mod tests {
         assert_eq!(o.status, vec![STATUS_OK]);
         assert!((o.positions[0] - 21.0).abs() < 1e-12);
         assert!((o.positions[1] - 9.5).abs() < 1e-12);
+    }
+
+    #[test]
+    fn round_off_at_the_horizon_and_overflow_are_rejected() {
+        // Rolled 90 degrees: the optical-axis ray is horizontal up to round-off (d_z ~ 1e-17).
+        let o = one(0.0, 0.0, std::f64::consts::FRAC_PI_2, 0.0, 2.0, [0.0; 3]);
+        assert_eq!(o.status, vec![STATUS_ABOVE_HORIZON]);
+        assert!(o.positions.iter().all(|v| v.is_nan()));
+        // An enormous height overflows to inf: not OK either.
+        let o = one(0.0, 0.5, 0.0, 0.0, 1e308, [0.0; 3]);
+        assert_eq!(o.status, vec![STATUS_ABOVE_HORIZON]);
+        assert!(o.covariances.iter().all(|v| v.is_nan()));
     }
 
     #[test]
