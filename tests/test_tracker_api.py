@@ -10,7 +10,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from usvfast import DimensionError, NonFiniteError, NotPositiveDefiniteError, TimeOrderError
+from usvfast import (
+    DimensionError,
+    NonFiniteError,
+    NotPositiveDefiniteError,
+    TimeOrderError,
+    _core,
+)
 from usvfast import tracking as T
 from usvfast.kalman import constant_velocity_2d
 
@@ -502,3 +508,24 @@ def test_jpda_estimated_clutter_needs_a_finite_gate():
     tr.step(1.0, [[1.0, 1.0]], [0])
     s = tr.tracks
     assert len(s.ids) == 1 and np.all(np.isfinite(s.states)) and np.all(np.isfinite(s.covariances))
+
+
+def test_integer_arguments_are_named():
+    with pytest.raises(ValueError, match="steps"):
+        T.StepsSinceUpdate(2.7)._spec()
+    assert T.StepsSinceUpdate(2.0)._spec() == ("steps", 2)
+    with pytest.raises(ValueError, match="steps"):
+        T.AnyOf(T.StepsSinceUpdate(-1))._spec()
+    with pytest.raises(ValueError, match="mapping"):
+        T.Sensor.position(1, mapping=(0, 9))
+    with pytest.raises(ValueError, match="mapping"):
+        T.Sensor.position(1, mapping=(0, -1))
+    with pytest.raises(ValueError, match="mapping"):
+        T.CovarianceTrace(1, [-1])._spec()
+    tr = code57(T.JPDA(0.85, 0.95, 0.125))
+    with pytest.raises(ValueError, match="track_id"):
+        tr.history(-1)
+    with pytest.raises(ValueError, match="dof"):
+        _core.chi2_gate(0.5, -1)
+    with pytest.raises(ValueError, match="dof"):
+        _core.chi2_gate(0.5, 0)

@@ -122,6 +122,10 @@ class Sensor:
     ) -> Sensor:
         """A position sensor measuring the `mapping` entries of the state (default [n, e] of
         [n, v_n, e, v_e]) with standard deviation `noise_std` (scalar or one per axis)."""
+        ndim_state = _non_negative_int("ndim_state", ndim_state)
+        mapping = [_non_negative_int("mapping", i) for i in mapping]
+        if any(i >= ndim_state for i in mapping):
+            raise ValueError(f"mapping: indices must be < ndim_state={ndim_state}, got {mapping}")
         std = np.broadcast_to(np.asarray(noise_std, dtype=float), (len(mapping),))
         h = np.zeros((len(mapping), ndim_state))
         h[np.arange(len(mapping)), list(mapping)] = 1.0
@@ -202,9 +206,7 @@ class StepsSinceUpdate:
     steps: int
 
     def _spec(self) -> tuple:
-        if int(self.steps) < 0:
-            raise ValueError(f"steps: must be >= 0, got {self.steps}")
-        return ("steps", int(self.steps))
+        return ("steps", _non_negative_int("steps", self.steps))
 
 
 @dataclass(frozen=True)
@@ -227,7 +229,11 @@ class CovarianceTrace:
     mapping: Sequence[int] | None = None
 
     def _spec(self) -> tuple:
-        m = None if self.mapping is None else [int(i) for i in self.mapping]
+        m = (
+            None
+            if self.mapping is None
+            else [_non_negative_int("mapping", i) for i in self.mapping]
+        )
         return ("trace", float(self.threshold), m)
 
 
@@ -327,7 +333,11 @@ class MultiMeasurementInitiator:
 
 
 def _non_negative_int(name: str, v: Any) -> int:
-    if isinstance(v, bool) or int(v) != v or int(v) < 0:
+    try:
+        ok = not isinstance(v, bool) and int(v) == v and int(v) >= 0
+    except (TypeError, ValueError, OverflowError):
+        ok = False
+    if not ok:
         raise ValueError(f"{name}: must be a non-negative integer, got {v!r}")
     return int(v)
 
@@ -590,7 +600,7 @@ class Tracker:
 
     def history(self, track_id: int) -> TrackHistory:
         """Every state of a confirmed track, alive or deleted."""
-        return TrackHistory(**self._core.history(int(track_id)))
+        return TrackHistory(**self._core.history(_non_negative_int("track_id", track_id)))
 
     @property
     def dropped_scans(self) -> int:

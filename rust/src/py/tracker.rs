@@ -645,8 +645,14 @@ fn jpda_marginals<'py>(
 
 /// The chi-square quantile `chi2.ppf(prob_gate, dof)`.
 #[pyfunction]
-fn chi2_gate(prob_gate: f64, dof: usize) -> PyResult<f64> {
-    chi2_quantile(prob_gate, dof).map_err(to_py_err)
+fn chi2_gate(prob_gate: f64, dof: i64) -> PyResult<f64> {
+    if dof < 1 {
+        return Err(to_py_err(crate::Error::param(
+            "dof",
+            format!("must be an integer >= 1, got {dof}"),
+        )));
+    }
+    chi2_quantile(prob_gate, dof as usize).map_err(to_py_err)
 }
 
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
