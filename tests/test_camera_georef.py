@@ -306,3 +306,36 @@ def test_rays_at_the_horizon_and_overflow_are_not_ok():
     g = georeference([[1344.0, 1200.0]], CAM, height=1e308, height_sigma=1.0)
     assert REASONS[g.reason[0]] == "above_horizon"
     assert np.all(np.isnan(g.positions)) and np.all(np.isnan(g.covariances))
+
+
+def test_bad_arguments_are_named_not_internal():
+    px = [[1344.0, 1000.0]]
+    with pytest.raises(ValueError, match="mount_rotation"):
+        georeference(px, CAM, height=H, mount_rotation=np.eye(2))
+    with pytest.raises(ValueError, match="mount_rotation"):
+        georeference(px, CAM, height=H, mount_rotation=2 * np.eye(3))
+    with pytest.raises(ValueError, match="height_sigma"):
+        georeference(px, CAM, height=H, height_sigma=-1.0)
+    with pytest.raises(ValueError, match="heading_sigma"):
+        georeference(px, CAM, height=H, heading=0.0, heading_sigma=-1.0)
+    with pytest.raises(ValueError, match="heading_sigma"):
+        georeference(px, CAM, height=H, heading_sigma=0.01)  # no heading: would be ignored
+    for size in ((0, 0), (100, -1), (100,)):
+        with pytest.raises(ValueError, match="image_size"):
+            FovCamera(size, FOV)
+    for fov in ((0.0, 60.0), (109.0, -1.0), (180.0, 60.0), (np.nan, 60.0)):
+        with pytest.raises(ValueError, match="fov_deg"):
+            FovCamera(SIZE, fov)
+
+
+def test_horizon_line_needs_finite_attitude_and_spread():
+    from usvfast.camera import horizon_line
+
+    with pytest.raises(ValueError, match="spread_deg"):
+        horizon_line(CAM, spread_deg=0.0)
+    with pytest.raises(ValueError, match="pitch"):
+        horizon_line(CAM, pitch=np.nan)
+    with pytest.raises(ValueError, match="roll"):
+        horizon_line(CAM, roll=np.inf)
+    a, b = horizon_line(CAM)
+    assert np.isfinite(a) and np.isfinite(b)

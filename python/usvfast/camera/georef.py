@@ -74,6 +74,19 @@ class FovCamera:
     image_size: tuple[int, int]
     fov_deg: tuple[float, float]
 
+    def __post_init__(self) -> None:
+        size = np.asarray(self.image_size, dtype=np.float64)
+        if size.shape != (2,) or not np.all(np.isfinite(size)) or np.any(size <= 0):
+            raise ValueError(
+                f"image_size: expected (width, height) > 0 pixels, got {self.image_size!r}"
+            )
+        fov = np.asarray(self.fov_deg, dtype=np.float64)
+        if fov.shape != (2,) or not np.all((fov > 0) & (fov < 180)):
+            raise ValueError(
+                f"fov_deg: expected (horizontal, vertical) in (0, 180) degrees, "
+                f"got {self.fov_deg!r}"
+            )
+
     def normalized(self, pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Normalised coordinates `(tan θ_c, tan φ_c)` (eq. 3.14) and their pixel Jacobian."""
         w, h = (float(s) for s in self.image_size)
@@ -125,6 +138,27 @@ def _per_detection(name: str, value: Any, n: int) -> np.ndarray:
     return np.ascontiguousarray(np.broadcast_to(arr, (n,)))
 
 
+def _rotation(name: str, value: Any) -> np.ndarray:
+    if value is None:
+        return _R_AHEAD
+    r = as_float_array(name, value)
+    if r.shape != (3, 3):
+        raise ValueError(f"{name}: expected shape (3, 3), got {r.shape}")
+    if np.abs(r.T @ r - np.eye(3)).max() > 1e-6 or np.linalg.det(r) < 0:
+        raise ValueError(f"{name}: must be a rotation matrix (orthonormal, det +1)")
+    return r
+
+
+def _sigma(name: str, value: Any) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError) as exc:
+        raise TypeError(f"{name}: expected a number, got {type(value).__name__}") from exc
+    if not (np.isfinite(v) and v >= 0):
+        raise ValueError(f"{name}: must be finite and >= 0, got {value!r}")
+    return v
+
+
 def _pair(name: str, value: Any) -> tuple[float, float]:
     arr = as_float_array(name, value)
     arr = np.broadcast_to(arr.ravel(), (2,)) if arr.size == 1 else arr
@@ -171,7 +205,7 @@ def georeference(
         raise ValueError(f"pixels: expected shape (n, 2), got {px.shape}")
     n = px.shape[0]
     norm, jac = camera.normalized(px)
-    r_bc = _R_AHEAD if mount_rotation is None else as_float_array("mount_rotation", mount_rotation)
+    r_bc = _rotation("mount_rotation", mount_rotation)
     pos = as_float_array("mount_position", mount_position, ndim=1)
     if pos.shape != (3,):
         raise ValueError(f"mount_position: expected shape (3,), got {pos.shape}")
@@ -184,6 +218,10 @@ def georeference(
         if ne.shape not in ((2,), (n, 2)):
             raise ValueError(f"vessel_ne: expected shape (2,) or ({n}, 2), got {ne.shape}")
         ne = np.ascontiguousarray(np.broadcast_to(ne, (n, 2)))
+    height_sigma = _sigma("height_sigma", height_sigma)
+    heading_sigma = _sigma("heading_sigma", heading_sigma)
+    if heading_sigma > 0 and head is None:
+        raise ValueError("heading_sigma: only meaningful with a heading (NED output)")
     if not (np.isfinite(min_depression_deg) and 0.0 <= min_depression_deg < 90.0):
         raise ValueError(f"min_depression_deg: must be in [0, 90), got {min_depression_deg}")
     positions, covariances, status = _core.georeference_rays(
@@ -199,8 +237,8 @@ def georeference(
         min_depression=float(np.radians(min_depression_deg)),
         sigma_px=_pair("pixel_sigma", pixel_sigma),
         sigma_roll_pitch=_pair("attitude_sigma", attitude_sigma),
-        sigma_height=float(height_sigma),
-        sigma_heading=float(heading_sigma),
+        sigma_height=height_sigma,
+        sigma_heading=heading_sigma,
     )
     reason = status.astype(np.int64)
     if max_range is not None:
@@ -232,7 +270,12 @@ def horizon_line(
     or :class:`usvfast.camera.CameraModel`). Contact points with v <= a·u + b are at or above
     it. With lens distortion the true horizon is curved; the line is exact at the two points.
     """
-    r_bc = _R_AHEAD if mount_rotation is None else as_float_array("mount_rotation", mount_rotation)
+    r_bc = _rotation("mount_rotation", mount_rotation)
+    for name, v in (("roll", roll), ("pitch", pitch), ("margin_deg", margin_deg)):
+        if not np.isfinite(v):
+            raise ValueError(f"{name}: must be finite, got {v!r}")
+    if not (np.isfinite(spread_deg) and 0.0 < spread_deg < 90.0):
+        raise ValueError(f"spread_deg: must be in (0, 90), got {spread_deg!r}")
     r_lc = rotation_zyx(0.0, pitch, roll) @ r_bc
     axis = r_lc[:, 2]
     az = np.arctan2(axis[1], axis[0])
@@ -321,7 +364,7 @@ def sensitivity(
     result. Extra keyword arguments go to :func:`georeference` (roll, pitch, mount_position, ...).
     """
     px = as_float_array("pixels", pixels, ndim=2)
-    r_bc = _R_AHEAD if mount_rotation is None else as_float_array("mount_rotation", mount_rotation)
+    r_bc = _rotation("mount_rotation", mount_rotation)
 
     def run(p: np.ndarray, r: np.ndarray) -> np.ndarray:
         return georeference(p, camera, height=height, mount_rotation=r, **kwargs).positions
