@@ -339,3 +339,18 @@ def test_horizon_line_needs_finite_attitude_and_spread():
         horizon_line(CAM, roll=np.inf)
     a, b = horizon_line(CAM)
     assert np.isfinite(a) and np.isfinite(b)
+
+
+def test_max_range_is_from_the_camera_in_ned_too():
+    # Camera 10 m to starboard looking ahead: a contact straight ahead of it at f metres is f
+    # from the camera but sqrt(f² + 100) from the vessel reference point.
+    pos = (0.0, 10.0, -H)
+    px = [[1344.0, 900.0]]
+    f = georeference(px, CAM, height=H, mount_position=pos).positions[0, 0]
+    assert 5.0 < f < 40.0
+    for heading, ne in ((0.0, None), (np.pi / 2, (100.0, -50.0)), (-2.0, (3.0, 4.0))):
+        kw = {} if ne is None and heading == 0.0 else {"heading": heading, "vessel_ne": ne}
+        keep = georeference(px, CAM, height=H, mount_position=pos, max_range=f + 1.0, **kw)
+        drop = georeference(px, CAM, height=H, mount_position=pos, max_range=f - 1.0, **kw)
+        assert REASONS[keep.reason[0]] == "ok", heading
+        assert REASONS[drop.reason[0]] == "beyond_max_range", heading

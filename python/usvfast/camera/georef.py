@@ -244,9 +244,14 @@ def georeference(
     if max_range is not None:
         if not max_range > 0:
             raise ValueError(f"max_range: must be > 0, got {max_range}")
-        rel = positions - (ne if ne is not None else 0.0)
+        # Horizontal distance from the camera: subtract its (horizontal) mount offset, turned
+        # into NED by the heading when the output is NED.
         if head is None:
-            rel = rel - pos[:2]
+            rel = positions - pos[:2]
+        else:
+            c, s = np.cos(head), np.sin(head)
+            cam_ne = np.stack([c * pos[0] - s * pos[1], s * pos[0] + c * pos[1]], axis=1)
+            rel = positions - cam_ne - (ne if ne is not None else 0.0)
         far = (reason == OK) & (np.hypot(rel[:, 0], rel[:, 1]) > max_range)
         reason[far] = BEYOND_MAX_RANGE
         positions[far] = np.nan
