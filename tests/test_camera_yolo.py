@@ -183,3 +183,10 @@ def test_pipeline_filters_and_any_callable():
     ]
     assert np.isfinite(res.positions[0]).all() and np.isnan(res.positions[1:]).all()
     assert isinstance(res.detections, Detections)
+
+
+def test_nms_accepts_empty_input():
+    for boxes in ([], np.zeros((0, 4))):
+        keep = nms(boxes, [])
+        assert keep.shape == (0,) and keep.dtype == np.int64
+    assert nms([], [], classes=[]).shape == (0,)

@@ -19,9 +19,13 @@ def nms(boxes: Any, scores: Any, iou_threshold: float = 0.45, classes: Any = Non
     `classes` (n,) integer ids, boxes of different classes never suppress each other
     (`torchvision.ops.batched_nms`). Raises DimensionError / NonFiniteError / ValueError.
     """
-    b = as_float_array("boxes", boxes, ndim=2)
-    if b.shape == (0,) or b.size == 0:
+    b = as_float_array("boxes", boxes)
+    if b.size == 0:
         b = b.reshape(0, 4)
+    if b.ndim != 2:
+        raise _core.DimensionError(f"boxes: expected a 2-D array (n, 4), got shape {b.shape}")
     s = as_float_array("scores", scores, ndim=1)
+    if classes is not None and np.size(classes) == 0:
+        classes = np.zeros(0, dtype=np.int64)  # [] is float64 to numpy
     c = None if classes is None else as_index_array("classes", classes, b.shape[0])
     return _core.nms_indices(b, s, float(iou_threshold), c)
