@@ -491,10 +491,6 @@ class Tracker:
             sensors = [sensors]
         specs = [_sensor_spec(s, f"sensors[{i}]") for i, s in enumerate(sensors)]
         self.sensors = tuple(sensors)
-        self._ndim = sum(
-            {"random_walk": 1, "constant_velocity": 2, "constant_acceleration": 3}[k]
-            for k, _ in model_spec(motion_model)
-        )
         self._m = specs[0][0].shape[0] if specs else 0
         self._core = _core.TrackerCore(
             model_spec(motion_model),
@@ -562,7 +558,6 @@ class Tracker:
         if si.shape != (len(z),):
             raise _core.DimensionError(f"scan_index: expected shape ({len(z)},), got {si.shape}")
         out = self._core.run(t, z, ids, si)
-        out.pop("detection_order")
         return RunResult(**out)
 
     def add_sensor(self, sensor: Sensor) -> int:

@@ -156,14 +156,6 @@ impl Track {
         t
     }
 
-    /// Appends a state and makes it current.
-    pub fn append(&mut self, x: DVector<f64>, p: DMatrix<f64>, entry: Entry) {
-        self.t = entry.time;
-        self.history.push(&entry, &x, &p);
-        self.x = x;
-        self.p = p;
-    }
-
     /// Appends a state given as slices (`x` `(ndim,)`, `p` column-major `(ndim, ndim)`)
     /// copied into the track's buffers (no allocation), and makes it current.
     pub fn append_slices(&mut self, x: &[f64], p: &[f64], entry: &Entry) {
@@ -317,11 +309,11 @@ mod tests {
         let p = DMatrix::identity(2, 2);
         let mut t = Track::new(0, x.clone(), p.clone(), entry(0.0, true));
         let d = Deleter::StepsSinceUpdate(2);
-        t.append(x.clone(), p.clone(), entry(1.0, false));
+        t.append_slices(x.as_slice(), p.as_slice(), &entry(1.0, false));
         assert!(!d.check(&t));
-        t.append(x.clone(), p.clone(), entry(1.0, false));
+        t.append_slices(x.as_slice(), p.as_slice(), &entry(1.0, false));
         assert!(!d.check(&t));
-        t.append(x.clone(), p.clone(), entry(2.0, false));
+        t.append_slices(x.as_slice(), p.as_slice(), &entry(2.0, false));
         assert!(d.check(&t));
         let trace = Deleter::CovarianceTrace {
             threshold: 1.5,

@@ -383,10 +383,10 @@ impl TrackerCore {
                         rows.5.push(*tr.history.is_update.last().unwrap_or(&false));
                     }
                 }
-                Ok((rows, dropped, order))
+                Ok((rows, dropped))
             })
             .map_err(to_py_err)?;
-        let ((scan, id, time, st, cv, upd), dropped, order) = out;
+        let ((scan, id, time, st, cv, upd), dropped) = out;
         let r = scan.len();
         let d = PyDict::new(py);
         d.set_item("scan", arr_i(py, scan, &[r])?)?;
@@ -397,9 +397,6 @@ impl TrackerCore {
         d.set_item("is_update", PyArray1::from_vec(py, upd))?;
         let nd_ = dropped.len();
         d.set_item("dropped_scans", arr_i(py, dropped, &[nd_])?)?;
-        let no = order.len();
-        let order: Vec<i64> = order.into_iter().map(|o| o as i64).collect();
-        d.set_item("detection_order", arr_i(py, order, &[no])?)?;
         Ok(d)
     }
 
