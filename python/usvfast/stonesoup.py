@@ -72,6 +72,7 @@ class LinearSensor:
     noise: np.ndarray
 
     def same_as(self, other: LinearSensor) -> bool:
+        """True when both the measurement matrix and the noise covariance are exactly equal."""
         return np.array_equal(self.matrix, other.matrix) and np.array_equal(self.noise, other.noise)
 
 
@@ -648,7 +649,10 @@ class _DropInTracker:
             spec = (main.matrix, main.noise, init.matrix, init.noise)
         else:
             s = _sensor(model, "detection.measurement_model")
-            assert s is not None
+            if s is None:
+                raise TypeError(
+                    "detection.measurement_model: expected a LinearGaussian measurement model"
+                )
             if s.matrix.shape[1] != len(cfg.prior_state):
                 raise ValueError(
                     f"detection.measurement_model: ndim_state {s.matrix.shape[1]} differs from "

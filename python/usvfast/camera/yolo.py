@@ -88,6 +88,7 @@ class Detections:
 
     @staticmethod
     def empty() -> Detections:
+        """No detections: boxes (0, 4), scores (0,), class ids (0,) int64."""
         return Detections(np.zeros((0, 4)), np.zeros(0), np.zeros(0, dtype=np.int64))
 
 
