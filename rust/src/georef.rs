@@ -312,8 +312,8 @@ mod tests {
 
     #[test]
     fn round_off_at_the_horizon_and_overflow_are_rejected() {
-        // Rolled 90 degrees: the optical-axis ray is horizontal up to round-off (d_z ~ 1e-17).
-        let o = one(0.0, 0.0, std::f64::consts::FRAC_PI_2, 0.0, 2.0, [0.0; 3]);
+        // Rolled 90 degrees: a ray below the image centre is horizontal up to round-off.
+        let o = one(0.0, 0.2, std::f64::consts::FRAC_PI_2, 0.0, 2.0, [0.0; 3]);
         assert_eq!(o.status, vec![STATUS_ABOVE_HORIZON]);
         assert!(o.positions.iter().all(|v| v.is_nan()));
         // An enormous height overflows to inf: not OK either.
