@@ -237,30 +237,33 @@ class CovarianceTrace:
         return ("trace", float(self.threshold), m)
 
 
+class _Composite:
+    """Deleters combined like Stone Soup's CompositeDeleter (`_kind` "any" or "all")."""
+
+    _kind = ""
+    deleters: tuple
+
+    def __init__(self, *deleters: Any) -> None:
+        object.__setattr__(self, "deleters", tuple(deleters))
+
+    def _spec(self) -> tuple:
+        return (self._kind, [_deleter_spec(d) for d in self.deleters])
+
+
 @dataclass(frozen=True, init=False)
-class AnyOf:
+class AnyOf(_Composite):
     """Delete when any of the deleters would (CompositeDeleter(intersect=False))."""
 
     deleters: tuple
-
-    def __init__(self, *deleters: Any) -> None:
-        object.__setattr__(self, "deleters", tuple(deleters))
-
-    def _spec(self) -> tuple:
-        return ("any", [_deleter_spec(d) for d in self.deleters])
+    _kind = "any"
 
 
 @dataclass(frozen=True, init=False)
-class AllOf:
+class AllOf(_Composite):
     """Delete when all of the deleters would (CompositeDeleter(intersect=True))."""
 
     deleters: tuple
-
-    def __init__(self, *deleters: Any) -> None:
-        object.__setattr__(self, "deleters", tuple(deleters))
-
-    def _spec(self) -> tuple:
-        return ("all", [_deleter_spec(d) for d in self.deleters])
+    _kind = "all"
 
 
 @dataclass(frozen=True)

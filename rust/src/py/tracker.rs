@@ -162,6 +162,28 @@ fn history_dict<'py>(py: Python<'py>, tr: &Track, ndim: usize) -> PyResult<Bound
     Ok(d)
 }
 
+/// Sensor `i` from its arrays: H, R and optional initiation H/R (each defaulting to the
+/// measurement one when only the other is given), checked against an `n`-state model.
+fn sensor_from_arrays(
+    h: &PyReadonlyArray2<'_, f64>,
+    r: &PyReadonlyArray2<'_, f64>,
+    hi: Option<&PyReadonlyArray2<'_, f64>>,
+    ri: Option<&PyReadonlyArray2<'_, f64>>,
+    n: usize,
+    i: usize,
+) -> PyResult<Sensor> {
+    let h = matrix("measurement_matrix", h)?;
+    let r = matrix("measurement_noise", r)?;
+    let init = match (hi, ri) {
+        (None, None) => None,
+        (hi, ri) => Some((
+            hi.map_or(Ok(h.clone()), |a| matrix("initiation_matrix", a))?,
+            ri.map_or(Ok(r.clone()), |a| matrix("initiation_noise", a))?,
+        )),
+    };
+    Sensor::new(h, r, init, n, &format!("sensors[{i}]")).map_err(to_py_err)
+}
+
 /// The multi-target tracker core; build it through `usvfast.tracking.Tracker`.
 #[pyclass(module = "usvfast._core")]
 pub struct TrackerCore {
@@ -194,20 +216,7 @@ impl TrackerCore {
         let sensors = sensors
             .iter()
             .enumerate()
-            .map(|(i, (h, r, hi, ri))| {
-                let h = matrix("measurement_matrix", h)?;
-                let r = matrix("measurement_noise", r)?;
-                let init = match (hi, ri) {
-                    (None, None) => None,
-                    (hi, ri) => Some((
-                        hi.as_ref()
-                            .map_or(Ok(h.clone()), |a| matrix("initiation_matrix", a))?,
-                        ri.as_ref()
-                            .map_or(Ok(r.clone()), |a| matrix("initiation_noise", a))?,
-                    )),
-                };
-                Sensor::new(h, r, init, n, &format!("sensors[{i}]")).map_err(to_py_err)
-            })
+            .map(|(i, (h, r, hi, ri))| sensor_from_arrays(h, r, hi.as_ref(), ri.as_ref(), n, i))
             .collect::<PyResult<Vec<_>>>()?;
         let kind = get_str(association, "kind")?;
         let association = match kind.as_str() {
@@ -254,10 +263,7 @@ impl TrackerCore {
             },
             motion_model: init_model.map(|m| motion_model_from_spec(&m)).transpose()?,
             use_joseph_cov: get_bool(initiator, "use_joseph_cov")?,
-            symmetric_covariance: match initiator.get_item("symmetric_covariance")? {
-                Some(v) => v.extract()?,
-                None => false,
-            },
+            symmetric_covariance: get_bool(initiator, "symmetric_covariance")?,
         };
         let out_of_order = match out_of_order {
             "raise" => OutOfOrder::Raise,
@@ -411,18 +417,14 @@ impl TrackerCore {
     ) -> PyResult<usize> {
         let n = self.inner.config().motion_model.ndim();
         let i = self.inner.config().sensors.len();
-        let h = matrix("measurement_matrix", &measurement_matrix)?;
-        let r = matrix("measurement_noise", &measurement_noise)?;
-        let init = match (&initiation_matrix, &initiation_noise) {
-            (None, None) => None,
-            (hi, ri) => Some((
-                hi.as_ref()
-                    .map_or(Ok(h.clone()), |a| matrix("initiation_matrix", a))?,
-                ri.as_ref()
-                    .map_or(Ok(r.clone()), |a| matrix("initiation_noise", a))?,
-            )),
-        };
-        let sensor = Sensor::new(h, r, init, n, &format!("sensors[{i}]")).map_err(to_py_err)?;
+        let sensor = sensor_from_arrays(
+            &measurement_matrix,
+            &measurement_noise,
+            initiation_matrix.as_ref(),
+            initiation_noise.as_ref(),
+            n,
+            i,
+        )?;
         self.inner.add_sensor(sensor).map_err(to_py_err)
     }
 
