@@ -4,20 +4,27 @@ Code 5.7 configuration (CV q = 0.001, JPDA P_D 0.85 / P_G 0.95 / λ 0.125, GNN i
 missed distance 0.3, covariance-trace + steps deleters), one position sensor σ = 0.25 m:
 (a) 5 well-separated targets with clutter, (b) 20 separated targets, (c) 8 targets in parallel
 0.3 m apart (inside each other's gates), (d) scaling 10 … 10,000 separated targets (ours; Stone
-Soup's EHM up to 100). Stone Soup runs JPDA (where it finishes) and JPDAwithEHM (pyehm's
-algorithm in Stone Soup). Run: `python benches/bench_tracker.py [--scans N] [--full]`.
+Soup's EHM up to 100). Stone Soup runs JPDA (where it finishes) and JPDAWithEHM (the pyehm
+plugin), both built by tests/ssharness.py.
+Run: `python benches/bench_tracker.py [--scans N] [--full]`.
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from datetime import datetime, timedelta
+from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+
 from usvfast import tracking as T
 from usvfast.kalman import constant_velocity_2d
+
+import ssharness as H
 
 SIGMA = 0.25
 
@@ -65,60 +72,18 @@ def ours(scans, warm=0):
 
 
 def stonesoup(scans, ehm, warm=0):
-    from stonesoup.dataassociator.neighbour import GNNWith2DAssignment
-    from stonesoup.dataassociator.probability import JPDA, JPDAwithEHM
-    from stonesoup.deleter.error import CovarianceBasedDeleter
-    from stonesoup.deleter.multi import CompositeDeleter
-    from stonesoup.deleter.time import UpdateTimeStepsDeleter
-    from stonesoup.hypothesiser.distance import DistanceHypothesiser
-    from stonesoup.hypothesiser.probability import PDAHypothesiser
-    from stonesoup.initiator.simple import MultiMeasurementInitiator
-    from stonesoup.measures import Mahalanobis
-    from stonesoup.models.measurement.linear import LinearGaussian
-    from stonesoup.models.transition.linear import (
-        CombinedLinearGaussianTransitionModel,
-        ConstantVelocity,
-    )
-    from stonesoup.predictor.kalman import KalmanPredictor
-    from stonesoup.tracker.simple import MultiTargetMixtureTracker
     from stonesoup.types.detection import Detection
-    from stonesoup.types.state import GaussianState
-    from stonesoup.updater.kalman import KalmanUpdater
 
     epoch = datetime(2024, 1, 1)
-    model = LinearGaussian(4, [0, 2], np.eye(2) * SIGMA**2)
-    predictor = KalmanPredictor(
-        CombinedLinearGaussianTransitionModel([ConstantVelocity(0.001), ConstantVelocity(0.001)])
+    cfg = H.Code57(init_noise=SIGMA**2, associator="ehm" if ehm else "jpda")
+    detector = (
+        (
+            epoch + timedelta(seconds=t),
+            {Detection(zz.reshape(2, 1), timestamp=epoch + timedelta(seconds=t)) for zz in z},
+        )
+        for t, z in scans
     )
-    updater = KalmanUpdater(model)
-    assoc_cls = JPDAwithEHM if ehm else JPDA
-    tracker = MultiTargetMixtureTracker(
-        initiator=MultiMeasurementInitiator(
-            prior_state=GaussianState(np.zeros((4, 1)), np.diag([0, 0.3, 0, 0.3])),
-            measurement_model=model,
-            deleter=UpdateTimeStepsDeleter(3),
-            data_associator=GNNWith2DAssignment(
-                DistanceHypothesiser(predictor, updater, Mahalanobis(), missed_distance=0.3)
-            ),
-            updater=updater,
-            min_points=2,
-        ),
-        deleter=CompositeDeleter(
-            [CovarianceBasedDeleter(covar_trace_thresh=1.5), UpdateTimeStepsDeleter(35)],
-            intersect=False,
-        ),
-        detector=(
-            (
-                epoch + timedelta(seconds=t),
-                {Detection(zz.reshape(2, 1), timestamp=epoch + timedelta(seconds=t)) for zz in z},
-            )
-            for t, z in scans
-        ),
-        data_associator=assoc_cls(
-            PDAHypothesiser(predictor, updater, clutter_spatial_density=0.125)
-        ),
-        updater=updater,
-    )
+    tracker, _ = H.build_stonesoup(cfg, detector)
     per = []
     tracks = set()
     t0 = time.perf_counter()

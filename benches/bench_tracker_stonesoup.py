@@ -28,9 +28,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-import ssharness as H
-
 from usvfast import stonesoup as us
+
+import ssharness as H
 
 
 class Timeout(Exception):

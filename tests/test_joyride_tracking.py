@@ -7,13 +7,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import ssharness as H
 
 from usvfast import NotPositiveDefiniteError
 from usvfast import stonesoup as us
 from usvfast.datasets import load_joyride
 from usvfast.metrics import clear_mot, track_quality
 
+import ssharness as H
 from conftest import SHARED_DATA
 
 JOYRIDE = SHARED_DATA / "joyride" / "joyride.mat"

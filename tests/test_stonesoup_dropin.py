@@ -10,10 +10,11 @@ from datetime import timedelta
 
 import numpy as np
 import pytest
-import ssharness as H
 
 from usvfast import TimeOrderError
 from usvfast import stonesoup as us
+
+import ssharness as H
 
 SEEDS = (0, 1)
 # Short deletion horizons so that deaths happen within the short scenarios.

@@ -20,6 +20,8 @@ from usvfast import (
 from usvfast import tracking as T
 from usvfast.kalman import constant_velocity_2d
 
+from ssharness import Code57, build_stonesoup
+
 NOISE = (0.25, 0.5)
 
 
@@ -73,53 +75,12 @@ def code57(association, **kw):
 
 
 def stonesoup_run(scans, gnn):
-    from stonesoup.dataassociator.neighbour import GNNWith2DAssignment
-    from stonesoup.dataassociator.probability import JPDA
-    from stonesoup.deleter.error import CovarianceBasedDeleter
-    from stonesoup.deleter.multi import CompositeDeleter
-    from stonesoup.deleter.time import UpdateTimeStepsDeleter
-    from stonesoup.hypothesiser.distance import DistanceHypothesiser
-    from stonesoup.hypothesiser.probability import PDAHypothesiser
-    from stonesoup.initiator.simple import MultiMeasurementInitiator
-    from stonesoup.measures import Mahalanobis
+    """The same configuration through Stone Soup (tests/ssharness.py builds Code 5.7)."""
     from stonesoup.models.measurement.linear import LinearGaussian
-    from stonesoup.models.transition.linear import (
-        CombinedLinearGaussianTransitionModel,
-        ConstantVelocity,
-    )
-    from stonesoup.predictor.kalman import KalmanPredictor
-    from stonesoup.tracker.simple import MultiTargetMixtureTracker, MultiTargetTracker
     from stonesoup.types.detection import Detection
-    from stonesoup.types.state import GaussianState
-    from stonesoup.updater.kalman import KalmanUpdater
 
     epoch = datetime(2024, 1, 1)
-    transition = CombinedLinearGaussianTransitionModel(
-        [ConstantVelocity(0.001), ConstantVelocity(0.001)]
-    )
     models = [LinearGaussian(4, [0, 2], np.eye(2) * s**2) for s in NOISE]
-    predictor = KalmanPredictor(transition)
-    updater = KalmanUpdater(LinearGaussian(4, [0, 2], np.eye(2) * 0.01))
-    if gnn:
-        associator = GNNWith2DAssignment(
-            DistanceHypothesiser(predictor, updater, Mahalanobis(), missed_distance=3)
-        )
-    else:
-        associator = JPDA(PDAHypothesiser(predictor, updater, clutter_spatial_density=0.125))
-    initiator = MultiMeasurementInitiator(
-        prior_state=GaussianState(np.zeros((4, 1)), np.diag([0, 0.3, 0, 0.3])),
-        measurement_model=models[0],
-        deleter=UpdateTimeStepsDeleter(3),
-        data_associator=GNNWith2DAssignment(
-            DistanceHypothesiser(predictor, updater, Mahalanobis(), missed_distance=0.3)
-        ),
-        updater=updater,
-        min_points=2,
-    )
-    deleter = CompositeDeleter(
-        [CovarianceBasedDeleter(covar_trace_thresh=1.5), UpdateTimeStepsDeleter(35)],
-        intersect=False,
-    )
 
     def detector():
         for t, z, s in scans:
@@ -132,14 +93,7 @@ def stonesoup_run(scans, gnn):
                 },
             )
 
-    cls = MultiTargetTracker if gnn else MultiTargetMixtureTracker
-    tracker = cls(
-        initiator=initiator,
-        deleter=deleter,
-        detector=detector(),
-        data_associator=associator,
-        updater=updater,
-    )
+    tracker, _ = build_stonesoup(Code57(associator="gnn" if gnn else "jpda"), detector())
     return [
         sorted(np.asarray(tr.state_vector, float).ravel().tolist() for tr in tracks)
         for _, tracks in tracker
