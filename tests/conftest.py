@@ -4,6 +4,7 @@ import os
 import sys
 from pathlib import Path
 
+import pytest
 from hypothesis import HealthCheck, settings
 
 # tests/peers.py and friends are importable as top-level helpers.
@@ -15,8 +16,38 @@ settings.register_profile(
 )
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
-# The real field data lives in shared/data beside the repository (as on CI); set
-# USVFAST_SHARED_DATA to use another copy (e.g. from a git worktree elsewhere).
-SHARED_DATA = Path(
+# Real field data. The small, permissively licensed files the tests use are vendored in
+# tests/data (each folder with its licence); larger or GPL data (MarDCT) stays in shared/data
+# beside the repository (as on CI). USVFAST_SHARED_DATA points at another copy of that folder.
+VENDORED_DATA = Path(__file__).resolve().parent / "data"
+SHARED_ROOT = Path(
     os.environ.get("USVFAST_SHARED_DATA", Path(__file__).resolve().parents[2] / "shared" / "data")
 )
+
+
+class _DataRoot:
+    """`SHARED_DATA / "nmea"`: the vendored copy when there is one, else shared/data's."""
+
+    def __truediv__(self, name: str) -> Path:
+        vendored = VENDORED_DATA / name
+        return vendored if vendored.exists() else SHARED_ROOT / name
+
+    def __str__(self) -> str:
+        return str(SHARED_ROOT)
+
+
+SHARED_DATA = _DataRoot()
+
+
+def shared_data(name: str) -> Path:
+    """The folder `name` of shared/data (data not vendored, e.g. GPL-licensed MarDCT).
+
+    Skips the calling test when the folder is absent (a plain clone), unless
+    USVFAST_REQUIRE_SHARED=1 (set by .ci/run): then its absence fails the test.
+    """
+    path = SHARED_ROOT / name
+    if not path.is_dir():
+        if os.environ.get("USVFAST_REQUIRE_SHARED") == "1":
+            pytest.fail(f"{path} is missing and USVFAST_REQUIRE_SHARED=1")
+        pytest.skip(f"{path} is absent (data not vendored; see tests/data/README.md)")
+    return path

@@ -542,8 +542,8 @@ def snapshot(tracks) -> list[tuple[int, tuple[float, float]]]:
     return [(id(t), (float(t.state_vector[0, 0]), float(t.state_vector[2, 0]))) for t in tracks]
 
 
-# Stone Soup JPDA on Joyride with the anchor parameters of issue 3 (q = 2, sigma = 10 m,
-# P_D 0.8, clutter 7e-8 /m², 3-point initiation); the remaining knobs, which the issue does not
+# Stone Soup JPDA on Joyride with the anchor parameters (q = 2, sigma = 10 m,
+# P_D 0.8, clutter 7e-8 /m², 3-point initiation); the remaining knobs, which the anchors do not
 # give, were picked from a small grid (prob_gate 0.95/0.99, deleter 3..20 steps, initiator
 # missed distance 2..5, prior velocity variance 25/100 m²/s²) as the setting that reproduces its
 # figures (21.1 m, 89 %, 5 fragments): this run gives 21.0 m, 89 %, 5 fragments.

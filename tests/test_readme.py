@@ -8,7 +8,7 @@ from pathlib import Path
 import matplotlib
 import pytest
 
-from conftest import SHARED_DATA
+from conftest import VENDORED_DATA
 
 README = Path(__file__).resolve().parents[1] / "README.md"
 # The recording example reads files described in the README's TOML block:
@@ -27,7 +27,7 @@ def test_readme_has_examples():
 @pytest.mark.parametrize("index", range(len(BLOCKS)))
 def test_readme_example_runs(index, tmp_path, monkeypatch):
     matplotlib.use("Agg")
-    code = BLOCKS[index].replace("../shared/data", str(SHARED_DATA))
+    code = BLOCKS[index].replace("tests/data/", f"{VENDORED_DATA}/")
     monkeypatch.chdir(tmp_path)
     exec(compile(code, f"README.md python block {index}", "exec"), {"__name__": "readme"})
     assert Path.cwd() == tmp_path

@@ -1,6 +1,6 @@
 //! Georeferencing of camera detections onto the water plane, with first-order uncertainty.
 //!
-//! Frames (see `DESIGN.md`): the camera frame is OpenCV's (x right, y down, z forward); the
+//! Frames (see `docs/design.md`): the camera frame is OpenCV's (x right, y down, z forward); the
 //! body frame is FRD at the vessel reference point; the *level* frame is the body frame with
 //! the vessel's roll and pitch removed (x forward-horizontal along the heading, y starboard,
 //! z down), its origin at the reference point, the water surface the plane `z = h` below the

@@ -2,7 +2,7 @@
 //!
 //! Every module here is free of pyo3, so `cargo test` and `cargo bench` never link
 //! Python; the bindings live in [`py`] behind the `python` cargo feature.
-//! Conventions (see `DESIGN.md`): SI units, radians, NED world frame, 2-D constant-velocity
+//! Conventions (see `docs/design.md`): SI units, radians, NED world frame, 2-D constant-velocity
 //! state `[n, v_n, e, v_e]`.
 
 pub mod assign;

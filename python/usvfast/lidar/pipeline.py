@@ -24,7 +24,7 @@ from usvfast.lidar.lines import LineMemory, blur, detect_segments, extend_segmen
 
 @dataclass
 class LidarConfig:
-    """Parameters of the LiDAR chain (defaults from the thesis / issue 4).
+    """Parameters of the LiDAR chain (defaults from the thesis, docs/seeds.md).
 
     radius : keep points within this horizontal range of the sensor, m.
     line_margin : lines are extracted from points up to radius + line_margin (the raster's
