@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import struct
+import warnings
 from pathlib import Path
 
 import dpkt
@@ -300,3 +301,37 @@ def test_other_pcap_byte_orders_and_nanoseconds(tmp_path, clean, magic, endian, 
     frames, reader = read(path)
     assert reader.stats.damaged == 0
     assert_same_frames(frames, clean[0])
+
+
+@pytest.mark.parametrize("victim", [0, 1, 30, -2, -1])
+def test_one_flipped_timestamp_byte_costs_one_record(tmp_path, victim):
+    # ts_sec's second byte flipped: a jump of hours, plausible on its own. The neighbours agree
+    # with each other, so this record is the damaged one; every later record is kept.
+    data = bytearray(PCAP.read_bytes())
+    recs = records(bytes(data))
+    victim %= len(recs)
+    data[recs[victim][0] + 1] ^= 0x40
+    bad = tmp_path / "bad.pcap"
+    bad.write_bytes(bytes(data))
+    ref = tmp_path / "ref.pcap"
+    ref.write_bytes(without(PCAP.read_bytes(), {victim}))
+    with pytest.warns(LidarDataWarning, match="record timestamp"):
+        frames, reader = read(bad)
+    assert reader.stats.damaged == 1
+    assert_same_frames(frames, read(ref)[0])
+
+
+def test_clock_step_confirmed_by_the_next_records_is_kept(tmp_path, clean):
+    # the capture host's clock steps 20 min forward mid-stream: a real jump, nothing damaged
+    data = bytearray(PCAP.read_bytes())
+    recs = records(bytes(data))
+    for o, _ in recs[40:]:
+        sec = struct.unpack_from("<I", data, o)[0]
+        struct.pack_into("<I", data, o, sec + 1200)
+    stepped = tmp_path / "step.pcap"
+    stepped.write_bytes(bytes(data))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        frames, reader = read(stepped)
+    assert reader.stats.damaged == 0
+    assert sum(len(f) for f in frames) == sum(len(f) for f in clean[0])

@@ -126,6 +126,12 @@ _PCAP_MAGICS = {
 }
 
 
+def _close_in_time(ref_sec: int, sec: int) -> bool:
+    """True when `sec` can follow `ref_sec` in one capture stream (1 s of reordering back,
+    up to a minute of silence forward)."""
+    return -1 <= sec - ref_sec <= 60
+
+
 def _iter_pcap_records(
     data: bytes, stats: ReadStats, source: str
 ) -> Iterator[tuple[float, int, bytes]]:
@@ -135,6 +141,13 @@ def _iter_pcap_records(
     from its neighbours) is counted as damaged and the stream resynchronises on the next
     position holding a plausible header followed by another plausible header (or the end
     of the file). A record cut by the end of the file is counted as damaged.
+
+    A header's timestamp is judged by both neighbours, not by the last accepted record
+    alone: a record whose seconds disagree with the previous record while the next record
+    agrees with the previous one is the single outlier (a damaged `ts_sec`), so it is
+    skipped and counted ("record timestamp") and the reference time stays; a jump that the
+    next record confirms is a real clock step and is adopted (an unconfirmed jump, as in the
+    last record, is damage).
     """
     if len(data) < 24 or data[:4] not in _PCAP_MAGICS:
         raise ValueError(f"{source}: not a libpcap file (pcapng is not supported)")
@@ -154,6 +167,9 @@ def _iter_pcap_records(
         if frac >= (1_000_000 if tick == 1e-6 else 1_000_000_000):
             return False
         return ref_sec is None or -3600 <= sec - ref_sec <= 86400
+
+    def header_sec(pos: int) -> int | None:
+        return hdr.unpack_from(data, pos)[0] if plausible(pos, None) else None
 
     def resync(start: int, ref_sec: int | None) -> int:
         pos = start
@@ -182,6 +198,20 @@ def _iter_pcap_records(
         if pos + 16 + incl > n:
             stats.damage("truncated record")
             return
+        nxt = pos + 16 + incl
+        next_sec = header_sec(nxt)
+        if last_sec is None and next_sec is not None:
+            # the first record: judged by the next two (is it or the next one the outlier?)
+            after = header_sec(nxt + 16 + hdr.unpack_from(data, nxt)[2])
+            judge = next_sec if after is None or _close_in_time(next_sec, after) else None
+        else:
+            judge = last_sec
+        if judge is not None and not _close_in_time(judge, sec):
+            if next_sec is None or _close_in_time(judge, next_sec):
+                # the one outlier between agreeing neighbours (or a jump nothing confirms)
+                stats.damage("record timestamp")
+                pos = nxt
+                continue
         last_sec = sec
         yield sec + frac * tick, linktype, data[pos + 16 : pos + 16 + incl]
         pos += 16 + incl
