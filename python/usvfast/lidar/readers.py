@@ -20,6 +20,7 @@ import struct
 import warnings
 from collections import Counter
 from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -502,6 +503,8 @@ class BagReader:
     velodyne-decoder) and `sensor_msgs/PointCloud2` messages (one rotation each). `topic`
     selects one topic; None takes every topic of those two types. Messages that fail to
     deserialise or convert, and malformed packets inside a scan, are skipped and counted.
+    A damaged bag (cut short, damaged sqlite pages, no metadata.yaml, MCAP without summary) is
+    recovered first (`usvfast._bagsalvage`): what cannot be read is counted as "bag container".
     Raises ValueError when the bag holds no LiDAR topic or no usable frame.
     """
 
@@ -520,12 +523,14 @@ class BagReader:
         self.stats = ReadStats()
 
     def __iter__(self) -> Iterator[LidarFrame]:
-        from rosbags.highlevel import AnyReader
+        from usvfast._bagsalvage import open_bag
 
         self.stats = stats = ReadStats()
         source = str(self.path)
         store = lidar_typestore(ros1=self.path.suffix == ".bag")
-        with AnyReader([self.path], default_typestore=store) as reader:
+        with _bag_errors(source), open_bag(self.path, store) as reader:
+            if reader.salvage is not None and reader.salvage.lost:
+                stats.damage("bag container", reader.salvage.lost)
             # Bags that embed definitions bring their own store; make sure velodyne_msgs is there.
             for name, fdef in store.fielddefs.items():
                 if name.startswith("velodyne_msgs/") and name not in reader.typestore.fielddefs:
@@ -593,6 +598,18 @@ class BagReader:
             return None
         stamp = stamp_pair.device if self.device_time else stamp_pair.host
         return float(stamp), _decoded_to_points(arr)
+
+
+@contextmanager
+def _bag_errors(source: str) -> Iterator[None]:
+    """Turn rosbags' container errors (AnyReaderError and its storage errors) into ValueError
+    naming the bag, the one error type the readers document."""
+    from rosbags.highlevel import AnyReaderError
+
+    try:
+        yield
+    except AnyReaderError as exc:
+        raise ValueError(f"{source}: cannot read the bag: {exc}") from exc
 
 
 def _guarded(messages, stats: ReadStats):

@@ -20,6 +20,7 @@ A message that cannot be deserialized or converted is skipped and counted (`dama
 from __future__ import annotations
 
 from collections.abc import Iterator
+from contextlib import AbstractContextManager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -30,6 +31,7 @@ from rosbags.highlevel import AnyReader, AnyReaderError
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
+from usvfast._bagsalvage import open_bag
 from usvfast._time import ros_stamp_seconds
 from usvfast.nav._damage import DamageCounter, check_file
 
@@ -124,9 +126,9 @@ class DamagedMessage(ValueError):
     """A message that cannot be deserialized or converted (skipped and counted by readers)."""
 
 
-def _open(path: Path) -> AnyReader:
+def _open(path: Path) -> AbstractContextManager[AnyReader]:
     # ROS1 bags always embed their definitions; ROS2 bags may not (before Iron).
-    return AnyReader([path], default_typestore=bag_typestore(ros2=True))
+    return open_bag(path, bag_typestore(ros2=True))  # recovers damaged bags
 
 
 def bag_topics(path: Path | str) -> dict[str, BagTopicInfo]:
