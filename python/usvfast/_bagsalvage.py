@@ -416,9 +416,12 @@ def open_bag(path: Path, typestore: Any) -> Iterator[Any]:
         finally:
             reader.close()
         return
-    salvage = salvage_bag(path, reason, typestore)
+    try:
+        salvage = salvage_bag(path, reason, typestore)
+    except (ValueError, OSError, KeyError, struct.error) as exc:
+        raise ValueError(f"bag: cannot read {path}: {reason}; recovery failed: {exc}") from exc
     if not salvage.messages:
-        raise ValueError(f"bag: {path} is damaged ({reason}) and no message could be recovered")
+        raise ValueError(f"bag: cannot read {path}: {reason}; no message could be recovered")
     warnings.warn(
         f"{path}: damaged bag ({reason}); recovered {salvage.messages} message(s), "
         f"lost {salvage.lost} damaged chunk(s)/row(s)/record(s)",
