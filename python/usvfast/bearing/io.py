@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from usvfast._damage import DamageCounter, DamagedRecordsWarning
+from usvfast._files import MAX_LINE_BYTES, OVERLONG_LINE, bounded_lines, regular_file
 from usvfast.bearing.ais import VesselTrack
 from usvfast.bearing.camera import THERMAL_CAMERA, VISIBLE_CAMERA, BearingCamera, pixel_to_bearing
 from usvfast.bearing.fusion import (
@@ -76,20 +77,65 @@ def _integer(row: dict[str, Any], col: str) -> int:
     return int(value)
 
 
+class _DamagedLine(dict):
+    """The row of a line that could not be read as CSV text (`reason` says why)."""
+
+    def __init__(self, reason: str) -> None:
+        super().__init__()
+        self.reason = reason
+
+
+def _check_row(row: dict[str, Any]) -> None:
+    """Raise _BadRow for an unreadable line or a row with more fields than the header."""
+    if isinstance(row, _DamagedLine):
+        raise _BadRow(row.reason)
+    if None in row:
+        raise _BadRow("too many fields")
+
+
+def _csv_line(raw: bytes) -> list[str] | str:
+    """The fields of one CSV line, or why it cannot be read (not UTF-8, over-long, bad CSV)."""
+    if raw == OVERLONG_LINE:
+        return f"line longer than {MAX_LINE_BYTES} bytes"
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError:
+        return "not UTF-8 text"
+    try:
+        return next(csv.reader([text]), [])
+    except csv.Error as exc:
+        return f"not CSV ({exc})"
+
+
 def _open_rows(
     path: Path, label: str
 ) -> tuple[list[str], Iterable[tuple[int, dict[str, Any]]], Any]:
+    """(header, rows, open file) of a CSV file read line by line, so that a line that is not
+    UTF-8, too long or not CSV costs only its row (a `_DamagedLine`)."""
     try:
-        f = path.open(newline="")
+        f = regular_file(path, label).open("rb")
     except OSError as exc:
         raise ValueError(f"{label}: cannot open {path}: {exc.strerror}") from exc
-    reader = csv.DictReader(f)
-    header = [h.strip() for h in (reader.fieldnames or [])]
-    reader.fieldnames = header
+    lines = bounded_lines(f)
+    first = next(lines, b"").removeprefix(b"\xef\xbb\xbf")  # a UTF-8 byte-order mark
+    fields = _csv_line(first)
+    if isinstance(fields, str):
+        f.close()
+        raise ValueError(f"{label}: {path}: the header line is unreadable ({fields})")
+    header = [h.strip() for h in fields]
 
     def rows() -> Iterable[tuple[int, dict[str, Any]]]:
-        for row in reader:
-            yield reader.line_num, row
+        for line_num, raw in enumerate(lines, start=2):
+            values = _csv_line(raw)
+            if isinstance(values, str):
+                yield line_num, _DamagedLine(values)
+                continue
+            if not values:
+                continue  # blank line, as csv.DictReader skips it
+            row: dict[Any, Any] = dict(zip(header, values, strict=False))
+            if len(values) > len(header):
+                row[None] = values[len(header) :]
+            yield line_num, row
 
     return header, rows(), f
 
@@ -171,8 +217,7 @@ def read_bearing_samples(
         bad = _bad_rows(path)
         for line, row in rows:
             try:
-                if None in row:
-                    raise _BadRow("too many fields")
+                _check_row(row)
                 sid = _integer(row, "source")
                 if sid not in known:
                     raise _BadRow(f"unknown source {sid}")
@@ -255,8 +300,7 @@ def read_ais(path: Path | str) -> AisData:
         for line, raw in rows:
             row = {c: raw.get(h) for c, h in cols.items()}
             try:
-                if None in raw:
-                    raise _BadRow("too many fields")
+                _check_row(raw)
                 vessel = _cell(row, "vessel").lower()
                 if vessel not in tracks:
                     raise _BadRow(f"vessel={vessel!r} is neither 'own' nor 'target'")

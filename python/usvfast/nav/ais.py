@@ -4,7 +4,10 @@ decoded by pyais, plus dead-reckoned target positions at arbitrary times.
 Multi-fragment messages are assembled here (by fragment count, sequence id and channel);
 sentences with a bad checksum, undecodable payloads and orphan fragments are skipped and
 counted. AIS payloads carry only the UTC second of the report, so absolute times come from
-the caller: pass `(unix_time, line)` pairs (receive times), or plain lines (times are NaN).
+the caller: pass `(unix_time, line)` pairs (receive times), or plain lines. Plain lines of a
+mixed NMEA log are timed from the log's own ZDA/RMC clock (the latest one before the AIS
+sentence, or the first one for reports before it) and the report's UTC second; with no
+clock in the log, times are NaN.
 
 Example::
 
@@ -15,19 +18,23 @@ Example::
 
 from __future__ import annotations
 
+import datetime as dt
 import math
 import os
+import re
 import warnings
 from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+import pynmea2
 from pyais import NMEAMessage
 from pyais.exceptions import AISBaseException
 
 from usvfast import geodesy
 from usvfast._damage import DamagedRecordsWarning
+from usvfast._files import OVERLONG_LINE
 from usvfast._validate import as_float_array
 from usvfast.nav._damage import iter_lines
 from usvfast.nav.nmea import KNOT
@@ -123,76 +130,94 @@ def read_ais(source: str | os.PathLike | Iterable[Any]) -> AisLog:
     static: dict[int, StaticData] = {}
     pending: dict[tuple, list[NMEAMessage]] = {}
     n_sentences = n_messages = n_damaged = n_incomplete = n_other = n_ignored = 0
+    pending_msgs: list[tuple[float, NMEAMessage]] = []
+    clock = math.nan  # the log's own UTC clock (ZDA/RMC) when AIS lines carry no time
+    before_clock: list[int] = []
     for item in iter_lines(source):
         t, raw = item if isinstance(item, tuple) else (math.nan, item)
         line = raw if isinstance(raw, bytes) else raw.encode("ascii", "replace")
         line = line.strip()
-        if not line or line.startswith(b"#"):
+        if not line:
             continue
-        start = line.find(b"!")
-        if start < 0 or line[start + 3 : start + 6] not in (b"VDM", b"VDO"):
-            n_ignored += 1
-            continue
-        n_sentences += 1
-        # Receivers append metadata after the checksum (",s36310,d-081,..."): drop it.
-        star = line.find(b"*", start)
-        sentence = line[start : star + 3] if star >= 0 else line[start:]
-        try:
-            msg = NMEAMessage(sentence)
-            if not msg.is_valid:
-                raise ValueError("bad checksum")
-        except (AISBaseException, ValueError, IndexError, UnicodeDecodeError):
+        if line == OVERLONG_LINE.strip():
             n_damaged += 1
             continue
-        if msg.frag_cnt > 1:
-            key = (msg.frag_cnt, msg.seq_id, msg.channel, msg.type)
-            frags = pending.setdefault(key, [])
-            if msg.frag_num != len(frags) + 1:
-                # Out of order or a lost fragment: drop what was collected, maybe restart.
-                n_incomplete += len(frags)
-                frags.clear()
-                if msg.frag_num != 1:
-                    n_incomplete += 1
-                    continue
-            frags.append(msg)
-            if len(frags) < msg.frag_cnt:
-                continue
+        if line[:1] == b"$" and line[3:6] in (b"ZDA", b"RMC"):
+            clock = _clock_time(line, clock)
+            if before_clock and not math.isnan(clock):
+                for i in before_clock:  # the first clock of the log times what came before
+                    rows[i] = (_ais_time(clock, rows[i][9]), *rows[i][1:])
+                before_clock.clear()
+        sentences = _split_sentences(line)
+        if not sentences:
+            n_ignored += int(not line.startswith(b"#"))
+            continue
+        for sentence in sentences:
+            n_sentences += 1
             try:
-                msg = NMEAMessage.assemble_from_iterable(list(frags))
-            except AISBaseException:
-                n_damaged += len(frags)
-                frags.clear()
+                msg = NMEAMessage(sentence)
+                if not msg.is_valid:
+                    raise ValueError("bad checksum")
+            except (AISBaseException, ValueError, IndexError, UnicodeDecodeError):
+                n_damaged += 1
                 continue
-            frags.clear()
-        try:
-            d = msg.decode().asdict()
-        except (AISBaseException, ValueError, IndexError, KeyError, TypeError):
-            n_damaged += 1
-            continue
-        n_messages += 1
-        kind = int(d["msg_type"])
-        mmsi = int(d["mmsi"])
-        if kind in STATIC_TYPES:
-            _merge_static(static.setdefault(mmsi, StaticData(mmsi)), d)
-        if kind in POSITION_TYPES:
-            status = d.get("status")
-            rows.append(
-                (
-                    float(t),
-                    mmsi,
-                    kind,
-                    msg.type == "VDO",
-                    _nan_if(d.get("lat"), 91.0),
-                    _nan_if(d.get("lon"), 181.0),
-                    _nan_if(d.get("speed"), 102.3, 63.0 if kind == 27 else -1.0) * KNOT,
-                    _nan_if(d.get("course"), 360.0, 511.0 if kind == 27 else -1.0),
-                    _nan_if(d.get("heading"), 511.0),
-                    int(d.get("second", 60) if d.get("second") is not None else 60),
-                    int(status) if status is not None else -1,
+            pending_msgs.append((t, msg))
+        while pending_msgs:
+            t, msg = pending_msgs.pop(0)
+            if msg.frag_cnt > 1:
+                key = (msg.frag_cnt, msg.seq_id, msg.channel, msg.type)
+                frags = pending.setdefault(key, [])
+                if msg.frag_num != len(frags) + 1:
+                    # Out of order or a lost fragment: drop what was collected, maybe restart.
+                    n_incomplete += len(frags)
+                    frags.clear()
+                    if msg.frag_num != 1:
+                        n_incomplete += 1
+                        continue
+                frags.append(msg)
+                if len(frags) < msg.frag_cnt:
+                    continue
+                try:
+                    msg = NMEAMessage.assemble_from_iterable(list(frags))
+                except AISBaseException:
+                    n_damaged += len(frags)
+                    frags.clear()
+                    continue
+                frags.clear()
+            try:
+                d = msg.decode().asdict()
+            except (AISBaseException, ValueError, IndexError, KeyError, TypeError):
+                n_damaged += 1
+                continue
+            n_messages += 1
+            kind = int(d["msg_type"])
+            mmsi = int(d["mmsi"])
+            if kind in STATIC_TYPES:
+                _merge_static(static.setdefault(mmsi, StaticData(mmsi)), d)
+            if kind in POSITION_TYPES:
+                status = d.get("status")
+                second = int(d["second"]) if d.get("second") is not None else 60
+                if math.isnan(t) and not math.isnan(clock):
+                    t = _ais_time(clock, second)
+                elif math.isnan(t):
+                    before_clock.append(len(rows))  # heard before the log's first clock
+                rows.append(
+                    (
+                        float(t),
+                        mmsi,
+                        kind,
+                        msg.type == "VDO",
+                        _nan_if(d.get("lat"), 91.0),
+                        _nan_if(d.get("lon"), 181.0),
+                        _nan_if(d.get("speed"), 102.3, 63.0 if kind == 27 else -1.0) * KNOT,
+                        _nan_if(d.get("course"), 360.0, 511.0 if kind == 27 else -1.0),
+                        _nan_if(d.get("heading"), 511.0),
+                        second,
+                        int(status) if status is not None else -1,
+                    )
                 )
-            )
-        elif kind not in STATIC_TYPES:
-            n_other += 1
+            elif kind not in STATIC_TYPES:
+                n_other += 1
     n_incomplete += sum(len(f) for f in pending.values())
     if n_messages == 0:
         raise ValueError(
@@ -219,6 +244,55 @@ def read_ais(source: str | os.PathLike | Iterable[Any]) -> AisLog:
         n_other=n_other,
         n_ignored=n_ignored,
     )
+
+
+#: The start of an AIS sentence: `!` + a two-letter talker + VDM/VDO and its first comma.
+_AIS_START = re.compile(rb"![A-Z]{2}VD[MO],")
+
+
+def _split_sentences(line: bytes) -> list[bytes]:
+    """The AIS sentences of one line, up to each one's checksum: two or more glued on one
+    line (a lost newline, or a `#` comment glued to the next sentence) come out one by one;
+    receiver metadata after a checksum (",s36310,d-081,...") is dropped."""
+    starts = [m.start() for m in _AIS_START.finditer(line)]
+    if line.startswith(b"#"):
+        # a comment may quote sentences ("# !AIVDM,..."); only one glued straight onto it
+        # (a lost newline: no space or quote before the `!`) is a real sentence
+        starts = [a for a in starts if line[a - 1 : a] not in (b" ", b"\t", b'"')]
+    out = []
+    for k, a in enumerate(starts):
+        end = starts[k + 1] if k + 1 < len(starts) else len(line)
+        star = line.find(b"*", a, end)
+        out.append(line[a : star + 3] if star >= 0 else line[a:end])
+    return out
+
+
+def _clock_time(line: bytes, previous: float) -> float:
+    """UNIX time of a valid ZDA or RMC sentence (date and UTC time), else `previous`."""
+    try:
+        msg = pynmea2.parse(line.decode("ascii"), check=True)
+        stamp = msg.datetime  # ZDA and RMC both carry date + time
+    except (pynmea2.ParseError, UnicodeDecodeError, ValueError, AttributeError, TypeError):
+        return previous
+    if stamp is None:
+        return previous
+    if stamp.tzinfo is None:
+        stamp = stamp.replace(tzinfo=dt.timezone.utc)
+    return stamp.timestamp()
+
+
+def _ais_time(clock: float, second: int) -> float:
+    """The UNIX time of an AIS report heard when the log's clock read `clock`: its own UTC
+    second (0-59) placed in the minute nearest `clock`; `clock` itself when the report has
+    no second (60-63: not available, manual, dead reckoning, inoperative)."""
+    if not 0 <= second <= 59:
+        return clock
+    t = clock - clock % 60 + second
+    if t - clock > 30:
+        t -= 60
+    elif clock - t > 30:
+        t += 60
+    return t
 
 
 def _merge_static(s: StaticData, d: dict) -> None:

@@ -148,7 +148,7 @@ def bag_topics(path: Path | str) -> dict[str, BagTopicInfo]:
 
 
 def _bag_path(path: Path | str) -> Path:
-    p = check_file(path, "bag")
+    p = check_file(path, "bag", directory=True)
     # A ROS2 storage file given directly: read its folder (holds metadata.yaml).
     if p.is_file() and p.suffix in (".db3", ".mcap") and (p.parent / "metadata.yaml").exists():
         return p.parent
