@@ -7,7 +7,7 @@ export PATH := $(VIRTUAL_ENV)/bin:$(PATH)
 # Extras installed for development and CI (the peers we prove parity against).
 EXTRAS ?= test
 
-.PHONY: help dev torch lint fmt test test-rust test-python demo bench
+.PHONY: help dev torch lint fmt test test-rust test-python demo bench wheel
 
 help: ## List the targets
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk 'BEGIN {FS = ":.*## "} {printf "  %-12s %s\n", $$1, $$2}'
@@ -49,3 +49,9 @@ demo: dev ## Main job on bundled data: bearing fusion of visible + thermal camer
 bench: dev torch ## Criterion benches and Python comparisons against the peers
 	cargo bench
 	python benches/run.py
+
+wheel: $(VENV)/bin/maturin ## manylinux2014 x86_64 wheel (maturin + zig) into dist/, checked by auditwheel; and an sdist
+	$(VENV)/bin/pip install -q ziglang auditwheel
+	maturin build --release --zig --compatibility manylinux2014 --out dist
+	auditwheel show dist/usvfast-*manylinux2014*.whl
+	maturin sdist --out dist

@@ -13,7 +13,23 @@ app = typer.Typer(
     help="usvfast: fast maritime multi-sensor detection and tracking.",
     no_args_is_help=True,
     add_completion=False,
+    pretty_exceptions_enable=False,  # user errors are one line (main), not a traceback box
 )
+
+
+def _print_version(value: bool) -> None:
+    if value:
+        typer.echo(__version__)
+        raise typer.Exit()
+
+
+@app.callback()
+def _options(
+    version: bool = typer.Option(
+        False, "--version", callback=_print_version, is_eager=True, help="Print the version."
+    ),
+) -> None:
+    """usvfast: fast maritime multi-sensor detection and tracking."""
 
 
 @app.command()
@@ -29,8 +45,15 @@ app.command("inspect")(inspect_command)
 
 
 def main() -> None:
-    """Entry point of the `usvfast` console script."""
-    app()
+    """Entry point of the `usvfast` console script. A bad input or a missing optional
+    dependency is one line on stderr and exit status 2, not a traceback."""
+    from usvfast._extras import MissingExtraError
+
+    try:
+        app()
+    except (ValueError, TypeError, OSError, MissingExtraError) as exc:
+        typer.echo(f"usvfast: error: {exc}", err=True)
+        raise SystemExit(2) from None
 
 
 if __name__ == "__main__":

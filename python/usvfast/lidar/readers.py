@@ -27,6 +27,8 @@ from pathlib import Path
 import numpy as np
 
 from usvfast._damage import DamagedRecordsWarning
+from usvfast._extras import require
+from usvfast._files import regular_file
 from usvfast._time import ros_stamp_seconds
 from usvfast.lidar.frame import POINT_DTYPE, LidarFrame
 
@@ -224,7 +226,7 @@ def _udp_payload(linktype: int, frame: bytes) -> tuple[int, bytes] | None:
     Raises ValueError when the frame claims to be IPv4/UDP but its headers are broken
     (IP header checksum, lengths).
     """
-    import dpkt
+    dpkt = require("dpkt", "lidar", "pcap files")
 
     try:
         if linktype == 1:
@@ -285,9 +287,9 @@ class VelodynePcapReader:
         self.stats = ReadStats()
 
     def __iter__(self) -> Iterator[LidarFrame]:
-        import velodyne_decoder as vd
+        vd = require("velodyne_decoder", "lidar", "Velodyne packets")
 
-        with open(self.path, "rb") as fh:
+        with regular_file(self.path, "path").open("rb") as fh:
             size = os.fstat(fh.fileno()).st_size
             # memory-mapped: captures of several GB are streamed, not loaded
             data = mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) if size else b""
@@ -560,7 +562,7 @@ class BagReader:
                         continue
                 else:
                     if decoder is None:
-                        import velodyne_decoder as vd
+                        vd = require("velodyne_decoder", "lidar", "Velodyne scans")
 
                         decoder = vd.ScanDecoder(vd.Config(model=self.model))
                     decoded = self._decode_scan(msg, decoder, stats)
@@ -574,7 +576,7 @@ class BagReader:
         _finish(stats, source)
 
     def _decode_scan(self, msg, decoder, stats: ReadStats) -> tuple[float, np.ndarray] | None:
-        import velodyne_decoder as vd
+        vd = require("velodyne_decoder", "lidar", "Velodyne packets")
 
         packets = []
         model_id = None
