@@ -14,11 +14,15 @@ mod tracker;
 pub use errors::to_py_err;
 
 /// The data of a C-contiguous numpy array, or a `ValueError` naming the argument `name`.
+/// Every binding reads its arrays through this one helper: a Fortran-order (or strided)
+/// array is refused, never read in the wrong order (numpy's `as_slice` accepts both orders).
 pub(crate) fn slice<'a, T: numpy::Element, D: numpy::ndarray::Dimension>(
     name: &str,
     a: &'a numpy::PyReadonlyArray<'_, T, D>,
 ) -> PyResult<&'a [T]> {
-    a.as_slice().map_err(|_| {
+    use numpy::PyUntypedArrayMethods;
+    let c_order = a.is_c_contiguous();
+    a.as_slice().ok().filter(|_| c_order).ok_or_else(|| {
         pyo3::exceptions::PyValueError::new_err(format!("{name}: must be a C-contiguous array"))
     })
 }
