@@ -15,12 +15,16 @@ def as_float_array(
 ) -> np.ndarray:
     """Return `value` as a C-contiguous float64 array, or raise naming `name`.
 
-    Raises TypeError when it is not numeric, DimensionError when `ndim` is given and differs,
+    Raises TypeError when it is not real numbers (strings and complex values included: never
+    silently cut to their real part), DimensionError when `ndim` is given and differs,
     NonFiniteError when it holds NaN or inf (unless `finite` is False: missing values allowed).
+    Any memory layout is accepted (Fortran-order input is copied to C order).
     """
+    if isinstance(value, str | bytes) or np.iscomplexobj(value):
+        raise TypeError(f"{name}: expected real numbers, got {type(value).__name__}")
     try:
         arr = np.ascontiguousarray(value, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, OverflowError) as exc:
         raise TypeError(
             f"{name}: expected an array of numbers, got {type(value).__name__}"
         ) from exc
@@ -57,3 +61,60 @@ def broadcast(arrays: Mapping[str, np.ndarray]) -> list[np.ndarray]:
     DimensionError as `broadcast_shape`."""
     shape = broadcast_shape(arrays)
     return [np.broadcast_to(a, shape) for a in arrays.values()]
+
+
+def real(name: str, value: Any, *, low: float | None = None, positive: bool = False) -> float:
+    """`value` as a finite Python float, or raise naming `name`: TypeError for a non-number
+    (bool, str, complex, None, arrays of more than one value), NonFiniteError for NaN/inf,
+    ValueError when below `low` or, with `positive`, not > 0."""
+    if isinstance(value, bool) or value is None:
+        raise TypeError(f"{name}: expected a real number, got {type(value).__name__}")
+    arr = as_float_array(name, value)
+    if arr.size != 1 or arr.ndim > 1:
+        raise TypeError(f"{name}: expected one real number, got shape {arr.shape}")
+    x = float(arr.reshape(()))
+    if positive and not x > 0.0:
+        raise ValueError(f"{name}: must be > 0, got {x}")
+    if low is not None and x < low:
+        raise ValueError(f"{name}: must be >= {low}, got {x}")
+    return x
+
+
+def integer(name: str, value: Any, *, low: int | None = None, high: int | None = None) -> int:
+    """`value` as a Python int, or raise naming `name`: TypeError for a non-integer (bool and
+    floats included), ValueError outside [`low`, `high`] (so no OverflowError reaches the
+    native code)."""
+    if isinstance(value, bool) or not isinstance(value, int | np.integer):
+        raise TypeError(f"{name}: expected an integer, got {type(value).__name__}")
+    v = int(value)
+    if (low is not None and v < low) or (high is not None and v > high):
+        raise ValueError(f"{name}: must be in [{low}, {high}], got {v}")
+    return v
+
+
+def instance(name: str, value: Any, *types: type) -> Any:
+    """`value` when it is an instance of one of `types`, else TypeError naming `name`, the
+    expected type(s) and what was given (instead of an AttributeError deeper down)."""
+    if not isinstance(value, types):
+        want = " or ".join(t.__name__ for t in types)
+        raise TypeError(f"{name}: expected {want}, got {type(value).__name__}")
+    return value
+
+
+def with_methods(name: str, value: Any, expected: str, *methods: str) -> Any:
+    """`value` when it has every callable in `methods` (a duck-typed camera, say), else
+    TypeError naming `name` and the `expected` kind, instead of an AttributeError later."""
+    missing = [m for m in methods if not callable(getattr(value, m, None))]
+    if missing:
+        raise TypeError(
+            f"{name}: expected {expected} (with {', '.join(methods)}), got {type(value).__name__}"
+        )
+    return value
+
+
+def finite_result(name: str, value: np.ndarray, inputs: str) -> np.ndarray:
+    """`value` when every entry is finite, else ValueError: a result that over- or
+    underflowed from finite `inputs` (named in the message) is an error, never a NaN."""
+    if not np.all(np.isfinite(value)):
+        raise ValueError(f"{inputs}: out of the representable range ({name} is not finite)")
+    return value

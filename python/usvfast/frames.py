@@ -26,7 +26,7 @@ import numpy as np
 from usvfast import _core, geodesy
 from usvfast._angles import wrap_2pi, wrap_pi
 from usvfast._core import DimensionError
-from usvfast._validate import as_float_array
+from usvfast._validate import as_float_array, real
 
 __all__ = [
     "Mount",
@@ -41,7 +41,9 @@ __all__ = [
 
 
 def rotation_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
-    """The (3, 3) rotation `Rz(yaw) Ry(pitch) Rx(roll)` of eq. 3.9 (radians)."""
+    """The (3, 3) rotation `Rz(yaw) Ry(pitch) Rx(roll)` of eq. 3.9 (radians). Raises
+    NonFiniteError / TypeError naming the angle that is not a finite real number."""
+    roll, pitch, yaw = real("roll", roll), real("pitch", pitch), real("yaw", yaw)
     sf, cf = np.sin(roll), np.cos(roll)
     st, ct = np.sin(pitch), np.cos(pitch)
     sp, cp = np.sin(yaw), np.cos(yaw)

@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from usvfast import _core
-from usvfast._validate import as_float_array, broadcast_shape
+from usvfast._validate import as_float_array, broadcast_shape, finite_result
 
 __all__ = [
     "WGS84",
@@ -80,6 +80,9 @@ def _flat(args: dict[str, Any]) -> tuple[tuple[int, ...], list[np.ndarray]]:
 
 
 def _shaped(shape: tuple[int, ...], out: Triple) -> Triple:
+    # finite inputs (checked by _flat) that over- or underflow are an error, never a NaN
+    for a in out:
+        finite_result("a coordinate", np.asarray(a), "inputs")
     if shape == ():
         return out[0][0], out[1][0], out[2][0]
     return out[0].reshape(shape), out[1].reshape(shape), out[2].reshape(shape)

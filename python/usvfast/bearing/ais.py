@@ -18,10 +18,11 @@ from typing import Any, cast
 
 import numpy as np
 
-from usvfast._angles import wrap_360_deg
+from usvfast._angles import wrap_360_deg, wrap_deg
 from usvfast._core import DimensionError, TimeOrderError
-from usvfast._validate import as_float_array
-from usvfast.bearing.angles import float_array, unwrap_deg, wrap_deg
+from usvfast._validate import as_float_array, instance
+from usvfast.bearing.angles import float_array
+from usvfast.bearing.angles import unwrap_raw_deg as unwrap_deg
 
 
 def _latitudes(name: str, value: Any) -> np.ndarray:
@@ -140,6 +141,8 @@ def reference_bearing_deg(times: Any, own: VesselTrack, target: VesselTrack) -> 
     `target` from `own` at `times` ((k,) UNIX seconds), both tracks interpolated linearly in
     time. NaN where either track does not cover the time. `own` must carry headings.
     """
+    instance("own", own, VesselTrack)
+    instance("target", target, VesselTrack)
     if own.heading_deg is None:
         raise ValueError("own: the own-ship track needs heading_deg")
     lat_o, lon_o, heading = own.at(times)

@@ -22,7 +22,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from usvfast._validate import broadcast
+from usvfast._validate import broadcast, instance
 from usvfast.bearing.angles import float_array
 
 
@@ -156,6 +156,7 @@ def pixel_to_bearing(
     pan-tilt-zoom (broadcastable), default the camera's. Bearing is clockwise positive
     (starboard), not wrapped. Raises NonFiniteError/ValueError naming the argument.
     """
+    instance("camera", camera, BearingCamera)
     x = float_array("x_px", x_px)
     y = float_array("y_px", y_px)
     pan, tilt, gamma = _ptz(camera, pan_deg, tilt_deg, zoom)

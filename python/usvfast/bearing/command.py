@@ -17,7 +17,7 @@ from rich.table import Table
 from usvfast._angles import wrap_180_deg
 from usvfast._time import unix_to_iso
 from usvfast.bearing.ais import reference_bearing_deg
-from usvfast.bearing.angles import unwrap_deg
+from usvfast.bearing.angles import unwrap_raw_deg as unwrap_deg
 from usvfast.bearing.fusion import (
     PAPER_MEASUREMENT_STD_DEG,
     PAPER_NOISE_DIFF_COEFF_DEG2,

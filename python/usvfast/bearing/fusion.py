@@ -15,9 +15,10 @@ from typing import Any
 
 import numpy as np
 
+from usvfast._angles import wrap_deg
 from usvfast._core import DimensionError, TimeOrderError
 from usvfast._validate import as_float_array
-from usvfast.bearing.angles import unwrap_deg, wrap_deg
+from usvfast.bearing.angles import unwrap_raw_deg as unwrap_deg
 from usvfast.kalman import ConstantVelocity, KalmanResult, kalman_filter
 
 VISIBLE = 1

@@ -17,7 +17,8 @@ import cv2
 import numpy as np
 import yaml
 
-from usvfast._validate import as_float_array
+from usvfast._core import DimensionError
+from usvfast._validate import as_float_array, instance
 
 MODELS = ("pinhole", "fisheye")
 _ROS_MODEL = {"pinhole": "plumb_bob", "fisheye": "equidistant"}
@@ -52,6 +53,8 @@ class CameraModel:
 
     # --- points ------------------------------------------------------------------------
     def _undistort(self, px: np.ndarray) -> np.ndarray:
+        if px.size == 0:  # OpenCV returns None for no points
+            return np.zeros((0, 2))
         src = px.reshape(-1, 1, 2)
         if self.model == "fisheye":
             out = cv2.fisheye.undistortPoints(
@@ -70,8 +73,10 @@ class CameraModel:
         Pinhole: the inverse of OpenCV's analytic projection Jacobian at the undistorted point
         (`cv2.projectPoints`); fisheye: central differences of ± `step` pixels.
         """
-        px = as_float_array("pixels", pixels, ndim=2)
+        px = _pixels(pixels)
         n = len(px)
+        if n == 0:
+            return np.zeros((0, 2)), np.zeros((0, 2, 2))
         if self.model == "pinhole":
             norm = self._undistort(px)
             pts = np.hstack([norm, np.ones((n, 1))]).reshape(-1, 1, 3)
@@ -91,7 +96,7 @@ class CameraModel:
     def undistort_points(self, pixels: Any) -> np.ndarray:
         """Pixels (n, 2) of the distorted image -> pixels of the ideal pinhole image with the
         same K (n, 2)."""
-        px = as_float_array("pixels", pixels, ndim=2)
+        px = _pixels(pixels)
         norm = self._undistort(px)
         k = self.camera_matrix
         return np.stack(
@@ -288,7 +293,14 @@ def calibrate(
 
 def undistort_points(pixels: Any, camera: CameraModel) -> np.ndarray:
     """Shorthand for :meth:`CameraModel.undistort_points`."""
-    return camera.undistort_points(pixels)
+    return instance("camera", camera, CameraModel).undistort_points(pixels)
+
+
+def _pixels(pixels: Any) -> np.ndarray:
+    px = as_float_array("pixels", pixels, ndim=2)
+    if px.shape[1] != 2:
+        raise DimensionError(f"pixels: expected shape (n, 2), got {px.shape}")
+    return px
 
 
 __all__: Sequence[str] = (

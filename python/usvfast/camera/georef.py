@@ -21,7 +21,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from usvfast import _core
-from usvfast._validate import as_float_array
+from usvfast._validate import as_float_array, with_methods
 
 #: Reason codes of :attr:`Georeferenced.reason`, index = code.
 REASONS = ("ok", "above_horizon", "beyond_max_range", "low_confidence", "own_vessel")
@@ -204,6 +204,7 @@ def georeference(
     if px.shape[1] != 2:
         raise ValueError(f"pixels: expected shape (n, 2), got {px.shape}")
     n = px.shape[0]
+    camera = with_methods("camera", camera, "a CameraModel or FovCamera", "normalized")
     norm, jac = camera.normalized(px)
     r_bc = _rotation("mount_rotation", mount_rotation)
     pos = as_float_array("mount_position", mount_position, ndim=1)
@@ -275,6 +276,7 @@ def horizon_line(
     or :class:`usvfast.camera.CameraModel`). Contact points with v <= a·u + b are at or above
     it. With lens distortion the true horizon is curved; the line is exact at the two points.
     """
+    with_methods("camera", camera, "a CameraModel or FovCamera", "project")
     r_bc = _rotation("mount_rotation", mount_rotation)
     for name, v in (("roll", roll), ("pitch", pitch), ("margin_deg", margin_deg)):
         if not np.isfinite(v):

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from usvfast._validate import integer, real
 from usvfast.lidar.pipeline import LidarConfig, LidarDetector
 from usvfast.lidar.simulator import FLOAT, Scene, VLP16Simulator
 
@@ -152,6 +153,9 @@ def straight_run(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Poses (frames, 3) and stamps of a vessel leaving the origin heading north at `speed`
     m/s, turning at `yaw_rate` rad/s, one frame every 1/`rate` s (unicycle model)."""
+    frames = integer("frames", frames, low=0, high=10**8)
+    speed, yaw_rate, t0 = real("speed", speed), real("yaw_rate", yaw_rate), real("t0", t0)
+    rate = real("rate", rate, positive=True)
     stamps = t0 + np.arange(frames) / rate
     heading = yaw_rate * (stamps - t0)
     dt = 1.0 / rate

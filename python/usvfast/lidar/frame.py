@@ -13,6 +13,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from usvfast._core import DimensionError
+from usvfast._validate import as_float_array
+
 #: Fields of one LiDAR point: position (m, sensor frame, x forward / y left / z up),
 #: intensity (sensor units, 0..255 for Velodyne), ring (laser index ordered by elevation,
 #: 0 = lowest), time (s relative to the frame stamp).
@@ -67,13 +70,27 @@ def make_points(
     ring: np.ndarray | int = 0,
     time: np.ndarray | float = 0.0,
 ) -> np.ndarray:
-    """Pack columns into a (n,) structured array of `POINT_DTYPE` (scalars broadcast)."""
-    n = np.asarray(x).shape[0]
+    """Pack columns into a (n,) structured array of `POINT_DTYPE` (scalars broadcast).
+
+    x, y, z: (n,) finite sensor-frame coordinates, m; intensity, time (s relative to the
+    frame stamp): (n,) or scalars, finite; ring: (n,) or a scalar, integers >= 0. Raises
+    DimensionError / NonFiniteError / TypeError naming the column."""
+    cols = {"x": x, "y": y, "z": z}
+    for k, v in cols.items():
+        if np.ndim(v) != 1:
+            raise DimensionError(f"{k}: expected a 1-D array, got shape {np.shape(v)}")
+    arrays = {k: as_float_array(k, v, ndim=1) for k, v in cols.items()}
+    n = arrays["x"].shape[0]
+    for k, v in {"intensity": intensity, "time": time}.items():
+        arrays[k] = as_float_array(k, v).reshape(np.shape(v))
+    ring_a = np.asarray(ring)
+    if ring_a.dtype.kind not in "iu" or (ring_a < 0).any() or (ring_a > 65535).any():
+        raise TypeError("ring: expected integers in [0, 65535]")
+    arrays["ring"] = ring_a
+    for k, v in arrays.items():
+        if v.ndim > 1 or (v.ndim == 1 and v.shape[0] != n):
+            raise DimensionError(f"{k}: expected shape ({n},) or a scalar, got {v.shape}")
     out = np.empty(n, dtype=POINT_DTYPE)
-    out["x"] = x
-    out["y"] = y
-    out["z"] = z
-    out["intensity"] = intensity
-    out["ring"] = ring
-    out["time"] = time
+    for k, v in arrays.items():
+        out[k] = v
     return out

@@ -13,7 +13,8 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from usvfast._validate import as_float_array
+from usvfast._core import DimensionError
+from usvfast._validate import as_float_array, real
 
 
 def _grid(radius: float, pixel: float) -> int:
@@ -41,8 +42,25 @@ def rasterize(points: np.ndarray, *, radius: float = 10.0, pixel: float = 0.2) -
 
 
 def blur(image: np.ndarray) -> np.ndarray:
-    """3×3 Gaussian blur (OpenCV, sigma from the kernel size) that joins near pixels."""
+    """3×3 Gaussian blur (OpenCV, sigma from the kernel size) that joins near pixels.
+    `image`: a 2-D uint8 array (as `rasterize` makes); anything else is a TypeError."""
+    if not isinstance(image, np.ndarray) or image.ndim != 2 or image.dtype != np.uint8:
+        raise TypeError(f"image: expected a 2-D uint8 array, got {_describe(image)}")
     return cv2.GaussianBlur(image, (3, 3), 0)
+
+
+def _describe(value) -> str:
+    if isinstance(value, np.ndarray):
+        return f"{value.dtype} array of shape {value.shape}"
+    return type(value).__name__
+
+
+def _rows(name: str, value, width: int) -> np.ndarray:
+    """(m, width) finite float64 rows from `value` (any array of m·width numbers)."""
+    a = as_float_array(name, value)
+    if a.size % width or (a.ndim >= 2 and a.shape[-1] != width) or a.ndim > 2:
+        raise DimensionError(f"{name}: expected shape (m, {width}), got {a.shape}")
+    return a.reshape(-1, width)
 
 
 _LSD = None
@@ -82,8 +100,8 @@ def detect_segments(
 
 def point_segment_distance(points: np.ndarray, segments: np.ndarray) -> np.ndarray:
     """(n, m) Euclidean distance from each point (n, 2) to each segment (m, 4), metres."""
-    p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
-    s = np.asarray(segments, dtype=np.float64).reshape(-1, 4)
+    p = _rows("points", points, 2)
+    s = _rows("segments", segments, 4)
     px, py = p[:, 0:1], p[:, 1:2]
     ax, ay = s[None, :, 0], s[None, :, 1]
     dx, dy = s[None, :, 2] - ax, s[None, :, 3] - ay
@@ -100,7 +118,8 @@ def covered_mask(segments: np.ndarray, tolerance: float = 0.2) -> np.ndarray:
     A segment is covered when both its endpoints are within `tolerance` (m) of one other
     segment at least as long; of two equal segments covering each other the earlier is kept.
     """
-    seg = np.asarray(segments, dtype=np.float64).reshape(-1, 4)
+    seg = _rows("segments", segments, 4)
+    tolerance = real("tolerance", tolerance, low=0.0)
     m = seg.shape[0]
     if m < 2:
         return np.zeros(m, dtype=bool)
@@ -133,8 +152,8 @@ def covered_mask(segments: np.ndarray, tolerance: float = 0.2) -> np.ndarray:
 
 def drop_covered(segments: np.ndarray, tolerance: float = 0.2) -> np.ndarray:
     """Segments (m, 4) without those covered by another (`covered_mask`), order kept."""
-    seg = np.asarray(segments, dtype=np.float64).reshape(-1, 4)
-    return seg[~covered_mask(seg, tolerance)]
+    seg = _rows("segments", segments, 4)
+    return seg[~covered_mask(seg, real("tolerance", tolerance, low=0.0))]
 
 
 def move_segments(segments: np.ndarray, motion: tuple[float, float, float]) -> np.ndarray:
@@ -144,9 +163,12 @@ def move_segments(segments: np.ndarray, motion: tuple[float, float, float]) -> n
     forward / y left) and its rotation (rad, counter-clockwise seen from above) between the
     two frames. A world-fixed point p becomes R(−dyaw)·(p − d).
     """
-    dx, dy, dyaw = (float(v) for v in motion)
+    m = as_float_array("motion", motion)
+    if m.shape != (3,):
+        raise DimensionError(f"motion: expected (dx, dy, dyaw), got shape {m.shape}")
+    dx, dy, dyaw = (float(v) for v in m)
     c, s = np.cos(dyaw), np.sin(dyaw)
-    seg = np.asarray(segments, dtype=np.float64).reshape(-1, 4)
+    seg = _rows("segments", segments, 4)
     out = np.empty_like(seg)
     for k in (0, 2):
         px, py = seg[:, k] - dx, seg[:, k + 1] - dy
@@ -210,7 +232,8 @@ def extend_segments(segments: np.ndarray, distance: float) -> np.ndarray:
     LSD stops about half a pixel short of a line's ends and leaves corners open; extending
     by a pixel or two closes them before the line-of-sight filter.
     """
-    seg = np.asarray(segments, dtype=np.float64).reshape(-1, 4)
+    seg = _rows("segments", segments, 4)
+    distance = real("distance", distance)
     d = seg[:, 2:] - seg[:, :2]
     length = np.hypot(d[:, 0], d[:, 1])
     unit = d / np.where(length > 0, length, 1.0)[:, None]

@@ -17,7 +17,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from usvfast._validate import as_float_array
+from usvfast._core import DimensionError
+from usvfast._validate import as_float_array, real
 from usvfast.lidar.frame import LidarFrame
 from usvfast.lidar.lines import LineMemory, blur, detect_segments, extend_segments, rasterize
 
@@ -126,6 +127,16 @@ def prefilter(
     index : (k,) int64 index of each kept point in `points`, ascending (of exact duplicates
         the first is kept).
     """
+    radius = real("radius", radius, positive=True)
+    mount_height = real("mount_height", mount_height)
+    slice_min, slice_max = real("slice_min", slice_min), real("slice_max", slice_max)
+    if min_intensity is not None:
+        min_intensity = real("min_intensity", min_intensity)
+    if not isinstance(points, np.ndarray) or points.dtype.names is None:
+        raise TypeError("points: expected a structured array with fields x, y, z")
+    missing = {"x", "y", "z"} - set(points.dtype.names)
+    if missing:
+        raise ValueError(f"points: missing field(s) {sorted(missing)}")
     px, py, pz = points["x"], points["y"], points["z"]
     x = np.asarray(px, dtype=np.float64)
     y = np.asarray(py, dtype=np.float64)
@@ -155,6 +166,20 @@ def _pose(name: str, pose) -> np.ndarray:
     return p
 
 
+def _xy(name: str, value) -> np.ndarray:
+    a = as_float_array(name, value)
+    if a.ndim > 2 or a.size % 2 or (a.ndim == 2 and a.shape[1] != 2):
+        raise DimensionError(f"{name}: expected shape (n, 2), got {a.shape}")
+    return a.reshape(-1, 2)
+
+
+def _lever(name: str, value) -> np.ndarray:
+    a = as_float_array(name, value)
+    if a.shape != (2,):
+        raise DimensionError(f"{name}: expected (forward, starboard) m, got shape {a.shape}")
+    return a
+
+
 def sensor_to_world(
     xy: np.ndarray,
     pose,
@@ -168,11 +193,12 @@ def sensor_to_world(
     at `lever_arm` (forward, starboard) and is yawed by `mount_yaw` (clockwise).
     """
     n0, e0, psi = _pose("pose", pose)
-    xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+    xy = _xy("xy", xy)
+    (lx, ly), mount_yaw = _lever("lever_arm", lever_arm), real("mount_yaw", mount_yaw)
     # sensor (x fwd, y left) -> body FRD (x fwd, y starboard), then the mount yaw
     cm, sm = np.cos(mount_yaw), np.sin(mount_yaw)
-    bx = lever_arm[0] + cm * xy[:, 0] + sm * xy[:, 1]
-    by = lever_arm[1] + sm * xy[:, 0] - cm * xy[:, 1]
+    bx = lx + cm * xy[:, 0] + sm * xy[:, 1]
+    by = ly + sm * xy[:, 0] - cm * xy[:, 1]
     c, s = np.cos(psi), np.sin(psi)
     return np.column_stack([n0 + c * bx - s * by, e0 + s * bx + c * by])
 
@@ -186,11 +212,12 @@ def world_to_sensor(
 ) -> np.ndarray:
     """Inverse of `sensor_to_world`: (n, 2) world (north, east) -> sensor (x fwd, y left)."""
     n0, e0, psi = _pose("pose", pose)
-    ne = np.asarray(ne, dtype=np.float64).reshape(-1, 2)
+    ne = _xy("ne", ne)
+    (lx, ly), mount_yaw = _lever("lever_arm", lever_arm), real("mount_yaw", mount_yaw)
     c, s = np.cos(psi), np.sin(psi)
     dn, de = ne[:, 0] - n0, ne[:, 1] - e0
-    bx = c * dn + s * de - lever_arm[0]
-    by = -s * dn + c * de - lever_arm[1]
+    bx = c * dn + s * de - lx
+    by = -s * dn + c * de - ly
     cm, sm = np.cos(mount_yaw), np.sin(mount_yaw)
     return np.column_stack([cm * bx + sm * by, sm * bx - cm * by])
 
@@ -257,6 +284,8 @@ def cluster_detections(
     """
     from usvfast.lidar.clustering import mean_shift
 
+    time = real("time", time)
+    min_position_std = real("min_position_std", min_position_std, positive=True)
     pts = as_float_array("points", points, ndim=2)
     if pts.shape[0] == 0:
         return [], np.zeros(0, dtype=np.int64), np.zeros((0, 2))
