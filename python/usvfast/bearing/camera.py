@@ -22,7 +22,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from usvfast._validate import broadcast, instance
+from usvfast._validate import broadcast, instance, real
 from usvfast.bearing.angles import float_array
 
 
@@ -86,7 +86,13 @@ class BearingCamera:
 
 
 def square_pixel_vfov_deg(hfov_deg: float, width_px: float, height_px: float) -> float:
-    """Vertical field of view (degrees) of a pinhole camera with square pixels."""
+    """Vertical field of view (degrees) of a pinhole camera with square pixels. `hfov_deg` in
+    (0, 180), `width_px` and `height_px` > 0; else ValueError naming the argument."""
+    hfov_deg = real("hfov_deg", hfov_deg, positive=True)
+    if not hfov_deg < 180.0:
+        raise ValueError(f"hfov_deg: must be < 180, got {hfov_deg}")
+    width_px = real("width_px", width_px, positive=True)
+    height_px = real("height_px", height_px, positive=True)
     return math.degrees(
         2.0 * math.atan(math.tan(math.radians(hfov_deg) / 2.0) * height_px / width_px)
     )
@@ -192,6 +198,7 @@ def bearing_to_pixel(
     90° off the optical axis (after un-rotating) have no image and come back as NaN; points
     outside the frame come back with coordinates outside [0, W] x [0, H].
     """
+    instance("camera", camera, BearingCamera)
     b = float_array("bearing_deg", bearing_deg)
     e = float_array("elevation_deg", elevation_deg)
     pan, tilt, gamma = _ptz(camera, pan_deg, tilt_deg, zoom)

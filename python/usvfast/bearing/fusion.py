@@ -17,7 +17,7 @@ import numpy as np
 
 from usvfast._angles import wrap_deg
 from usvfast._core import DimensionError, TimeOrderError
-from usvfast._validate import as_float_array
+from usvfast._validate import as_float_array, instance, real
 from usvfast.bearing.angles import unwrap_raw_deg as unwrap_deg
 from usvfast.kalman import ConstantVelocity, KalmanResult, kalman_filter
 
@@ -114,7 +114,8 @@ def fuse_bearings(
     if np.any(np.diff(t) < 0):
         k = int(np.argmax(np.diff(t) < 0))
         raise TimeOrderError(f"times: must be non-decreasing; times[{k + 1}] < times[{k}]")
-    stds = {int(k): float(v) for k, v in measurement_std_deg.items()}
+    instance("measurement_std_deg", measurement_std_deg, Mapping)
+    stds = {int(k): real(f"measurement_std_deg[{k}]", v) for k, v in measurement_std_deg.items()}
     for k, v in stds.items():
         if not np.isfinite(v) or v <= 0:
             raise ValueError(f"measurement_std_deg: source {k} must have a std > 0, got {v}")
@@ -202,7 +203,10 @@ def bearing_rmse_table(fusion: BearingFusion, reference_deg: Any) -> list[RmseRo
     times (unfused), the Kalman filter alone, and KF + RTS, at all samples. Angle differences
     are wrapped.
     """
-    ref = np.asarray(reference_deg, dtype=np.float64)
+    instance("fusion", fusion, BearingFusion)
+    ref = as_float_array("reference_deg", reference_deg, finite=False).reshape(
+        np.shape(reference_deg)
+    )
     if ref.shape != fusion.times.shape:
         raise DimensionError(f"reference_deg: expected shape {fusion.times.shape}, got {ref.shape}")
     rows = []

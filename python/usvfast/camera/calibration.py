@@ -18,7 +18,7 @@ import numpy as np
 import yaml
 
 from usvfast._core import DimensionError
-from usvfast._validate import as_float_array, instance
+from usvfast._validate import as_float_array, instance, integer, real
 
 MODELS = ("pinhole", "fisheye")
 _ROS_MODEL = {"pinhole": "plumb_bob", "fisheye": "equidistant"}
@@ -212,8 +212,14 @@ def find_board(image: np.ndarray, board_size: tuple[int, int]) -> np.ndarray | N
 
 
 def board_points(board_size: tuple[int, int], square_size: float) -> np.ndarray:
-    """Board-frame coordinates (k, 3) metres of the inner corners, row by row (z = 0)."""
-    cols, rows = board_size
+    """Board-frame coordinates (k, 3) metres of the inner corners, row by row (z = 0).
+    `board_size` (columns, rows) of inner corners, integers in [2, 1000]; `square_size` > 0 m."""
+    if not isinstance(board_size, tuple | list) or len(board_size) != 2:
+        raise TypeError(f"board_size: expected (columns, rows), got {board_size!r}")
+    cols, rows = (
+        integer(f"board_size[{i}]", v, low=2, high=1000) for i, v in enumerate(board_size)
+    )
+    square_size = real("square_size", square_size, positive=True)
     g = np.mgrid[0:cols, 0:rows].T.reshape(-1, 2) * square_size
     return np.hstack([g, np.zeros((len(g), 1))])
 

@@ -10,13 +10,17 @@ from __future__ import annotations
 
 import numpy as np
 
+from usvfast._validate import real
+
 
 def _check(height: float, channels: int, vfov_deg: float) -> None:
-    if not np.isfinite(height) or height <= 0:
+    height, vfov_deg = real("height", height), real("vfov_deg", vfov_deg)
+    if height <= 0:
         raise ValueError(f"height: expected a positive mount height in metres, got {height}")
-    if int(channels) != channels or channels < 2:
-        raise ValueError(f"channels: expected an integer >= 2, got {channels}")
-    if not np.isfinite(vfov_deg) or not 0 < vfov_deg < 180:
+    c = real("channels", channels)
+    if not c.is_integer() or not 2 <= c <= 100_000:
+        raise ValueError(f"channels: expected an integer in [2, 100000], got {channels}")
+    if not 0 < vfov_deg < 180:
         raise ValueError(f"vfov_deg: expected 0 < vfov_deg < 180, got {vfov_deg}")
 
 

@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 
 from usvfast._core import DimensionError
-from usvfast._validate import as_float_array, real
+from usvfast._validate import as_float_array, integer, real
 
 
 def _grid(radius: float, pixel: float) -> int:
@@ -22,6 +22,8 @@ def _grid(radius: float, pixel: float) -> int:
         raise ValueError(f"radius: expected a positive number of metres, got {radius}")
     if not (np.isfinite(pixel) and 0 < pixel <= radius):
         raise ValueError(f"pixel: expected 0 < pixel <= radius, got {pixel}")
+    if 2 * radius / pixel > 100_000:
+        raise ValueError(f"pixel: {pixel} m makes a raster wider than 100000 pixels")
     return int(np.ceil(2 * radius / pixel))
 
 
@@ -88,8 +90,8 @@ def detect_segments(
     segments, one along each of its edges.
     """
     _grid(radius, pixel)
-    if image.ndim != 2 or image.dtype != np.uint8:
-        raise ValueError(f"image: expected a 2-D uint8 image, got {image.dtype} {image.shape}")
+    if not isinstance(image, np.ndarray) or image.ndim != 2 or image.dtype != np.uint8:
+        raise TypeError(f"image: expected a 2-D uint8 image, got {_describe(image)}")
     lines = _lsd().detect(image)[0]
     if lines is None:
         return np.zeros((0, 4))
@@ -196,8 +198,10 @@ class LineMemory:
     )
 
     def __post_init__(self) -> None:
-        if int(self.frames) != self.frames or self.frames < 1:
-            raise ValueError(f"frames: expected an integer >= 1, got {self.frames}")
+        if isinstance(self.frames, float) and self.frames.is_integer():
+            self.frames = int(self.frames)
+        self.frames = integer("frames", self.frames, low=1, high=10**6)
+        self.cover_tolerance = real("cover_tolerance", self.cover_tolerance, low=0.0)
 
     def update(
         self, new_segments: np.ndarray, motion: tuple[float, float, float] = (0.0, 0.0, 0.0)

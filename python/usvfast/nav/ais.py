@@ -35,7 +35,7 @@ from pyais.exceptions import AISBaseException
 from usvfast import geodesy
 from usvfast._damage import DamagedRecordsWarning
 from usvfast._files import OVERLONG_LINE
-from usvfast._validate import as_float_array
+from usvfast._validate import as_float_array, instance
 from usvfast.nav._damage import iter_lines
 from usvfast.nav.nmea import KNOT
 
@@ -325,6 +325,7 @@ def dead_reckon(
     ValueError when the MMSI has no timed report, NonFiniteError when `times` holds NaN/inf.
     """
     t_query = as_float_array("times", times)
+    instance("positions", positions, AisPositions)
     sel = (
         (positions.mmsi == mmsi)
         & np.isfinite(positions.time)
