@@ -163,6 +163,7 @@ class TrackerCore:
         out_of_order: str = "raise",
         initiate_in_gates: bool = True,
         symmetric_covariance: bool = False,
+        imm: tuple[list[tuple[object, ...]], npt.NDArray[np.float64], list[float]] | None = None,
     ) -> None: ...
     def step(
         self,

@@ -100,11 +100,13 @@ from usvfast.kalman import MotionModel, model_spec
 
 __all__ = [
     "GNN",
+    "IMM",
     "JPDA",
     "AllOf",
     "AnyOf",
     "BearingRange",
     "CovarianceTrace",
+    "KnownTurnRate",
     "MultiMeasurementInitiator",
     "NeverDelete",
     "RunResult",
@@ -445,6 +447,55 @@ class MultiMeasurementInitiator:
         }
 
 
+@dataclass(frozen=True)
+class KnownTurnRate:
+    """Coordinated turn at a known rate `omega` (rad/s) on [n, v_n, e, v_e] — Stone Soup's
+    `KnownTurnRate(turn_noise_diff_coeffs=(q, q), turn_rate=omega)`: exact transition of a
+    constant turn (positive omega turns from north towards east, i.e. to starboard), Wiener
+    velocity noise q (m² s⁻³) per axis (`q` a float or (q_n, q_e)). An IMM mode."""
+
+    q: float | tuple[float, float]
+    omega: float
+
+    def _spec(self) -> tuple:
+        qq = np.broadcast_to(np.asarray(self.q, dtype=float), (2,))
+        return ("turn", float(qq[0]), float(qq[1]), float(self.omega))
+
+
+@dataclass(frozen=True)
+class IMM:
+    """Interacting multiple models for the confirmed tracks (Blom and Bar-Shalom 1988).
+
+    modes: motion models over the tracker's state (usvfast.kalman models such as
+    constant_velocity_2d(q), or `KnownTurnRate(q, omega)`); transition (r, r): Markov switching
+    matrix, transition[i, j] = P(mode j at the next scan | mode i now), rows summing to 1;
+    initial (r,): mode probabilities of a newly confirmed track (default uniform). Each scan:
+    mixing, mode predictions, a mode-conditioned update (Kalman update under GNN, PDA mixture
+    with the track's JPDA association weights under JPDA), mode probabilities from the mode
+    likelihoods, and the moment-matched output state (which gating and association use in its
+    predicted form Σ c̄_j N(x_j⁻, P_j⁻)). filterpy's `IMMEstimator` on a single target.
+    Tentative tracks use the initiator's model; `Tracks.mode_probabilities` holds μ.
+    """
+
+    modes: Sequence[Any]
+    transition: Any
+    initial: Any = None
+
+    def _spec(self) -> tuple:
+        modes = [
+            m._spec() if isinstance(m, KnownTurnRate) else ("linear", model_spec(m))
+            for m in self.modes
+        ]
+        tr = as_float_array("imm.transition", self.transition, ndim=2)
+        r = len(modes)
+        init = (
+            np.full(r, 1.0 / max(r, 1))
+            if self.initial is None
+            else as_float_array("imm.initial", self.initial, ndim=1)
+        )
+        return (modes, tr, [float(v) for v in init])
+
+
 def _non_negative_int(name: str, v: Any) -> int:
     try:
         ok = not isinstance(v, bool) and int(v) == v and int(v) >= 0
@@ -469,7 +520,8 @@ class Tracks:
     detection's innovation (GNN: the assigned detection; JPDA: the most probable detection, the
     one `detection` names — the mixture itself has no single innovation); elsewhere (a
     prediction, or a tentative track's first state) nis is 0 with nis_dof 0, so `nis_dof > 0` is
-    the mask of valid entries (no NaN)."""
+    the mask of valid entries (no NaN). mode_probabilities (k, r): IMM mode probabilities
+    ((k, 0) without an IMM)."""
 
     ids: np.ndarray
     times: np.ndarray
@@ -486,6 +538,7 @@ class Tracks:
     assoc_probability: np.ndarray
     nis: np.ndarray
     nis_dof: np.ndarray
+    mode_probabilities: np.ndarray
 
     def __len__(self) -> int:
         return len(self.ids)
@@ -584,7 +637,8 @@ class Tracker:
     there; on here: without it rounding asymmetry grows through long predictions and makes P
     indefinite, e.g. constant-acceleration models on Joyride); delete_last_prediction:
     Stone Soup's `delete_last_pred`; out_of_order: "raise" (TimeOrderError) or "drop";
-    initiate_in_gates: see the module docstring.
+    initiate_in_gates: see the module docstring; imm: an `IMM` bank for the confirmed tracks
+    (its modes replace motion_model for them).
 
     Raises ValueError subclasses naming the argument on bad shapes (DimensionError), NaN/inf
     (NonFiniteError), non-positive-definite noise (NotPositiveDefiniteError) or probabilities
@@ -604,9 +658,12 @@ class Tracker:
         delete_last_prediction: bool = False,
         out_of_order: Literal["raise", "drop"] = "raise",
         initiate_in_gates: bool = True,
+        imm: IMM | None = None,
     ) -> None:
         if not isinstance(association, JPDA | GNN):
             raise TypeError(f"association: expected JPDA or GNN, got {association!r}")
+        if imm is not None and not isinstance(imm, IMM):
+            raise TypeError(f"imm: expected IMM, got {imm!r}")
         if not isinstance(initiator, MultiMeasurementInitiator):
             raise TypeError(f"initiator: expected MultiMeasurementInitiator, got {initiator!r}")
         if isinstance(sensors, Sensor):
@@ -625,6 +682,7 @@ class Tracker:
             delete_last_prediction=bool(delete_last_prediction),
             out_of_order=out_of_order,
             initiate_in_gates=bool(initiate_in_gates),
+            imm=None if imm is None else imm._spec(),
         )
 
     def _detections(self, measurements: Any, sensor_ids: Any) -> tuple[np.ndarray, np.ndarray]:

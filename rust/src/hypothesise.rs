@@ -552,11 +552,18 @@ pub(crate) fn gnn_step<N: Dim, M: Dim>(
     (n, m): (N, M),
     which: &[usize],
     scan: i64,
+    imm: Option<&crate::imm::ImmConfig>,
 ) -> Result<Vec<Option<usize>>>
 where
     DefaultAllocator: Alloc<N, M>,
 {
-    let preds = predict_all(model, tracks, t, n);
+    let (imm_preds, preds) = match imm {
+        Some(c) => {
+            let (a, b) = imm_predict_all(c, tracks, t, n);
+            (Some(a), b)
+        }
+        None => (None, predict_all(model, tracks, t, n)),
+    };
     let ns = sensors.len();
     let mut innov = Innovations::new(preds.len(), ns);
     let gate = if g.include_all {
@@ -605,9 +612,27 @@ where
                 let d = p.d;
                 let s = dets.sensor[d];
                 let inn = innov.of(p, s);
-                let y = inn.residual(dets.row(d, md));
-                let xu = &xp + &inn.k * y;
-                let pu = posterior_cov(&pp, inn, &sensors[s], form);
+                let (xu, pu) = match &imm_preds {
+                    Some(ip) => {
+                        let hy = [(d, 1.0, 0.0)];
+                        let (st, (xu, pu)) = imm_update(
+                            &ip[ti],
+                            n,
+                            sensors,
+                            dets,
+                            form,
+                            0.0,
+                            &hy,
+                            f64::NEG_INFINITY,
+                        )?;
+                        tr.imm = Some(st);
+                        (xu, pu)
+                    }
+                    None => {
+                        let y = inn.residual(dets.row(d, md));
+                        (&xp + &inn.k * y, posterior_cov(&pp, inn, &sensors[s], form))
+                    }
+                };
                 entry.is_update = true;
                 entry.sensor = s as i64;
                 entry.detection = d as i64;
@@ -621,9 +646,152 @@ where
                 entry.detection = -1;
                 entry.nis = f64::NAN;
                 entry.missed_probability = 1.0;
-                tr.append_slices(xp.as_slice(), pp.as_slice(), &entry);
+                if let Some(ip) = &imm_preds {
+                    let (st, (xu, pu)) =
+                        imm_update(&ip[ti], n, sensors, dets, form, 1.0, &[], 0.0)?;
+                    tr.imm = Some(st);
+                    tr.append_slices(xu.as_slice(), pu.as_slice(), &entry);
+                } else {
+                    tr.append_slices(xp.as_slice(), pp.as_slice(), &entry);
+                }
             }
         }
     }
     Ok(assign)
+}
+
+/// The innovation of detection `d` of `dets` for the prediction `(x, p)` with its sensor's
+/// model (linear or polar; the detection's own covariance when it has one).
+pub(crate) fn pair_innovation<N: Dim, M: Dim>(
+    x: &OVector<f64, N>,
+    p: &OMatrix<f64, N, N>,
+    sensor: &SensorT<N, M>,
+    dets: &Dets<'_, M>,
+    d: usize,
+) -> Result<Innovation<N, M>>
+where
+    DefaultAllocator: Alloc<N, M>,
+{
+    if let Some(pol) = &sensor.polar {
+        let r = dets.covs.map_or(&sensor.r, |c| &c[d]);
+        return pol.innovation(x, p, r, dets.origin(d));
+    }
+    let base = innovation(x, p, sensor)?;
+    match dets.covs {
+        Some(c) => own_innovation(&base, &c[d]),
+        None => Ok(base),
+    }
+}
+
+/// IMM predictions of `tracks` to `t` (a track without an IMM state starts every mode at its
+/// state with `imm.initial`), and the combined predictions `Σ c̄_j N(x_j⁻, P_j⁻)` used for
+/// gating and association.
+pub(crate) fn imm_predict_all<N: Dim>(
+    imm: &crate::imm::ImmConfig,
+    tracks: &mut [Track],
+    t: f64,
+    n: N,
+) -> (Vec<crate::imm::ImmPrediction>, Vec<Pred<N>>)
+where
+    DefaultAllocator: Allocator<N, N> + Allocator<N>,
+{
+    let mut out = Vec::with_capacity(tracks.len());
+    let mut preds = Vec::with_capacity(tracks.len());
+    for tr in tracks.iter_mut() {
+        let st = tr
+            .imm
+            .get_or_insert_with(|| crate::imm::ImmState::new(&tr.x, &tr.p, &imm.initial));
+        let pr = crate::imm::predict(imm, st, t - tr.t);
+        let (x, p) = crate::imm::combine(&pr.cbar, &pr.x, &pr.p);
+        preds.push((
+            OVector::<f64, N>::from_column_slice_generic(n, U1, x.as_slice()),
+            OMatrix::<f64, N, N>::from_column_slice_generic(n, n, p.as_slice()),
+        ));
+        out.push(pr);
+    }
+    (out, preds)
+}
+
+/// The IMM update of one track: every mode gets the PDA mixture of its prediction (weight
+/// `b0`) and its Kalman updates with the detections `hyps[i] = (detection, β_i, ln(P_D/λ))`
+/// (the association weights `β` are the track's, shared by the modes; Blom and Bloem's
+/// IMM-JPDA with a common association), mode likelihoods
+/// `Λ_j = e^{ln_missed} + Σ_i e^{ln(P_D/λ)} N(z_i; ẑ_j, S_j)`, `μ_j ∝ c̄_j Λ_j`. Returns the new
+/// IMM state and its combined Gaussian (column-major slices of the output state).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn imm_update<N: Dim, M: Dim>(
+    pred: &crate::imm::ImmPrediction,
+    n: N,
+    sensors: &[SensorT<N, M>],
+    dets: &Dets<'_, M>,
+    form: CovForm,
+    b0: f64,
+    hyps: &[(usize, f64, f64)],
+    ln_missed: f64,
+) -> Result<(crate::imm::ImmState, Pred<N>)>
+where
+    DefaultAllocator: Alloc<N, M>,
+{
+    const LN_2PI: f64 = 1.837_877_066_409_345_5;
+    let r = pred.x.len();
+    let mut xs = Vec::with_capacity(r);
+    let mut ps = Vec::with_capacity(r);
+    let mut ln_lik = Vec::with_capacity(r);
+    for j in 0..r {
+        let xp = OVector::<f64, N>::from_column_slice_generic(n, U1, pred.x[j].as_slice());
+        let pp = OMatrix::<f64, N, N>::from_column_slice_generic(n, n, pred.p[j].as_slice());
+        let mut terms = vec![ln_missed];
+        let mut comps: Vec<(f64, Pred<N>)> = Vec::new();
+        if b0 > 0.0 {
+            comps.push((b0, (xp.clone(), pp.clone())));
+        }
+        for &(d, beta, ln_c) in hyps {
+            let s = dets.sensor[d];
+            let inn = pair_innovation(&xp, &pp, &sensors[s], dets, d)?;
+            let y = inn.residual(dets.row(d, inn.zhat.len()));
+            let d2 = y.dot(&inn.chol.solve(&y));
+            terms.push(ln_c - 0.5 * (d2 + inn.ln_det + y.len() as f64 * LN_2PI));
+            if beta > 0.0 {
+                let xu = &xp + &inn.k * y;
+                let pu = posterior_cov(&pp, &inn, &sensors[s], form);
+                comps.push((beta, (xu, pu)));
+            }
+        }
+        let mx = terms.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+        ln_lik.push(if mx.is_finite() {
+            mx + terms.iter().map(|v| (v - mx).exp()).sum::<f64>().ln()
+        } else {
+            f64::NEG_INFINITY
+        });
+        let wsum: f64 = comps.iter().map(|c| c.0).sum();
+        let mut mean = OVector::<f64, N>::zeros_generic(n, U1);
+        for (w, (x, _)) in &comps {
+            mean += x * (*w / wsum);
+        }
+        let mut cov = OMatrix::<f64, N, N>::zeros_generic(n, n);
+        for (w, (x, p)) in &comps {
+            let dx = x - &mean;
+            cov += (p + &dx * dx.transpose()) * (*w / wsum);
+        }
+        if form.symmetric {
+            let t = cov.transpose();
+            cov = (cov + t) / 2.0;
+        }
+        xs.push(nalgebra::DVector::from_column_slice(mean.as_slice()));
+        ps.push(nalgebra::DMatrix::from_column_slice(
+            n.value(),
+            n.value(),
+            cov.as_slice(),
+        ));
+    }
+    let mu = crate::imm::mode_probabilities(&pred.cbar, &ln_lik);
+    let (x, p) = crate::imm::combine(&mu, &xs, &ps);
+    let st = crate::imm::ImmState { mu, x: xs, p: ps };
+    Ok((
+        st,
+        (
+            OVector::<f64, N>::from_column_slice_generic(n, U1, x.as_slice()),
+            OMatrix::<f64, N, N>::from_column_slice_generic(n, n, p.as_slice()),
+        ),
+    ))
 }

@@ -13,6 +13,7 @@ pub mod gating;
 pub mod geodesy;
 pub mod georef;
 pub mod hypothesise;
+pub mod imm;
 pub mod jpda;
 pub mod kalman;
 pub mod line_of_sight;

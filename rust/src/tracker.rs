@@ -321,6 +321,7 @@ impl Tracker {
                     dims,
                     &all,
                     self.scan,
+                    self.cfg.imm.as_ref(),
                 )?;
                 let mut associated = vec![false; k];
                 for d in assoc.into_iter().flatten() {
@@ -364,7 +365,16 @@ impl Tracker {
         let k = dets.len();
         let det_sensor = dets.sensor;
         let ns = sensors.len();
-        let preds = predict_all(&self.cfg.motion_model, &self.tracks, t, n);
+        let (imm_preds, preds) = match &self.cfg.imm {
+            Some(c) => {
+                let (a, b) = crate::hypothesise::imm_predict_all(c, &mut self.tracks, t, n);
+                (Some(a), b)
+            }
+            None => (
+                None,
+                predict_all(&self.cfg.motion_model, &self.tracks, t, n),
+            ),
+        };
         let mut innov = Innovations::new(preds.len(), ns);
         let gate = if j.include_all {
             f64::INFINITY
@@ -510,6 +520,33 @@ impl Tracker {
                     .zip(&mg.detections)
                     .map(|(e, &b)| (e.0 as i64, b / tot)),
             );
+            if let Some(ip) = &imm_preds {
+                // Mode-conditioned PDA with the track's association weights; the clutter term
+                // ln(P_D/λ) of each detection is the one of its combined weight.
+                let hy: Vec<(usize, f64, f64)> = h
+                    .iter()
+                    .zip(&mg.detections)
+                    .map(|(e, &b)| {
+                        let p = &pairs[e.3];
+                        let inn = innov.of(p, det_sensor[p.d]);
+                        let logpdf = -0.5 * (p.d2 + inn.ln_det + m as f64 * LN_2PI);
+                        (e.0, b / tot, e.1 - logpdf)
+                    })
+                    .collect();
+                let (st, (xu, pu)) = crate::hypothesise::imm_update(
+                    &ip[ti],
+                    n,
+                    sensors,
+                    dets,
+                    form,
+                    b0 / tot,
+                    &hy,
+                    ln_missed,
+                )?;
+                tr.imm = Some(st);
+                tr.append_slices(xu.as_slice(), pu.as_slice(), &entry);
+                continue;
+            }
             tr.append_slices(mean.as_slice(), cov.as_slice(), &entry);
         }
         if !self.cfg.initiate_in_gates {
@@ -555,6 +592,7 @@ impl Tracker {
                 dims,
                 free,
                 self.scan,
+                None,
             )?;
             for d in assoc.into_iter().flatten() {
                 used[d] = true;
@@ -833,6 +871,7 @@ mod tests {
             },
             out_of_order: OutOfOrder::Raise,
             initiate_in_gates: true,
+            imm: None,
         }
     }
 

@@ -232,6 +232,9 @@ pub struct TrackerConfig {
     pub delete_last_prediction: bool,
     pub initiator: InitiatorConfig,
     pub out_of_order: OutOfOrder,
+    /// An IMM bank for the confirmed tracks (`None`: `motion_model` alone). Tentative tracks
+    /// use the initiator's model; a confirmed track starts every mode at its state.
+    pub imm: Option<crate::imm::ImmConfig>,
     /// Stone Soup passes detections to the initiator unless some track's marginal for them
     /// exceeds its missed marginal (`true`). With `false` (native option against duplicate
     /// tracks on one target): detections inside any confirmed track's gate are withheld too,
@@ -270,6 +273,9 @@ impl TrackerConfig {
 
     pub(crate) fn validate(&self) -> Result<()> {
         self.validate_polar()?;
+        if let Some(imm) = &self.imm {
+            imm.validate(self.motion_model.ndim())?;
+        }
         let n = self.motion_model.ndim();
         if self.sensors.is_empty() {
             return Err(Error::param("sensors", "at least one sensor is needed"));

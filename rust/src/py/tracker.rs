@@ -6,6 +6,7 @@ use super::kalman::motion_model_from_spec;
 use super::to_py_err;
 use crate::error::Error;
 use crate::gating::chi2_quantile;
+use crate::imm::{ImmConfig, Mode};
 use crate::jpda::{marginals, Method, TrackHypotheses};
 use crate::polar::{Polar, PolarUpdate};
 use crate::track::{Deleter, Track};
@@ -120,6 +121,42 @@ fn deleter(spec: &Bound<'_, PyAny>) -> PyResult<Deleter> {
 /// `(i, j, "ekf" | "ukf", alpha, beta, kappa)` of a range–bearing sensor.
 type PolarSpec = (usize, usize, String, f64, f64, Option<f64>);
 
+/// `(modes, transition (r, r), initial (r,))`; a mode is `("linear", motion model spec)` or
+/// `("turn", q_x, q_y, omega)`.
+type ImmSpec<'py> = (
+    Vec<Bound<'py, PyTuple>>,
+    PyReadonlyArray2<'py, f64>,
+    Vec<f64>,
+);
+
+fn imm_from_spec(spec: &ImmSpec<'_>) -> PyResult<ImmConfig> {
+    let modes = spec
+        .0
+        .iter()
+        .enumerate()
+        .map(|(i, t)| {
+            let kind: String = t.get_item(0)?.extract()?;
+            match kind.as_str() {
+                "linear" => Ok(Mode::Linear(motion_model_from_spec(
+                    &t.get_item(1)?.extract::<Vec<(String, f64)>>()?,
+                )?)),
+                "turn" => Ok(Mode::KnownTurnRate {
+                    q: [t.get_item(1)?.extract()?, t.get_item(2)?.extract()?],
+                    omega: t.get_item(3)?.extract()?,
+                }),
+                other => Err(PyValueError::new_err(format!(
+                    "imm.modes[{i}]: unknown kind {other:?}"
+                ))),
+            }
+        })
+        .collect::<PyResult<Vec<_>>>()?;
+    Ok(ImmConfig {
+        modes,
+        transition: matrix("imm.transition", &spec.1)?,
+        initial: spec.2.clone(),
+    })
+}
+
 type SensorSpec<'py> = (
     PyReadonlyArray2<'py, f64>,
     PyReadonlyArray2<'py, f64>,
@@ -223,7 +260,7 @@ impl TrackerCore {
     #[pyo3(signature = (
         motion_model, sensors, association, deleter_spec, initiator, *,
         use_joseph_cov=false, delete_last_prediction=false, out_of_order="raise",
-        initiate_in_gates=true, symmetric_covariance=false
+        initiate_in_gates=true, symmetric_covariance=false, imm=None
     ))]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -237,6 +274,7 @@ impl TrackerCore {
         out_of_order: &str,
         initiate_in_gates: bool,
         symmetric_covariance: bool,
+        imm: Option<ImmSpec<'_>>,
     ) -> PyResult<Self> {
         let model = motion_model_from_spec(&motion_model)?;
         let n = model.ndim();
@@ -314,6 +352,7 @@ impl TrackerCore {
             initiator: init,
             out_of_order,
             initiate_in_gates,
+            imm: imm.map(|s| imm_from_spec(&s)).transpose()?,
         };
         Ok(Self {
             inner: Tracker::new(cfg).map_err(to_py_err)?,
@@ -638,6 +677,18 @@ impl TrackerCore {
             })
             .collect();
         d.set_item("nis", arr_f(py, nis, &[k])?)?;
+        // IMM mode probabilities (k, r); (k, 0) without an IMM.
+        let imm = self.inner.config().imm.as_ref();
+        let r = imm.map_or(0, |c| c.modes.len());
+        let mu: Vec<f64> = list
+            .iter()
+            .flat_map(|t| match (&t.imm, imm) {
+                (Some(st), _) => st.mu.clone(),
+                (None, Some(c)) => c.initial.clone(),
+                (None, None) => vec![],
+            })
+            .collect();
+        d.set_item("mode_probabilities", arr_f(py, mu, &[k, r])?)?;
         d.set_item("nis_dof", arr_i(py, dof, &[k])?)?;
         d.set_item(
             "missed_probability",
