@@ -38,9 +38,28 @@ Native API (stable; the Stone Soup drop-in builds on it)::
             min_points=2, deleter=StepsSinceUpdate(3), missed_distance=0.3),
     )
     tracks = tracker.step(t, measurements, sensor_ids)   # (k, 2) metres, (k,) ints
+    tracks = tracker.step(t, measurements, sensor_ids, covariances=r_k)  # (k, 2, 2) m² each
     tracks.ids, tracks.states, tracks.covariances
     tracker.history(tracks.ids[0]).states               # every state, incl. tentative phase
     result = tracker.run(times, measurements, sensor_ids, scan_index)   # whole recording
+
+Per-detection noise: ``covariances`` (k, m, m) in ``step`` (and (d, m, m) in ``run``) gives each
+detection its own measurement noise covariance in place of its sensor's R — used for gating,
+the PDA/distance hypotheses, the Kalman updates of confirmed and tentative tracks and the
+start of a tentative track (unless the sensor has its own ``initiation_noise``), as Stone Soup
+does for a ``Detection`` that carries its own ``LinearGaussian`` measurement model.
+
+Range–bearing (radar) sensors: ``Sensor.bearing_range(noise_std=(σ_φ rad, σ_ρ m),
+update="ekf" | "ukf")`` measures z = (bearing, range) of the state positions from the sensor
+position given per detection as ``origins`` (k, 2) to ``step``/``run`` (the own-ship north,
+east); bearings are compass bearings (atan2(east, north)), residuals wrapped to [−π, π). Updates
+are extended (analytic Jacobian) or unscented Kalman — Stone Soup's ``CartesianToBearingRange``
+with ``ExtendedKalmanUpdater`` / ``UnscentedKalmanUpdater`` — and the linearised (or
+sigma-point) S is used by the gate, the PDA weights and GNN distances; tentative tracks start
+at the inverse of the plot with J⁺ R J⁺ᵀ (``SimpleMeasurementInitiator``). Radar and linear
+sensors mix in one tracker (all have m = 2). A polar sensor's plots are gated against every
+track (no spatial grid: cost tracks × plots); ``initiate_in_gates=False`` and, with "ukf",
+``use_joseph_cov`` are refused.
 
 Also: ``tracker.add_track(state, covariance, time)`` seeds a confirmed track (first state a
 prior, not an update); ``tracker.add_sensor(Sensor(...))`` registers a sensor between steps
@@ -81,10 +100,13 @@ from usvfast.kalman import MotionModel, model_spec
 
 __all__ = [
     "GNN",
+    "IMM",
     "JPDA",
     "AllOf",
     "AnyOf",
+    "BearingRange",
     "CovarianceTrace",
+    "KnownTurnRate",
     "MultiMeasurementInitiator",
     "NeverDelete",
     "RunResult",
@@ -98,19 +120,95 @@ __all__ = [
 
 
 @dataclass(frozen=True)
+class BearingRange:
+    """The range–bearing part of a `Sensor.bearing_range` (see there): state indices `mapping`
+    of the Cartesian (x, y) it observes, `update` "ekf" (extended Kalman, analytic Jacobian) or
+    "ukf" (unscented, sigma-point parameters alpha, beta, kappa as Stone Soup's
+    `UnscentedKalmanUpdater`; kappa None: 3 − ndim)."""
+
+    mapping: tuple[int, int] = (0, 2)
+    update: Literal["ekf", "ukf"] = "ekf"
+    alpha: float = 0.5
+    beta: float = 2.0
+    kappa: float | None = None
+
+
+@dataclass(frozen=True)
 class Sensor:
-    """A linear-Gaussian sensor: z = H x + w, w ~ N(0, R).
+    """A linear-Gaussian sensor: z = H x + w, w ~ N(0, R) — or a range–bearing sensor
+    (`Sensor.bearing_range`).
 
     measurement_matrix H: (m, ndim); measurement_noise R: (m, m), symmetric positive definite,
     in measurement units squared. `initiation_matrix`/`initiation_noise` (default: the same)
     are the model the initiator uses to start tracks from this sensor's detections (Stone
     Soup's initiator `measurement_model` for detections without their own model).
+    `polar`: set by `Sensor.bearing_range` (then H only selects the mapped positions).
     """
 
     measurement_matrix: Any
     measurement_noise: Any
     initiation_matrix: Any = None
     initiation_noise: Any = None
+    polar: BearingRange | None = None
+
+    @classmethod
+    def bearing_range(
+        cls,
+        noise_std: Sequence[float] | None = None,
+        *,
+        noise: Any = None,
+        update: Literal["ekf", "ukf"] = "ekf",
+        ndim_state: int = 4,
+        mapping: Sequence[int] = (0, 2),
+        alpha: float = 0.5,
+        beta: float = 2.0,
+        kappa: float | None = None,
+        initiation_noise: Any = None,
+    ) -> Sensor:
+        """A range–bearing sensor (radar): z = (φ, ρ), φ = atan2(y − y₀, x − x₀) in radians,
+        ρ the range in metres, of the state positions (x, y) = state[mapping] seen from the
+        sensor position (x₀, y₀) given per detection as `origins` to `Tracker.step`/`run`.
+        With the state [n, v_n, e, v_e] and mapping (0, 2), φ is the compass bearing from north
+        (clockwise). Stone Soup's `CartesianToBearingRange(ndim_state, mapping, noise_covar,
+        translation_offset=origin)`; bearings and residuals wrapped to [−π, π).
+
+        noise_std (σ_φ rad, σ_ρ m) or noise R (2, 2) in (rad², m²); update "ekf" (Stone Soup's
+        `ExtendedKalmanUpdater` with the analytic Jacobian) or "ukf" (`UnscentedKalmanUpdater`
+        with alpha, beta, kappa). New tracks start at the inverse of the detection with
+        covariance J⁺ R J⁺ᵀ on the positions (Stone Soup's `SimpleMeasurementInitiator`).
+        """
+        ndim_state = _non_negative_int("ndim_state", ndim_state)
+        mp = tuple(_non_negative_int("mapping", i) for i in mapping)
+        if len(mp) != 2 or mp[0] == mp[1] or max(mp) >= ndim_state:
+            raise ValueError(
+                f"mapping: two distinct state indices < ndim_state={ndim_state}, got {mapping}"
+            )
+        if (noise_std is None) == (noise is None):
+            raise TypeError("bearing_range: give exactly one of noise_std and noise")
+        if noise is None:
+            std = as_float_array("noise_std", noise_std, ndim=1)
+            if std.shape != (2,):
+                raise _core.DimensionError(
+                    f"noise_std: expected (bearing rad, range m), got shape {std.shape}"
+                )
+            noise = np.diag(std**2)
+        if update not in ("ekf", "ukf"):
+            raise ValueError(f"update: expected 'ekf' or 'ukf', got {update!r}")
+        h = np.zeros((2, ndim_state))
+        h[0, mp[0]] = h[1, mp[1]] = 1.0
+        return cls(
+            h,
+            noise,
+            None,
+            initiation_noise,
+            BearingRange(
+                (mp[0], mp[1]),
+                update,
+                float(alpha),
+                float(beta),
+                None if kappa is None else float(kappa),
+            ),
+        )
 
     @classmethod
     def position(
@@ -135,6 +233,19 @@ class Sensor:
 def _sensor_spec(s: Any, where: str) -> tuple:
     if not isinstance(s, Sensor):
         raise TypeError(f"{where}: expected Sensor, got {s!r}")
+    b = s.polar
+    polar = (
+        None
+        if b is None
+        else (
+            _non_negative_int(f"{where}.mapping", b.mapping[0]),
+            _non_negative_int(f"{where}.mapping", b.mapping[1]),
+            b.update,
+            float(b.alpha),
+            float(b.beta),
+            None if b.kappa is None else float(b.kappa),
+        )
+    )
     opt = [
         None if a is None else as_float_array(f"{where}.{name}", a, ndim=2)
         for name, a in (
@@ -146,6 +257,7 @@ def _sensor_spec(s: Any, where: str) -> tuple:
         as_float_array(f"{where}.measurement_matrix", s.measurement_matrix, 2),
         as_float_array(f"{where}.measurement_noise", s.measurement_noise, 2),
         *opt,
+        polar,
     )
 
 
@@ -335,6 +447,55 @@ class MultiMeasurementInitiator:
         }
 
 
+@dataclass(frozen=True)
+class KnownTurnRate:
+    """Coordinated turn at a known rate `omega` (rad/s) on [n, v_n, e, v_e] — Stone Soup's
+    `KnownTurnRate(turn_noise_diff_coeffs=(q, q), turn_rate=omega)`: exact transition of a
+    constant turn (positive omega turns from north towards east, i.e. to starboard), Wiener
+    velocity noise q (m² s⁻³) per axis (`q` a float or (q_n, q_e)). An IMM mode."""
+
+    q: float | tuple[float, float]
+    omega: float
+
+    def _spec(self) -> tuple:
+        qq = np.broadcast_to(np.asarray(self.q, dtype=float), (2,))
+        return ("turn", float(qq[0]), float(qq[1]), float(self.omega))
+
+
+@dataclass(frozen=True)
+class IMM:
+    """Interacting multiple models for the confirmed tracks (Blom and Bar-Shalom 1988).
+
+    modes: motion models over the tracker's state (usvfast.kalman models such as
+    constant_velocity_2d(q), or `KnownTurnRate(q, omega)`); transition (r, r): Markov switching
+    matrix, transition[i, j] = P(mode j at the next scan | mode i now), rows summing to 1;
+    initial (r,): mode probabilities of a newly confirmed track (default uniform). Each scan:
+    mixing, mode predictions, a mode-conditioned update (Kalman update under GNN, PDA mixture
+    with the track's JPDA association weights under JPDA), mode probabilities from the mode
+    likelihoods, and the moment-matched output state (which gating and association use in its
+    predicted form Σ c̄_j N(x_j⁻, P_j⁻)). filterpy's `IMMEstimator` on a single target.
+    Tentative tracks use the initiator's model; `Tracks.mode_probabilities` holds μ.
+    """
+
+    modes: Sequence[Any]
+    transition: Any
+    initial: Any = None
+
+    def _spec(self) -> tuple:
+        modes = [
+            m._spec() if isinstance(m, KnownTurnRate) else ("linear", model_spec(m))
+            for m in self.modes
+        ]
+        tr = as_float_array("imm.transition", self.transition, ndim=2)
+        r = len(modes)
+        init = (
+            np.full(r, 1.0 / max(r, 1))
+            if self.initial is None
+            else as_float_array("imm.initial", self.initial, ndim=1)
+        )
+        return (modes, tr, [float(v) for v in init])
+
+
 def _non_negative_int(name: str, v: Any) -> int:
     try:
         ok = not isinstance(v, bool) and int(v) == v and int(v) >= 0
@@ -352,7 +513,15 @@ class Tracks:
     update, n_updates (k,), first_scan (k,) the scan of the first state. The newest history
     entry's association data (as in TrackHistory): scan (k,), detection (k,),
     missed_probability (k,), and the hypothesised detections of track i,
-    assoc_detection/assoc_probability[assoc_offsets[i]:assoc_offsets[i+1]]."""
+    assoc_detection/assoc_probability[assoc_offsets[i]:assoc_offsets[i+1]].
+
+    nis (k,) and nis_dof (k,): the normalised innovation squared yᵀ S⁻¹ y of the last update and
+    its degrees of freedom (the measurement dimension) where the last state is an update with a
+    detection's innovation (GNN: the assigned detection; JPDA: the most probable detection, the
+    one `detection` names — the mixture itself has no single innovation); elsewhere (a
+    prediction, or a tentative track's first state) nis is 0 with nis_dof 0, so `nis_dof > 0` is
+    the mask of valid entries (no NaN). mode_probabilities (k, r): IMM mode probabilities
+    ((k, 0) without an IMM)."""
 
     ids: np.ndarray
     times: np.ndarray
@@ -367,6 +536,9 @@ class Tracks:
     assoc_offsets: np.ndarray
     assoc_detection: np.ndarray
     assoc_probability: np.ndarray
+    nis: np.ndarray
+    nis_dof: np.ndarray
+    mode_probabilities: np.ndarray
 
     def __len__(self) -> int:
         return len(self.ids)
@@ -465,7 +637,8 @@ class Tracker:
     there; on here: without it rounding asymmetry grows through long predictions and makes P
     indefinite, e.g. constant-acceleration models on Joyride); delete_last_prediction:
     Stone Soup's `delete_last_pred`; out_of_order: "raise" (TimeOrderError) or "drop";
-    initiate_in_gates: see the module docstring.
+    initiate_in_gates: see the module docstring; imm: an `IMM` bank for the confirmed tracks
+    (its modes replace motion_model for them).
 
     Raises ValueError subclasses naming the argument on bad shapes (DimensionError), NaN/inf
     (NonFiniteError), non-positive-definite noise (NotPositiveDefiniteError) or probabilities
@@ -485,9 +658,12 @@ class Tracker:
         delete_last_prediction: bool = False,
         out_of_order: Literal["raise", "drop"] = "raise",
         initiate_in_gates: bool = True,
+        imm: IMM | None = None,
     ) -> None:
         if not isinstance(association, JPDA | GNN):
             raise TypeError(f"association: expected JPDA or GNN, got {association!r}")
+        if imm is not None and not isinstance(imm, IMM):
+            raise TypeError(f"imm: expected IMM, got {imm!r}")
         if not isinstance(initiator, MultiMeasurementInitiator):
             raise TypeError(f"initiator: expected MultiMeasurementInitiator, got {initiator!r}")
         if isinstance(sensors, Sensor):
@@ -506,6 +682,7 @@ class Tracker:
             delete_last_prediction=bool(delete_last_prediction),
             out_of_order=out_of_order,
             initiate_in_gates=bool(initiate_in_gates),
+            imm=None if imm is None else imm._spec(),
         )
 
     def _detections(self, measurements: Any, sensor_ids: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -535,21 +712,70 @@ class Tracker:
                 )
         return z, ids
 
-    def step(self, t: float, measurements: Any = (), sensor_ids: Any = None) -> Tracks:
+    def _covariances(self, covariances: Any, k: int) -> np.ndarray | None:
+        if covariances is None:
+            return None
+        c = as_float_array("covariances", covariances)
+        if c.size == 0 and k == 0:
+            c = c.reshape(0, self._m, self._m)
+        if c.shape != (k, self._m, self._m):
+            raise _core.DimensionError(
+                f"covariances: expected shape ({k}, {self._m}, {self._m}), got {c.shape}"
+            )
+        return c
+
+    def _origins(self, origins: Any, k: int) -> np.ndarray | None:
+        if origins is None:
+            return None
+        o = as_float_array("origins", origins)
+        if o.shape == (2,):
+            o = np.ascontiguousarray(np.broadcast_to(o, (k, 2)))
+        if o.size == 0 and k == 0:
+            o = o.reshape(0, 2)
+        if o.shape != (k, 2):
+            raise _core.DimensionError(f"origins: expected shape ({k}, 2) or (2,), got {o.shape}")
+        return o
+
+    def step(
+        self,
+        t: float,
+        measurements: Any = (),
+        sensor_ids: Any = None,
+        covariances: Any = None,
+        origins: Any = None,
+    ) -> Tracks:
         """Process the scan at time `t` (seconds): measurements (k, m), sensor_ids (k,) ints
-        (default: all sensor 0; a scalar applies to all). Returns the confirmed tracks."""
+        (default: all sensor 0; a scalar applies to all), covariances (k, m, m) each detection's
+        own measurement noise (measurement units squared, symmetric positive definite; default:
+        its sensor's R), origins (k, 2) or (2,) for all: the position of the sensor that made
+        each detection in the state's mapped position coordinates (e.g. own-ship north, east
+        in m; used by range–bearing sensors, ignored by linear ones; default (0, 0)). Returns
+        the confirmed tracks. A bad covariance raises NotPositiveDefiniteError naming
+        `covariances[i]`."""
         z, ids = self._detections(measurements, sensor_ids)
-        self._core.step(float(t), z, ids)
+        c = self._covariances(covariances, len(z))
+        o = self._origins(origins, len(z))
+        self._core.step(float(t), z, ids, c, o)
         return self.tracks
 
     def run(
-        self, times: Any, measurements: Any, sensor_ids: Any = None, scan_index: Any = None
+        self,
+        times: Any,
+        measurements: Any,
+        sensor_ids: Any = None,
+        scan_index: Any = None,
+        covariances: Any = None,
+        origins: Any = None,
     ) -> RunResult:
         """Run a whole recording in one Rust call: scan i at times[i] (s,) holds the rows of
-        measurements (d, m) whose scan_index (d,) is i; sensor_ids (d,). Returns the confirmed
-        tracks after every scan."""
+        measurements (d, m) whose scan_index (d,) is i; sensor_ids (d,); covariances (d, m, m)
+        per row as in `step` (NotPositiveDefiniteError names the row of the whole run);
+        origins (d, 2) per row as in `step`.
+        Returns the confirmed tracks after every scan."""
         t = as_float_array("times", times, ndim=1)
         z, ids = self._detections(measurements, sensor_ids)
+        c = self._covariances(covariances, len(z))
+        o = self._origins(origins, len(z))
         if scan_index is None:
             raise TypeError("scan_index: required, one scan number per measurement row")
         si = np.asarray(scan_index)
@@ -560,7 +786,7 @@ class Tracker:
         si = np.ascontiguousarray(si, dtype=np.int64)
         if si.shape != (len(z),):
             raise _core.DimensionError(f"scan_index: expected shape ({len(z)},), got {si.shape}")
-        out = self._core.run(t, z, ids, si)
+        out = self._core.run(t, z, ids, si, c, o)
         return RunResult(**out)
 
     def add_sensor(self, sensor: Sensor) -> int:

@@ -43,6 +43,8 @@ where
 {
     pub h: OMatrix<f64, M, N>,
     pub r: OMatrix<f64, M, M>,
+    /// A range–bearing sensor (its `h` then only selects the mapped positions).
+    pub polar: Option<crate::polar::Polar>,
 }
 
 /// The configured sensors converted to the kernel's dimensions (once per scan).
@@ -55,6 +57,7 @@ where
         .map(|s| SensorT {
             h: OMatrix::from_iterator_generic(m, n, s.h.iter().copied()),
             r: OMatrix::from_iterator_generic(m, m, s.r.iter().copied()),
+            polar: s.polar,
         })
         .collect()
 }
@@ -62,17 +65,85 @@ where
 /// A predicted state `(x⁻, P⁻)`.
 pub(crate) type Pred<N> = (OVector<f64, N>, OMatrix<f64, N, N>);
 
-/// Per (track, sensor) quantities of a prediction.
+/// Per (track, sensor) quantities of a prediction, or per (track, detection) when the
+/// detection carries its own noise covariance.
 pub(crate) struct Innovation<N: Dim, M: Dim>
 where
     DefaultAllocator: Alloc<N, M>,
 {
     pub zhat: OVector<f64, M>,
+    /// `H P⁻ Hᵀ` (the innovation covariance without the measurement noise).
+    pub hph: OMatrix<f64, M, M>,
+    /// `P⁻ Hᵀ`.
+    pub pht: OMatrix<f64, N, M>,
     pub s: OMatrix<f64, M, M>,
     pub chol: Cholesky<f64, M>,
     pub ln_det: f64,
     /// Kalman gain `P⁻ Hᵀ S⁻¹`.
     pub k: OMatrix<f64, N, M>,
+    /// The detection's own noise covariance (`None`: the sensor's `R`).
+    pub r: Option<OMatrix<f64, M, M>>,
+    /// The linearised measurement matrix (extended Kalman; `None`: the sensor's `H`, or an
+    /// unscented innovation).
+    pub h: Option<OMatrix<f64, M, N>>,
+    /// The first measurement component is an angle: residuals are wrapped to `[−π, π)`.
+    pub angle: bool,
+}
+
+impl<N: Dim, M: Dim> Innovation<N, M>
+where
+    DefaultAllocator: Alloc<N, M>,
+{
+    /// The residual `z − ẑ` of a detection `z` (its angle wrapped).
+    pub fn residual(&self, z: &[f64]) -> OVector<f64, M> {
+        let (m, _) = self.zhat.shape_generic();
+        let mut y = OVector::<f64, M>::from_column_slice_generic(m, U1, z) - &self.zhat;
+        if self.angle {
+            y[0] = crate::polar::wrap(y[0]);
+        }
+        y
+    }
+}
+
+fn not_pd() -> Error {
+    Error::NotPositiveDefinite {
+        arg: "innovation covariance".into(),
+        reason: "H P Hᵀ + R of a track is not positive definite: the track covariance P has \
+                 lost positive definiteness (rounding asymmetry of P − K S Kᵀ grows through \
+                 long predictions, fastest with constant-acceleration models); set \
+                 symmetric_covariance (Stone Soup: force_symmetric_covariance) or \
+                 use_joseph_cov"
+            .into(),
+    }
+}
+
+/// `S = hph + R`, its Cholesky factor, `ln det S` and the gain `pht S⁻¹`.
+fn finish<N: Dim, M: Dim>(
+    zhat: OVector<f64, M>,
+    hph: OMatrix<f64, M, M>,
+    pht: OMatrix<f64, N, M>,
+    r: &OMatrix<f64, M, M>,
+    own: Option<OMatrix<f64, M, M>>,
+) -> Result<Innovation<N, M>>
+where
+    DefaultAllocator: Alloc<N, M>,
+{
+    let s = &hph + r;
+    let chol = Cholesky::new(s.clone()).ok_or_else(not_pd)?;
+    let ln_det = chol.l_dirty().diagonal().iter().map(|d| 2.0 * d.ln()).sum();
+    let k = chol.solve(&pht.transpose()).transpose();
+    Ok(Innovation {
+        zhat,
+        hph,
+        pht,
+        s,
+        chol,
+        ln_det,
+        k,
+        r: own,
+        h: None,
+        angle: false,
+    })
 }
 
 pub(crate) fn innovation<N: Dim, M: Dim>(
@@ -85,26 +156,76 @@ where
 {
     let h = &sensor.h;
     let pht = p * h.transpose();
-    let s = h * &pht + &sensor.r;
-    let chol = Cholesky::new(s.clone()).ok_or_else(|| Error::NotPositiveDefinite {
-        arg: "innovation covariance".into(),
-        reason: "H P Hᵀ + R of a track is not positive definite: the track covariance P has \
-                 lost positive definiteness (rounding asymmetry of P − K S Kᵀ grows through \
-                 long predictions, fastest with constant-acceleration models); set \
-                 symmetric_covariance (Stone Soup: force_symmetric_covariance) or \
-                 use_joseph_cov"
-            .into(),
-    })?;
-    let ln_det = chol.l_dirty().diagonal().iter().map(|d| 2.0 * d.ln()).sum();
-    let k = chol.solve(&pht.transpose()).transpose();
-    Ok(Innovation {
-        zhat: h * x,
-        s,
-        chol,
-        ln_det,
-        k,
-    })
+    let hph = h * &pht;
+    finish(h * x, hph, pht, &sensor.r, None)
 }
+
+/// The innovation of one detection with its own noise covariance `r`, from the track's
+/// per-sensor innovation `base` (same `H P⁻ Hᵀ`, `P⁻ Hᵀ`; `S = H P⁻ Hᵀ + r`).
+pub(crate) fn own_innovation<N: Dim, M: Dim>(
+    base: &Innovation<N, M>,
+    r: &OMatrix<f64, M, M>,
+) -> Result<Innovation<N, M>>
+where
+    DefaultAllocator: Alloc<N, M>,
+{
+    finish(
+        base.zhat.clone(),
+        base.hph.clone(),
+        base.pht.clone(),
+        r,
+        Some(r.clone()),
+    )
+}
+
+/// The innovations of one scan's gated pairs: per (track, sensor) with the sensor's `R`, and
+/// per (track, detection) for detections with their own covariance.
+pub(crate) struct Innovations<N: Dim, M: Dim>
+where
+    DefaultAllocator: Alloc<N, M>,
+{
+    ns: usize,
+    shared: Vec<Option<Innovation<N, M>>>,
+    own: Vec<Innovation<N, M>>,
+}
+
+impl<N: Dim, M: Dim> Innovations<N, M>
+where
+    DefaultAllocator: Alloc<N, M>,
+{
+    /// Room for `n_tracks` tracks seen by `ns` sensors.
+    pub fn new(n_tracks: usize, ns: usize) -> Self {
+        Self {
+            ns,
+            shared: (0..n_tracks * ns).map(|_| None).collect(),
+            own: Vec::new(),
+        }
+    }
+
+    /// The innovation of a gated pair.
+    pub fn of(&self, pair: &Pair, sensor: usize) -> &Innovation<N, M> {
+        if pair.own == NO_OWN {
+            self.shared[pair.t * self.ns + sensor]
+                .as_ref()
+                .expect("a gated pair's track innovation is computed by gate_pairs")
+        } else {
+            &self.own[pair.own as usize]
+        }
+    }
+}
+
+/// A gated (track, detection) pair: indices, squared Mahalanobis distance `d2`, and the index
+/// of its own innovation ([`NO_OWN`] when the detection uses its sensor's `R`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Pair {
+    pub t: usize,
+    pub d: usize,
+    pub d2: f64,
+    pub own: u32,
+}
+
+/// [`Pair::own`] of a detection without its own covariance.
+pub(crate) const NO_OWN: u32 = u32::MAX;
 
 /// How an updater forms the posterior covariance (Stone Soup `KalmanUpdater` flags).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -115,7 +236,8 @@ pub(crate) struct CovForm {
     pub symmetric: bool,
 }
 
-/// Posterior covariance of a Kalman update (same for every detection of a sensor).
+/// Posterior covariance of a Kalman update (same for every detection of a sensor unless the
+/// detection has its own covariance).
 pub(crate) fn posterior_cov<N: Dim, M: Dim>(
     p: &OMatrix<f64, N, N>,
     inn: &Innovation<N, M>,
@@ -127,8 +249,10 @@ where
 {
     let out = if form.joseph {
         let (n, _) = p.shape_generic();
-        let ikh = OMatrix::<f64, N, N>::identity_generic(n, n) - &inn.k * &sensor.h;
-        &ikh * p * ikh.transpose() + &inn.k * &sensor.r * inn.k.transpose()
+        let h = inn.h.as_ref().unwrap_or(&sensor.h);
+        let ikh = OMatrix::<f64, N, N>::identity_generic(n, n) - &inn.k * h;
+        let r = inn.r.as_ref().unwrap_or(&sensor.r);
+        &ikh * p * ikh.transpose() + &inn.k * r * inn.k.transpose()
     } else {
         p - &inn.k * &inn.s * inn.k.transpose()
     };
@@ -192,51 +316,123 @@ where
         .collect()
 }
 
+/// One scan's detections as the kernels see them.
+pub(crate) struct Dets<'a, M: Dim>
+where
+    DefaultAllocator: Allocator<M, M>,
+{
+    /// Measurements `(k, m)` row-major.
+    pub z: &'a [f64],
+    /// Sensor of each detection `(k,)`.
+    pub sensor: &'a [usize],
+    /// Each detection's own noise covariance (`None`: its sensor's `R`).
+    pub covs: Option<&'a [OMatrix<f64, M, M>]>,
+    /// Sensor position `(k, 2)` of each detection (used by polar sensors; `None`: the
+    /// origin).
+    pub origins: Option<&'a [f64]>,
+}
+
+impl<M: Dim> Dets<'_, M>
+where
+    DefaultAllocator: Allocator<M, M>,
+{
+    /// Number of detections.
+    pub fn len(&self) -> usize {
+        self.sensor.len()
+    }
+
+    /// Measurement row `d`.
+    pub fn row(&self, d: usize, m: usize) -> &[f64] {
+        &self.z[d * m..(d + 1) * m]
+    }
+
+    /// Sensor position of detection `d`.
+    pub fn origin(&self, d: usize) -> [f64; 2] {
+        self.origins
+            .map_or([0.0, 0.0], |o| [o[2 * d], o[2 * d + 1]])
+    }
+}
+
+/// Candidate pairs within `gate` (squared Mahalanobis) for predictions `preds[t] = (x⁻, P⁻)` and
+/// the detections `which` of `dets`, sorted by (track, detection). The per-(track, sensor)
+/// innovations of `innov` are filled lazily for linear sensors; a detection with its own noise
+/// covariance, and every detection of a polar sensor (its innovation depends on the
+/// detection's sensor position), gets its own innovation. Polar sensors test every
+/// (track, detection) pair.
 #[allow(clippy::too_many_arguments)]
-/// Candidate `(track, detection, squared Mahalanobis)` pairs within `gate` (squared), for
-/// predictions `preds[t] = (x⁻, P⁻)`; `innov[t * n_sensors + s]` is filled lazily per sensor.
 pub(crate) fn gate_pairs<N: Dim, M: Dim>(
     preds: &[Pred<N>],
     sensors: &[SensorT<N, M>],
-    z: &[f64],
     m: M,
-    det_sensor: &[usize],
-    dets: &[usize],
+    dets: &Dets<'_, M>,
+    which: &[usize],
     gate: f64,
-    innov: &mut [Option<Innovation<N, M>>],
-) -> Result<Vec<(usize, usize, f64)>>
+    innov: &mut Innovations<N, M>,
+) -> Result<Vec<Pair>>
 where
     DefaultAllocator: Alloc<N, M>,
 {
     let mut pairs = Vec::new();
-    if preds.is_empty() || dets.is_empty() {
+    if preds.is_empty() || which.is_empty() {
         return Ok(pairs);
     }
     let ns = sensors.len();
     let md = m.value();
+    let covs = dets.covs;
     for (s, sensor) in sensors.iter().enumerate() {
-        let ids: Vec<usize> = dets
+        let ids: Vec<usize> = which
             .iter()
             .copied()
-            .filter(|&d| det_sensor[d] == s)
+            .filter(|&d| dets.sensor[d] == s)
             .collect();
         if ids.is_empty() {
             continue;
         }
+        if let Some(pol) = &sensor.polar {
+            for (t, (x, p)) in preds.iter().enumerate() {
+                for &d in &ids {
+                    let r = covs.map_or(&sensor.r, |c| &c[d]);
+                    let o = pol.innovation(x, p, r, dets.origin(d))?;
+                    let y = o.residual(dets.row(d, md));
+                    let d2 = y.dot(&o.chol.solve(&y));
+                    if d2 <= gate {
+                        pairs.push(Pair {
+                            t,
+                            d,
+                            d2,
+                            own: innov.own.len() as u32,
+                        });
+                        innov.own.push(o);
+                    }
+                }
+            }
+            continue;
+        }
         for (t, (x, p)) in preds.iter().enumerate() {
-            if innov[t * ns + s].is_none() {
-                innov[t * ns + s] = Some(innovation(x, p, sensor)?);
+            if innov.shared[t * ns + s].is_none() {
+                innov.shared[t * ns + s] = Some(innovation(x, p, sensor)?);
             }
         }
+        // With per-detection covariances the gate boxes use the largest noise variance of
+        // this sensor's detections on each axis (a superset of every detection's gate).
+        let rmax: Option<Vec<f64>> = covs.map(|c| {
+            (0..md)
+                .map(|i| ids.iter().map(|&d| c[d][(i, i)]).fold(0.0, f64::max))
+                .collect()
+        });
+        let var = |inn: &Innovation<N, M>, i: usize| match &rmax {
+            Some(r) => inn.hph[(i, i)] + r[i],
+            None => inn.s[(i, i)],
+        };
         let pts: Vec<f64> = ids
             .iter()
-            .flat_map(|&d| z[d * md..(d + 1) * md].iter().copied())
+            .flat_map(|&d| dets.row(d, md).iter().copied())
             .collect();
         // Cell side: median gate box width over tracks.
         let mut widths: Vec<f64> = (0..preds.len())
             .map(|t| {
-                let inn = innov[t * ns + s].as_ref().expect("filled above");
-                let w = (0..md.min(2)).map(|i| inn.s[(i, i)]).fold(0.0, f64::max);
+                let inn = innov.shared[t * ns + s].as_ref().expect("filled above");
+                let w = (0..md.min(2)).map(|i| var(inn, i)).fold(0.0, f64::max);
                 2.0 * (gate * w).sqrt()
             })
             .collect();
@@ -249,27 +445,57 @@ where
         let local: Vec<usize> = (0..ids.len()).collect();
         let grid = CandidateGrid::new(&pts, md, &local, cell);
         let mut half = vec![0.0; md];
+        let mut err: Option<Error> = None;
+        let Innovations { shared, own, .. } = innov;
         for t in 0..preds.len() {
-            let inn = innov[t * ns + s].as_ref().expect("filled above");
+            let inn = shared[t * ns + s].as_ref().expect("filled above");
             for (i, h) in half.iter_mut().enumerate() {
-                *h = (gate * inn.s[(i, i)]).sqrt();
+                *h = (gate * var(inn, i)).sqrt();
                 if h.is_nan() {
                     *h = f64::INFINITY;
                 }
             }
             grid.query(inn.zhat.as_slice(), &half, |k| {
+                if err.is_some() {
+                    return;
+                }
                 let d = ids[k];
-                let y =
-                    OVector::<f64, M>::from_column_slice_generic(m, U1, &z[d * md..(d + 1) * md])
-                        - &inn.zhat;
-                let d2 = y.dot(&inn.chol.solve(&y));
-                if d2 <= gate {
-                    pairs.push((t, d, d2));
+                let y = inn.residual(dets.row(d, md));
+                match covs {
+                    None => {
+                        let d2 = y.dot(&inn.chol.solve(&y));
+                        if d2 <= gate {
+                            pairs.push(Pair {
+                                t,
+                                d,
+                                d2,
+                                own: NO_OWN,
+                            });
+                        }
+                    }
+                    Some(c) => match own_innovation(inn, &c[d]) {
+                        Ok(o) => {
+                            let d2 = y.dot(&o.chol.solve(&y));
+                            if d2 <= gate {
+                                pairs.push(Pair {
+                                    t,
+                                    d,
+                                    d2,
+                                    own: own.len() as u32,
+                                });
+                                own.push(o);
+                            }
+                        }
+                        Err(e) => err = Some(e),
+                    },
                 }
             });
+            if let Some(e) = err.take() {
+                return Err(e);
+            }
         }
     }
-    pairs.sort_unstable_by_key(|&(t, d, _)| (t, d));
+    pairs.sort_unstable_by_key(|p| (p.t, p.d));
     Ok(pairs)
 }
 
@@ -311,8 +537,9 @@ where
     out
 }
 
-/// Distance hypotheses + GNN + update/predict on `tracks` (confirmed or tentative). Returns
-/// the detection assigned to each track.
+/// Distance hypotheses + GNN + update/predict on `tracks` (confirmed or tentative) with the
+/// detections `which` of `dets`. Returns the detection assigned to each
+/// track.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn gnn_step<N: Dim, M: Dim>(
     tracks: &mut [Track],
@@ -321,18 +548,24 @@ pub(crate) fn gnn_step<N: Dim, M: Dim>(
     g: &GnnParams,
     form: CovForm,
     t: f64,
-    z: &[f64],
+    dets: &Dets<'_, M>,
     (n, m): (N, M),
-    det_sensor: &[usize],
-    dets: &[usize],
+    which: &[usize],
     scan: i64,
+    imm: Option<&crate::imm::ImmConfig>,
 ) -> Result<Vec<Option<usize>>>
 where
     DefaultAllocator: Alloc<N, M>,
 {
-    let preds = predict_all(model, tracks, t, n);
+    let (imm_preds, preds) = match imm {
+        Some(c) => {
+            let (a, b) = imm_predict_all(c, tracks, t, n);
+            (Some(a), b)
+        }
+        None => (None, predict_all(model, tracks, t, n)),
+    };
     let ns = sensors.len();
-    let mut innov: Vec<Option<Innovation<N, M>>> = (0..preds.len() * ns).map(|_| None).collect();
+    let mut innov = Innovations::new(preds.len(), ns);
     let gate = if g.include_all {
         f64::INFINITY
     } else {
@@ -341,20 +574,20 @@ where
             Measure::SquaredMahalanobis => g.missed_distance,
         }
     };
-    let pairs = gate_pairs(&preds, sensors, z, m, det_sensor, dets, gate, &mut innov)?;
+    let pairs = gate_pairs(&preds, sensors, m, dets, which, gate, &mut innov)?;
     let mut hyps: Vec<Vec<(usize, f64)>> = vec![Vec::new(); tracks.len()];
-    let mut d2s: Vec<Vec<f64>> = vec![Vec::new(); tracks.len()];
-    for (ti, d, d2) in pairs {
+    let mut kept: Vec<Vec<Pair>> = vec![Vec::new(); tracks.len()];
+    for p in pairs {
         let dist = match g.measure {
-            Measure::Mahalanobis => d2.sqrt(),
-            Measure::SquaredMahalanobis => d2,
+            Measure::Mahalanobis => p.d2.sqrt(),
+            Measure::SquaredMahalanobis => p.d2,
         };
         if g.include_all || dist < g.missed_distance {
-            hyps[ti].push((d, dist));
-            d2s[ti].push(d2);
+            hyps[p.t].push((p.d, dist));
+            kept[p.t].push(p);
         }
     }
-    let assign = gnn_assign(&hyps, det_sensor.len(), g.missed_distance)?;
+    let assign = gnn_assign(&hyps, dets.len(), g.missed_distance)?;
     let md = m.value();
     let mut entry = Entry {
         time: t,
@@ -373,20 +606,37 @@ where
                 .iter()
                 .map(|&(d, _)| (d as i64, if assign[ti] == Some(d) { 1.0 } else { 0.0 })),
         );
-        match assign[ti] {
-            Some(d) => {
-                let s = det_sensor[d];
-                let inn = innov[ti * ns + s].as_ref().expect("gated");
-                let y =
-                    OVector::<f64, M>::from_column_slice_generic(m, U1, &z[d * md..(d + 1) * md])
-                        - &inn.zhat;
-                let nis = d2s[ti][hyps[ti].iter().position(|h| h.0 == d).expect("hyp")];
-                let xu = &xp + &inn.k * y;
-                let pu = posterior_cov(&pp, inn, &sensors[s], form);
+        let pair = assign[ti].and_then(|d| kept[ti].iter().find(|p| p.d == d));
+        match pair {
+            Some(p) => {
+                let d = p.d;
+                let s = dets.sensor[d];
+                let inn = innov.of(p, s);
+                let (xu, pu) = match &imm_preds {
+                    Some(ip) => {
+                        let hy = [(d, 1.0, 0.0)];
+                        let (st, (xu, pu)) = imm_update(
+                            &ip[ti],
+                            n,
+                            sensors,
+                            dets,
+                            form,
+                            0.0,
+                            &hy,
+                            f64::NEG_INFINITY,
+                        )?;
+                        tr.imm = Some(st);
+                        (xu, pu)
+                    }
+                    None => {
+                        let y = inn.residual(dets.row(d, md));
+                        (&xp + &inn.k * y, posterior_cov(&pp, inn, &sensors[s], form))
+                    }
+                };
                 entry.is_update = true;
                 entry.sensor = s as i64;
                 entry.detection = d as i64;
-                entry.nis = nis;
+                entry.nis = p.d2;
                 entry.missed_probability = 0.0;
                 tr.append_slices(xu.as_slice(), pu.as_slice(), &entry);
             }
@@ -396,9 +646,152 @@ where
                 entry.detection = -1;
                 entry.nis = f64::NAN;
                 entry.missed_probability = 1.0;
-                tr.append_slices(xp.as_slice(), pp.as_slice(), &entry);
+                if let Some(ip) = &imm_preds {
+                    let (st, (xu, pu)) =
+                        imm_update(&ip[ti], n, sensors, dets, form, 1.0, &[], 0.0)?;
+                    tr.imm = Some(st);
+                    tr.append_slices(xu.as_slice(), pu.as_slice(), &entry);
+                } else {
+                    tr.append_slices(xp.as_slice(), pp.as_slice(), &entry);
+                }
             }
         }
     }
     Ok(assign)
+}
+
+/// The innovation of detection `d` of `dets` for the prediction `(x, p)` with its sensor's
+/// model (linear or polar; the detection's own covariance when it has one).
+pub(crate) fn pair_innovation<N: Dim, M: Dim>(
+    x: &OVector<f64, N>,
+    p: &OMatrix<f64, N, N>,
+    sensor: &SensorT<N, M>,
+    dets: &Dets<'_, M>,
+    d: usize,
+) -> Result<Innovation<N, M>>
+where
+    DefaultAllocator: Alloc<N, M>,
+{
+    if let Some(pol) = &sensor.polar {
+        let r = dets.covs.map_or(&sensor.r, |c| &c[d]);
+        return pol.innovation(x, p, r, dets.origin(d));
+    }
+    let base = innovation(x, p, sensor)?;
+    match dets.covs {
+        Some(c) => own_innovation(&base, &c[d]),
+        None => Ok(base),
+    }
+}
+
+/// IMM predictions of `tracks` to `t` (a track without an IMM state starts every mode at its
+/// state with `imm.initial`), and the combined predictions `Σ c̄_j N(x_j⁻, P_j⁻)` used for
+/// gating and association.
+pub(crate) fn imm_predict_all<N: Dim>(
+    imm: &crate::imm::ImmConfig,
+    tracks: &mut [Track],
+    t: f64,
+    n: N,
+) -> (Vec<crate::imm::ImmPrediction>, Vec<Pred<N>>)
+where
+    DefaultAllocator: Allocator<N, N> + Allocator<N>,
+{
+    let mut out = Vec::with_capacity(tracks.len());
+    let mut preds = Vec::with_capacity(tracks.len());
+    for tr in tracks.iter_mut() {
+        let st = tr
+            .imm
+            .get_or_insert_with(|| crate::imm::ImmState::new(&tr.x, &tr.p, &imm.initial));
+        let pr = crate::imm::predict(imm, st, t - tr.t);
+        let (x, p) = crate::imm::combine(&pr.cbar, &pr.x, &pr.p);
+        preds.push((
+            OVector::<f64, N>::from_column_slice_generic(n, U1, x.as_slice()),
+            OMatrix::<f64, N, N>::from_column_slice_generic(n, n, p.as_slice()),
+        ));
+        out.push(pr);
+    }
+    (out, preds)
+}
+
+/// The IMM update of one track: every mode gets the PDA mixture of its prediction (weight
+/// `b0`) and its Kalman updates with the detections `hyps[i] = (detection, β_i, ln(P_D/λ))`
+/// (the association weights `β` are the track's, shared by the modes; Blom and Bloem's
+/// IMM-JPDA with a common association), mode likelihoods
+/// `Λ_j = e^{ln_missed} + Σ_i e^{ln(P_D/λ)} N(z_i; ẑ_j, S_j)`, `μ_j ∝ c̄_j Λ_j`. Returns the new
+/// IMM state and its combined Gaussian (column-major slices of the output state).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn imm_update<N: Dim, M: Dim>(
+    pred: &crate::imm::ImmPrediction,
+    n: N,
+    sensors: &[SensorT<N, M>],
+    dets: &Dets<'_, M>,
+    form: CovForm,
+    b0: f64,
+    hyps: &[(usize, f64, f64)],
+    ln_missed: f64,
+) -> Result<(crate::imm::ImmState, Pred<N>)>
+where
+    DefaultAllocator: Alloc<N, M>,
+{
+    const LN_2PI: f64 = 1.837_877_066_409_345_5;
+    let r = pred.x.len();
+    let mut xs = Vec::with_capacity(r);
+    let mut ps = Vec::with_capacity(r);
+    let mut ln_lik = Vec::with_capacity(r);
+    for j in 0..r {
+        let xp = OVector::<f64, N>::from_column_slice_generic(n, U1, pred.x[j].as_slice());
+        let pp = OMatrix::<f64, N, N>::from_column_slice_generic(n, n, pred.p[j].as_slice());
+        let mut terms = vec![ln_missed];
+        let mut comps: Vec<(f64, Pred<N>)> = Vec::new();
+        if b0 > 0.0 {
+            comps.push((b0, (xp.clone(), pp.clone())));
+        }
+        for &(d, beta, ln_c) in hyps {
+            let s = dets.sensor[d];
+            let inn = pair_innovation(&xp, &pp, &sensors[s], dets, d)?;
+            let y = inn.residual(dets.row(d, inn.zhat.len()));
+            let d2 = y.dot(&inn.chol.solve(&y));
+            terms.push(ln_c - 0.5 * (d2 + inn.ln_det + y.len() as f64 * LN_2PI));
+            if beta > 0.0 {
+                let xu = &xp + &inn.k * y;
+                let pu = posterior_cov(&pp, &inn, &sensors[s], form);
+                comps.push((beta, (xu, pu)));
+            }
+        }
+        let mx = terms.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+        ln_lik.push(if mx.is_finite() {
+            mx + terms.iter().map(|v| (v - mx).exp()).sum::<f64>().ln()
+        } else {
+            f64::NEG_INFINITY
+        });
+        let wsum: f64 = comps.iter().map(|c| c.0).sum();
+        let mut mean = OVector::<f64, N>::zeros_generic(n, U1);
+        for (w, (x, _)) in &comps {
+            mean += x * (*w / wsum);
+        }
+        let mut cov = OMatrix::<f64, N, N>::zeros_generic(n, n);
+        for (w, (x, p)) in &comps {
+            let dx = x - &mean;
+            cov += (p + &dx * dx.transpose()) * (*w / wsum);
+        }
+        if form.symmetric {
+            let t = cov.transpose();
+            cov = (cov + t) / 2.0;
+        }
+        xs.push(nalgebra::DVector::from_column_slice(mean.as_slice()));
+        ps.push(nalgebra::DMatrix::from_column_slice(
+            n.value(),
+            n.value(),
+            cov.as_slice(),
+        ));
+    }
+    let mu = crate::imm::mode_probabilities(&pred.cbar, &ln_lik);
+    let (x, p) = crate::imm::combine(&mu, &xs, &ps);
+    let st = crate::imm::ImmState { mu, x: xs, p: ps };
+    Ok((
+        st,
+        (
+            OVector::<f64, N>::from_column_slice_generic(n, U1, x.as_slice()),
+            OMatrix::<f64, N, N>::from_column_slice_generic(n, n, p.as_slice()),
+        ),
+    ))
 }

@@ -135,6 +135,9 @@ pub struct Track {
     pub confirmed_time: f64,
     /// Scan time at which the track was deleted (NaN while alive).
     pub deleted_time: f64,
+    /// Mode probabilities and mode-conditioned states under an IMM (`None` without one, or
+    /// until the first IMM prediction).
+    pub imm: Option<crate::imm::ImmState>,
 }
 
 impl Track {
@@ -148,6 +151,7 @@ impl Track {
             history: History::default(),
             confirmed_time: f64::NAN,
             deleted_time: f64::NAN,
+            imm: None,
         };
         // Room for a few scans up front: growing 12 vectors one by one dominated the cost of
         // appending.

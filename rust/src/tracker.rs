@@ -26,7 +26,7 @@ use crate::error::{check_finite, Error, Result};
 use crate::gating::{chi2_quantile, validation_volume};
 use crate::hypothesise::{
     axis_orders, gate_pairs, gnn_step, order_cluster, posterior_cov, predict_all, sensors_t, Alloc,
-    CovForm, Innovation, Pred, SensorT,
+    CovForm, Dets, Innovations, Pred, SensorT, NO_OWN,
 };
 use crate::jpda::{clusters, ehm_size_estimate, marginals, Method, TrackHypotheses};
 use crate::kalman::check_covariance;
@@ -35,7 +35,7 @@ pub use crate::tracker_config::{
     Association, Confirmation, GnnParams, InitiatorConfig, JpdaParams, Measure, OutOfOrder, Sensor,
     TrackerConfig,
 };
-use nalgebra::{DMatrix, DVector, DefaultAllocator, Dim, Dyn, OMatrix, OVector, U1, U2, U4, U6};
+use nalgebra::{DMatrix, DVector, DefaultAllocator, Dim, Dyn, OMatrix, OVector, U2, U4, U6};
 
 /// `ln(2π)`.
 const LN_2PI: f64 = 1.837_877_066_409_345_5;
@@ -140,6 +140,10 @@ impl Tracker {
             ));
         }
         self.cfg.sensors.push(sensor);
+        if let Err(e) = self.cfg.validate_polar() {
+            self.cfg.sensors.pop();
+            return Err(e);
+        }
         Ok(i)
     }
 
@@ -179,8 +183,30 @@ impl Tracker {
     }
 
     /// Processes one scan: detections `z` (`(k, m)` row-major) from sensors `sensor_ids`
-    /// (`(k,)`) at time `t` seconds. An empty scan only predicts.
+    /// (`(k,)`) at time `t` seconds, each with its sensor's noise `R`. An empty scan only
+    /// predicts.
     pub fn step(&mut self, t: f64, z: &[f64], sensor_ids: &[usize]) -> Result<StepOutcome> {
+        self.step_with(t, z, sensor_ids, None, None)
+    }
+
+    /// [`Tracker::step`] with a measurement noise covariance per detection: `covariances`
+    /// `(k, m, m)` row-major (measurement units squared), symmetric positive definite, in place
+    /// of the sensor's `R` for gating, the PDA/distance hypotheses, the Kalman updates of
+    /// confirmed and tentative tracks, and the start of a tentative track (unless the sensor has
+    /// its own initiation noise; Stone Soup: a detection's own `measurement_model` is used by
+    /// every component, `SimpleMeasurementInitiator` included). `None`: the sensors' `R`.
+    ///
+    /// `origins` `(k, 2)` row-major: the position of the sensor that made each detection, in
+    /// the state's mapped position coordinates (e.g. own-ship north, east in metres), used by
+    /// range–bearing sensors (ignored for linear ones); `None`: every sensor at `(0, 0)`.
+    pub fn step_with(
+        &mut self,
+        t: f64,
+        z: &[f64],
+        sensor_ids: &[usize],
+        covariances: Option<&[f64]>,
+        origins: Option<&[f64]>,
+    ) -> Result<StepOutcome> {
         let m = self.m;
         check_finite("t", &[t])?;
         if z.len() != sensor_ids.len() * m {
@@ -191,6 +217,29 @@ impl Tracker {
             ));
         }
         check_finite("measurements", z)?;
+        if let Some(c) = covariances {
+            let k = sensor_ids.len();
+            if c.len() != k * m * m {
+                return Err(Error::dim(
+                    "covariances",
+                    format!("({k}, {m}, {m}) values (one matrix per measurement row)"),
+                    c.len(),
+                ));
+            }
+            for (i, ci) in c.chunks(m * m).enumerate() {
+                check_covariance(&format!("covariances[{i}]"), ci, m, true)?;
+            }
+        }
+        if let Some(o) = origins {
+            if o.len() != 2 * sensor_ids.len() {
+                return Err(Error::dim(
+                    "origins",
+                    format!("({}, 2) values (one per measurement row)", sensor_ids.len()),
+                    o.len(),
+                ));
+            }
+            check_finite("origins", o)?;
+        }
         if let Some(pos) = sensor_ids.iter().position(|&s| s >= self.cfg.sensors.len()) {
             return Err(Error::param(
                 "sensor_ids",
@@ -217,9 +266,9 @@ impl Tracker {
         }
         let nd = self.cfg.motion_model.ndim();
         match (nd, m) {
-            (4, 2) => self.step_dims((U4, U2), t, z, sensor_ids)?,
-            (6, 2) => self.step_dims((U6, U2), t, z, sensor_ids)?,
-            _ => self.step_dims((Dyn(nd), Dyn(m)), t, z, sensor_ids)?,
+            (4, 2) => self.step_dims((U4, U2), t, z, sensor_ids, covariances, origins)?,
+            (6, 2) => self.step_dims((U6, U2), t, z, sensor_ids, covariances, origins)?,
+            _ => self.step_dims((Dyn(nd), Dyn(m)), t, z, sensor_ids, covariances, origins)?,
         }
         self.last_time = Some(t);
         self.scan += 1;
@@ -233,6 +282,8 @@ impl Tracker {
         t: f64,
         z: &[f64],
         sensor_ids: &[usize],
+        covariances: Option<&[f64]>,
+        origins: Option<&[f64]>,
     ) -> Result<()>
     where
         DefaultAllocator: Alloc<N, M>,
@@ -240,8 +291,20 @@ impl Tracker {
         let k = sensor_ids.len();
         let all: Vec<usize> = (0..k).collect();
         let sensors = sensors_t(&self.cfg.sensors, dims.0, dims.1);
+        let md = dims.1;
+        let covs: Option<Vec<OMatrix<f64, M, M>>> = covariances.map(|c| {
+            c.chunks(self.m * self.m)
+                .map(|ci| OMatrix::<f64, M, M>::from_row_slice_generic(md, md, ci))
+                .collect()
+        });
+        let dets = Dets {
+            z,
+            sensor: sensor_ids,
+            covs: covs.as_deref(),
+            origins,
+        };
         let associated = match self.cfg.association {
-            Association::Jpda(j) => self.step_jpda(t, z, sensor_ids, &all, &j, &sensors, dims)?,
+            Association::Jpda(j) => self.step_jpda(t, &dets, &all, &j, &sensors, dims)?,
             Association::Gnn(g) => {
                 let model = self.cfg.motion_model.clone();
                 let assoc = gnn_step(
@@ -254,11 +317,11 @@ impl Tracker {
                         symmetric: self.cfg.symmetric_covariance,
                     },
                     t,
-                    z,
+                    &dets,
                     dims,
-                    sensor_ids,
                     &all,
                     self.scan,
+                    self.cfg.imm.as_ref(),
                 )?;
                 let mut associated = vec![false; k];
                 for d in assoc.into_iter().flatten() {
@@ -283,16 +346,14 @@ impl Tracker {
             }
         }
         let free: Vec<usize> = (0..k).filter(|&d| !associated[d]).collect();
-        self.initiate(t, z, sensor_ids, &free, &sensors, dims)
+        self.initiate(t, &dets, &free, &sensors, dims)
     }
 
-    #[allow(clippy::too_many_arguments)]
     fn step_jpda<N: Dim, M: Dim>(
         &mut self,
         t: f64,
-        z: &[f64],
-        det_sensor: &[usize],
-        dets: &[usize],
+        dets: &Dets<'_, M>,
+        which: &[usize],
         j: &JpdaParams,
         sensors: &[SensorT<N, M>],
         (n, md): (N, M),
@@ -301,34 +362,45 @@ impl Tracker {
         DefaultAllocator: Alloc<N, M>,
     {
         let m = self.m;
-        let k = det_sensor.len();
+        let k = dets.len();
+        let det_sensor = dets.sensor;
         let ns = sensors.len();
-        let preds = predict_all(&self.cfg.motion_model, &self.tracks, t, n);
-        let mut innov: Vec<Option<Innovation<N, M>>> =
-            (0..preds.len() * ns).map(|_| None).collect();
+        let (imm_preds, preds) = match &self.cfg.imm {
+            Some(c) => {
+                let (a, b) = crate::hypothesise::imm_predict_all(c, &mut self.tracks, t, n);
+                (Some(a), b)
+            }
+            None => (
+                None,
+                predict_all(&self.cfg.motion_model, &self.tracks, t, n),
+            ),
+        };
+        let mut innov = Innovations::new(preds.len(), ns);
         let gate = if j.include_all {
             f64::INFINITY
         } else {
             self.gate
         };
-        let pairs = gate_pairs(&preds, sensors, z, md, det_sensor, dets, gate, &mut innov)?;
+        let pairs = gate_pairs(&preds, sensors, md, dets, which, gate, &mut innov)?;
         // Log weights per track: missed, then gated detections.
         let ln_missed = (1.0 - j.prob_detect * j.prob_gate).ln();
-        let mut hyps: Vec<Vec<(usize, f64, f64)>> = vec![Vec::new(); preds.len()]; // (det, ln w, d2)
-        for &(ti, d, d2) in &pairs {
-            let inn = innov[ti * ns + det_sensor[d]].as_ref().expect("gated");
-            let logpdf = -0.5 * (d2 + inn.ln_det + m as f64 * LN_2PI);
+        // (det, ln w, d2, index into pairs)
+        let mut hyps: Vec<Vec<(usize, f64, f64, usize)>> = vec![Vec::new(); preds.len()];
+        for (pi, p) in pairs.iter().enumerate() {
+            let inn = innov.of(p, det_sensor[p.d]);
+            let logpdf = -0.5 * (p.d2 + inn.ln_det + m as f64 * LN_2PI);
             let mut lw = logpdf + j.prob_detect.ln();
             if let Some(l) = j.clutter_density {
                 lw -= l.ln();
             }
-            hyps[ti].push((d, lw, d2));
+            hyps[p.t].push((p.d, lw, p.d2, pi));
         }
         if j.clutter_density.is_none() {
-            for (ti, h) in hyps.iter_mut().enumerate() {
+            for h in hyps.iter_mut() {
                 let n_valid = h.iter().filter(|x| x.2 <= self.gate).count() as f64;
                 for e in h.iter_mut() {
-                    let inn = innov[ti * ns + det_sensor[e.0]].as_ref().expect("gated");
+                    let p = &pairs[e.3];
+                    let inn = innov.of(p, det_sensor[p.d]);
                     let vol = validation_volume(m, self.gate, inn.ln_det.exp());
                     e.1 += vol.ln() - n_valid.ln();
                 }
@@ -390,7 +462,8 @@ impl Tracker {
             missed_probability: f64::NAN,
             assoc: Vec::new(),
         };
-        // Scratch reused across tracks: mixture components, posterior covariance per sensor.
+        // Scratch reused across tracks: mixture components (weight, state, pair), posterior
+        // covariance per sensor (detections without their own covariance).
         let mut comps: Vec<(f64, OVector<f64, N>, usize)> = Vec::new();
         let mut post_by_sensor: Vec<Option<OMatrix<f64, N, N>>> = (0..ns).map(|_| None).collect();
         for (ti, ((xp, pp), tr)) in preds.into_iter().zip(self.tracks.iter_mut()).enumerate() {
@@ -402,32 +475,30 @@ impl Tracker {
             let mut mean = &xp * (b0 / tot);
             comps.clear();
             for (e, &b) in h.iter().zip(&mg.detections) {
-                let s = det_sensor[e.0];
-                let inn = innov[ti * ns + s].as_ref().expect("gated");
-                let y = OVector::<f64, M>::from_column_slice_generic(
-                    md,
-                    U1,
-                    &z[e.0 * m..(e.0 + 1) * m],
-                ) - &inn.zhat;
+                let inn = innov.of(&pairs[e.3], det_sensor[e.0]);
+                let y = inn.residual(dets.row(e.0, m));
                 let xu = &xp + &inn.k * y;
                 mean += &xu * (b / tot);
-                comps.push((b / tot, xu, s));
+                comps.push((b / tot, xu, e.3));
                 in_gate[e.0] = true;
             }
             let dx = &xp - &mean;
             let mut cov = &pp * (b0 / tot) + (&dx * dx.transpose()) * (b0 / tot);
             post_by_sensor.iter_mut().for_each(|p| *p = None);
-            for (w, xu, s) in &comps {
-                let pu = post_by_sensor[*s].get_or_insert_with(|| {
-                    posterior_cov(
-                        &pp,
-                        innov[ti * ns + *s].as_ref().expect("gated"),
-                        &sensors[*s],
-                        form,
-                    )
-                });
+            for (w, xu, pi) in &comps {
+                let p = &pairs[*pi];
+                let s = det_sensor[p.d];
+                let inn = innov.of(p, s);
+                let own;
+                let pu = if p.own == NO_OWN {
+                    &*post_by_sensor[s]
+                        .get_or_insert_with(|| posterior_cov(&pp, inn, &sensors[s], form))
+                } else {
+                    own = posterior_cov(&pp, inn, &sensors[s], form);
+                    &own
+                };
                 let dx = xu - &mean;
-                cov += &*pu * *w + (&dx * dx.transpose()) * *w;
+                cov += pu * *w + (&dx * dx.transpose()) * *w;
             }
             let mut best: Option<usize> = None;
             for (i, &b) in mg.detections.iter().enumerate() {
@@ -449,6 +520,33 @@ impl Tracker {
                     .zip(&mg.detections)
                     .map(|(e, &b)| (e.0 as i64, b / tot)),
             );
+            if let Some(ip) = &imm_preds {
+                // Mode-conditioned PDA with the track's association weights; the clutter term
+                // ln(P_D/λ) of each detection is the one of its combined weight.
+                let hy: Vec<(usize, f64, f64)> = h
+                    .iter()
+                    .zip(&mg.detections)
+                    .map(|(e, &b)| {
+                        let p = &pairs[e.3];
+                        let inn = innov.of(p, det_sensor[p.d]);
+                        let logpdf = -0.5 * (p.d2 + inn.ln_det + m as f64 * LN_2PI);
+                        (e.0, b / tot, e.1 - logpdf)
+                    })
+                    .collect();
+                let (st, (xu, pu)) = crate::hypothesise::imm_update(
+                    &ip[ti],
+                    n,
+                    sensors,
+                    dets,
+                    form,
+                    b0 / tot,
+                    &hy,
+                    ln_missed,
+                )?;
+                tr.imm = Some(st);
+                tr.append_slices(xu.as_slice(), pu.as_slice(), &entry);
+                continue;
+            }
             tr.append_slices(mean.as_slice(), cov.as_slice(), &entry);
         }
         if !self.cfg.initiate_in_gates {
@@ -462,8 +560,7 @@ impl Tracker {
     fn initiate<N: Dim, M: Dim>(
         &mut self,
         t: f64,
-        z: &[f64],
-        det_sensor: &[usize],
+        dets: &Dets<'_, M>,
         free: &[usize],
         sensors: &[SensorT<N, M>],
         dims: (N, M),
@@ -477,6 +574,8 @@ impl Tracker {
             .motion_model
             .clone()
             .unwrap_or_else(|| self.cfg.motion_model.clone());
+        let det_sensor = dets.sensor;
+        let covs = dets.covs;
         let mut used = vec![false; det_sensor.len()];
         if !self.tentative.is_empty() {
             let assoc = gnn_step(
@@ -489,11 +588,11 @@ impl Tracker {
                     symmetric: init.symmetric_covariance,
                 },
                 t,
-                z,
+                dets,
                 dims,
-                det_sensor,
                 free,
                 self.scan,
+                None,
             )?;
             for d in assoc.into_iter().flatten() {
                 used[d] = true;
@@ -539,7 +638,8 @@ impl Tracker {
             self.tentative = keep;
         }
         // New tentative tracks from every detection left. Per sensor (computed once):
-        // H⁺, H⁺ R H⁺ᵀ and the mapped state axes.
+        // H⁺, H⁺ R H⁺ᵀ and the mapped state axes; H⁺ R_d H⁺ᵀ per detection with its own
+        // covariance R_d (unless the sensor has its own initiation noise).
         type InitModel = (DMatrix<f64>, DMatrix<f64>, Vec<bool>);
         let mut init_of: Vec<Option<InitModel>> = vec![None; self.cfg.sensors.len()];
         for &d in free {
@@ -547,6 +647,40 @@ impl Tracker {
                 continue;
             }
             let s = det_sensor[d];
+            if let Some(pol) = self.cfg.sensors[s].polar {
+                // Stone Soup's SimpleMeasurementInitiator with a reversible model: positions
+                // from the inverse function, J⁺ R J⁺ᵀ on them, the prior elsewhere.
+                let sensor = &self.cfg.sensors[s];
+                let r: Vec<f64> = match covs {
+                    Some(c) if !sensor.init_noise_given => {
+                        c[d].transpose().iter().copied().collect()
+                    }
+                    _ => sensor.init.1.transpose().iter().copied().collect(),
+                };
+                let (pos, c) = pol.inverse(dets.row(d, m), &r, dets.origin(d))?;
+                let mut x = init.prior_state.clone();
+                let mut p = init.prior_covariance.clone();
+                let n = x.len();
+                for &c in &pol.mapping {
+                    x[c] = 0.0;
+                    for r in 0..n {
+                        p[(c, r)] = 0.0;
+                        p[(r, c)] = 0.0;
+                    }
+                }
+                let [i, j] = pol.mapping;
+                x[i] += pos[0];
+                x[j] += pos[1];
+                p[(i, i)] += c[0];
+                p[(i, j)] += c[1];
+                p[(j, i)] += c[2];
+                p[(j, j)] += c[3];
+                for i in 0..n {
+                    p[(i, i)] += init.diag_load;
+                }
+                self.push_tentative(t, x, p, s, d);
+                continue;
+            }
             if init_of[s].is_none() {
                 let (hi, ri) = &self.cfg.sensors[s].init;
                 let pinv = hi
@@ -560,7 +694,7 @@ impl Tracker {
                 init_of[s] = Some((pinv, cov, mapped));
             }
             let (pinv, pcov, mapped) = init_of[s].as_ref().expect("filled above");
-            let zd = DVector::from_column_slice(&z[d * m..(d + 1) * m]);
+            let zd = DVector::from_column_slice(dets.row(d, m));
             let mut x = init.prior_state.clone();
             let mut p = init.prior_covariance.clone();
             let n = x.len();
@@ -574,33 +708,44 @@ impl Tracker {
                 }
             }
             x += pinv * zd;
-            p += pcov;
+            match covs {
+                Some(c) if !self.cfg.sensors[s].init_noise_given => {
+                    let rd = DMatrix::from_iterator(m, m, c[d].iter().copied());
+                    p += pinv * rd * pinv.transpose();
+                }
+                _ => p += pcov,
+            }
             for i in 0..n {
                 p[(i, i)] += init.diag_load;
             }
-            let id = self.next_tentative_id;
-            self.next_tentative_id += 1;
-            self.tentative.push(Track::new(
-                id,
-                x,
-                p,
-                Entry {
-                    time: t,
-                    is_update: true,
-                    scan: self.scan,
-                    sensor: s as i64,
-                    detection: d as i64,
-                    nis: f64::NAN,
-                    missed_probability: f64::NAN,
-                    assoc: vec![(d as i64, 1.0)],
-                },
-            ));
+            self.push_tentative(t, x, p, s, d);
         }
         Ok(())
     }
 }
 
 impl Tracker {
+    /// Starts a tentative track `(x, p)` from detection `d` of sensor `s` at time `t`.
+    fn push_tentative(&mut self, t: f64, x: DVector<f64>, p: DMatrix<f64>, s: usize, d: usize) {
+        let id = self.next_tentative_id;
+        self.next_tentative_id += 1;
+        self.tentative.push(Track::new(
+            id,
+            x,
+            p,
+            Entry {
+                time: t,
+                is_update: true,
+                scan: self.scan,
+                sensor: s as i64,
+                detection: d as i64,
+                nis: f64::NAN,
+                missed_probability: f64::NAN,
+                assoc: vec![(d as i64, 1.0)],
+            },
+        ));
+    }
+
     /// Drops tentative tracks about to be confirmed whose position falls inside the gate of a
     /// confirmed track or of a candidate accepted before them (native duplicate suppression;
     /// the gate is the association gate widened to at least χ²_m(0.9999)).
@@ -654,19 +799,23 @@ impl Tracker {
             .iter()
             .map(|t| (t.x.clone(), t.p.clone()))
             .collect();
-        let mut innov: Vec<Option<Innovation<Dyn, Dyn>>> =
-            (0..existing.len() * ns).map(|_| None).collect();
+        let mut innov = Innovations::new(existing.len(), ns);
         let mut reject = vec![false; cands.len()];
-        for (_, d, _) in gate_pairs(&existing, &sensors, &z, md, &sens, &all, gate, &mut innov)? {
-            reject[d] = true;
+        let dets = Dets {
+            z: &z,
+            sensor: &sens,
+            covs: None,
+            origins: None,
+        };
+        for p in gate_pairs(&existing, &sensors, md, &dets, &all, gate, &mut innov)? {
+            reject[p.d] = true;
         }
         let own: Vec<Pred<Dyn>> = cands.iter().map(|t| (t.x.clone(), t.p.clone())).collect();
-        let mut innov: Vec<Option<Innovation<Dyn, Dyn>>> =
-            (0..own.len() * ns).map(|_| None).collect();
+        let mut innov = Innovations::new(own.len(), ns);
         let mut gated_by: Vec<Vec<usize>> = vec![Vec::new(); cands.len()];
-        for (i, d, _) in gate_pairs(&own, &sensors, &z, md, &sens, &all, gate, &mut innov)? {
-            if i != d {
-                gated_by[d].push(i);
+        for p in gate_pairs(&own, &sensors, md, &dets, &all, gate, &mut innov)? {
+            if p.t != p.d {
+                gated_by[p.d].push(p.t);
             }
         }
         let mut accepted = vec![false; cands.len()];
@@ -694,7 +843,7 @@ mod tests {
         let r = DMatrix::identity(2, 2) * 0.25;
         TrackerConfig {
             motion_model: MotionModel::constant_velocity_2d(0.01).unwrap(),
-            sensors: vec![Sensor::new(h, r, None, 4, "sensors[0]").unwrap()],
+            sensors: vec![Sensor::new(h, r, None, None, 4, "sensors[0]").unwrap()],
             association: assoc,
             use_joseph_cov: false,
             symmetric_covariance: false,
@@ -722,6 +871,7 @@ mod tests {
             },
             out_of_order: OutOfOrder::Raise,
             initiate_in_gates: true,
+            imm: None,
         }
     }
 

@@ -18,14 +18,23 @@ pub struct Sensor {
     /// The model the initiator uses to start tentative tracks from this sensor's detections
     /// (`H`, `R`); defaults to `(h, r)`.
     pub init: (DMatrix<f64>, DMatrix<f64>),
+    /// Whether the initiation noise was given (then it starts tracks even from detections with
+    /// their own covariance).
+    pub init_noise_given: bool,
+    /// A range–bearing sensor: measurements `(φ, ρ)` (rad, m) of the mapped positions, `r` in
+    /// rad², m²; `h` (and the initiation `H`) then only select the mapped positions. `None`:
+    /// linear `z = H x + w`.
+    pub polar: Option<crate::polar::Polar>,
 }
 
 impl Sensor {
-    /// Builds and checks a sensor for an `ndim`-state model.
+    /// Builds and checks a sensor for an `ndim`-state model; the initiation model's `H` and
+    /// `R` default to `h` and `r`.
     pub fn new(
         h: DMatrix<f64>,
         r: DMatrix<f64>,
-        init: Option<(DMatrix<f64>, DMatrix<f64>)>,
+        init_h: Option<DMatrix<f64>>,
+        init_r: Option<DMatrix<f64>>,
         ndim: usize,
         arg: &str,
     ) -> Result<Self> {
@@ -50,7 +59,11 @@ impl Sensor {
             check_covariance(&format!("{arg}.{what}measurement_noise"), &rm, m, true)
         };
         check(&h, &r, "")?;
-        let init = init.unwrap_or_else(|| (h.clone(), r.clone()));
+        let init_noise_given = init_r.is_some();
+        let init = (
+            init_h.unwrap_or_else(|| h.clone()),
+            init_r.unwrap_or_else(|| r.clone()),
+        );
         check(&init.0, &init.1, "initiation_")?;
         if init.0.nrows() != h.nrows() {
             return Err(Error::dim(
@@ -59,7 +72,51 @@ impl Sensor {
                 init.0.nrows(),
             ));
         }
-        Ok(Self { h, r, init })
+        Ok(Self {
+            h,
+            r,
+            init,
+            init_noise_given,
+            polar: None,
+        })
+    }
+
+    /// A range–bearing sensor observing state positions `mapping` of an `ndim`-state model
+    /// with noise `r` (rad², m²; Stone Soup's `CartesianToBearingRange` with `noise_covar`)
+    /// and the initiation noise `init_r` (default `r`).
+    pub fn polar(
+        polar: crate::polar::Polar,
+        r: DMatrix<f64>,
+        init_r: Option<DMatrix<f64>>,
+        ndim: usize,
+        arg: &str,
+    ) -> Result<Self> {
+        let [i, j] = polar.mapping;
+        if i >= ndim || j >= ndim || i == j {
+            return Err(Error::param(
+                &format!("{arg}.mapping"),
+                format!("needs two distinct state indices < {ndim}, got ({i}, {j})"),
+            ));
+        }
+        if let crate::polar::PolarUpdate::Unscented { alpha, beta, kappa } = polar.update {
+            if !(alpha > 0.0 && alpha.is_finite() && beta.is_finite())
+                || kappa.is_some_and(|k| !k.is_finite() || ndim as f64 + k <= 0.0)
+            {
+                return Err(Error::param(
+                    &format!("{arg}.update"),
+                    format!(
+                        "unscented parameters need alpha > 0, finite beta and ndim + kappa > 0, \
+                         got alpha={alpha}, beta={beta}, kappa={kappa:?}"
+                    ),
+                ));
+            }
+        }
+        let mut h = DMatrix::zeros(2, ndim);
+        h[(0, i)] = 1.0;
+        h[(1, j)] = 1.0;
+        let mut s = Self::new(h, r, None, init_r, ndim, arg)?;
+        s.polar = Some(polar);
+        Ok(s)
     }
 
     /// Measurement dimension `m`.
@@ -175,6 +232,9 @@ pub struct TrackerConfig {
     pub delete_last_prediction: bool,
     pub initiator: InitiatorConfig,
     pub out_of_order: OutOfOrder,
+    /// An IMM bank for the confirmed tracks (`None`: `motion_model` alone). Tentative tracks
+    /// use the initiator's model; a confirmed track starts every mode at its state.
+    pub imm: Option<crate::imm::ImmConfig>,
     /// Stone Soup passes detections to the initiator unless some track's marginal for them
     /// exceeds its missed marginal (`true`). With `false` (native option against duplicate
     /// tracks on one target): detections inside any confirmed track's gate are withheld too,
@@ -184,7 +244,38 @@ pub struct TrackerConfig {
 }
 
 impl TrackerConfig {
+    /// Options the range–bearing sensors do not support.
+    pub(crate) fn validate_polar(&self) -> Result<()> {
+        for (i, s) in self.sensors.iter().enumerate() {
+            let Some(p) = &s.polar else { continue };
+            if !self.initiate_in_gates {
+                return Err(Error::param(
+                    "initiate_in_gates",
+                    format!(
+                        "False is not supported with the range–bearing sensors[{i}] (its \
+                         duplicate test compares positions with linear sensors only)"
+                    ),
+                ));
+            }
+            let joseph = self.use_joseph_cov || self.initiator.use_joseph_cov;
+            if joseph && matches!(p.update, crate::polar::PolarUpdate::Unscented { .. }) {
+                return Err(Error::param(
+                    "use_joseph_cov",
+                    format!(
+                        "the Joseph form needs a measurement matrix, which the unscented \
+                         sensors[{i}] has not"
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
     pub(crate) fn validate(&self) -> Result<()> {
+        self.validate_polar()?;
+        if let Some(imm) = &self.imm {
+            imm.validate(self.motion_model.ndim())?;
+        }
         let n = self.motion_model.ndim();
         if self.sensors.is_empty() {
             return Err(Error::param("sensors", "at least one sensor is needed"));

@@ -6,14 +6,19 @@ use super::kalman::motion_model_from_spec;
 use super::to_py_err;
 use crate::error::Error;
 use crate::gating::chi2_quantile;
+use crate::imm::{ImmConfig, Mode};
 use crate::jpda::{marginals, Method, TrackHypotheses};
+use crate::polar::{Polar, PolarUpdate};
 use crate::track::{Deleter, Track};
 use crate::tracker::{
     Association, Confirmation, GnnParams, InitiatorConfig, JpdaParams, Measure, OutOfOrder, Sensor,
     Tracker, TrackerConfig,
 };
 use nalgebra::{DMatrix, DVector};
-use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
+use numpy::{
+    PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3,
+    PyUntypedArrayMethods,
+};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
@@ -112,11 +117,51 @@ fn deleter(spec: &Bound<'_, PyAny>) -> PyResult<Deleter> {
     })
 }
 
+/// `(i, j, "ekf" | "ukf", alpha, beta, kappa)` of a range–bearing sensor.
+type PolarSpec = (usize, usize, String, f64, f64, Option<f64>);
+
+/// `(modes, transition (r, r), initial (r,))`; a mode is `("linear", motion model spec)` or
+/// `("turn", q_x, q_y, omega)`.
+type ImmSpec<'py> = (
+    Vec<Bound<'py, PyTuple>>,
+    PyReadonlyArray2<'py, f64>,
+    Vec<f64>,
+);
+
+fn imm_from_spec(spec: &ImmSpec<'_>) -> PyResult<ImmConfig> {
+    let modes = spec
+        .0
+        .iter()
+        .enumerate()
+        .map(|(i, t)| {
+            let kind: String = t.get_item(0)?.extract()?;
+            match kind.as_str() {
+                "linear" => Ok(Mode::Linear(motion_model_from_spec(
+                    &t.get_item(1)?.extract::<Vec<(String, f64)>>()?,
+                )?)),
+                "turn" => Ok(Mode::KnownTurnRate {
+                    q: [t.get_item(1)?.extract()?, t.get_item(2)?.extract()?],
+                    omega: t.get_item(3)?.extract()?,
+                }),
+                other => Err(PyValueError::new_err(format!(
+                    "imm.modes[{i}]: unknown kind {other:?}"
+                ))),
+            }
+        })
+        .collect::<PyResult<Vec<_>>>()?;
+    Ok(ImmConfig {
+        modes,
+        transition: matrix("imm.transition", &spec.1)?,
+        initial: spec.2.clone(),
+    })
+}
+
 type SensorSpec<'py> = (
     PyReadonlyArray2<'py, f64>,
     PyReadonlyArray2<'py, f64>,
     Option<PyReadonlyArray2<'py, f64>>,
     Option<PyReadonlyArray2<'py, f64>>,
+    Option<PolarSpec>,
 );
 
 fn history_dict<'py>(py: Python<'py>, tr: &Track, ndim: usize) -> PyResult<Bound<'py, PyDict>> {
@@ -168,19 +213,38 @@ fn sensor_from_arrays(
     r: &PyReadonlyArray2<'_, f64>,
     hi: Option<&PyReadonlyArray2<'_, f64>>,
     ri: Option<&PyReadonlyArray2<'_, f64>>,
+    polar: Option<&PolarSpec>,
     n: usize,
     i: usize,
 ) -> PyResult<Sensor> {
     let h = matrix("measurement_matrix", h)?;
     let r = matrix("measurement_noise", r)?;
-    let init = match (hi, ri) {
-        (None, None) => None,
-        (hi, ri) => Some((
-            hi.map_or(Ok(h.clone()), |a| matrix("initiation_matrix", a))?,
-            ri.map_or(Ok(r.clone()), |a| matrix("initiation_noise", a))?,
-        )),
-    };
-    Sensor::new(h, r, init, n, &format!("sensors[{i}]")).map_err(to_py_err)
+    let hi = hi.map(|a| matrix("initiation_matrix", a)).transpose()?;
+    let ri = ri.map(|a| matrix("initiation_noise", a)).transpose()?;
+    let arg = format!("sensors[{i}]");
+    match polar {
+        None => Sensor::new(h, r, hi, ri, n, &arg).map_err(to_py_err),
+        Some((a, b, kind, alpha, beta, kappa)) => {
+            let update = match kind.as_str() {
+                "ekf" => PolarUpdate::Extended,
+                "ukf" => PolarUpdate::Unscented {
+                    alpha: *alpha,
+                    beta: *beta,
+                    kappa: *kappa,
+                },
+                other => {
+                    return Err(PyValueError::new_err(format!(
+                        "{arg}.update: expected 'ekf' or 'ukf', got {other:?}"
+                    )))
+                }
+            };
+            let pol = Polar {
+                mapping: [*a, *b],
+                update,
+            };
+            Sensor::polar(pol, r, ri, n, &arg).map_err(to_py_err)
+        }
+    }
 }
 
 /// The multi-target tracker core; build it through `usvfast.tracking.Tracker`.
@@ -195,7 +259,7 @@ impl TrackerCore {
     #[pyo3(signature = (
         motion_model, sensors, association, deleter_spec, initiator, *,
         use_joseph_cov=false, delete_last_prediction=false, out_of_order="raise",
-        initiate_in_gates=true, symmetric_covariance=false
+        initiate_in_gates=true, symmetric_covariance=false, imm=None
     ))]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -209,13 +273,16 @@ impl TrackerCore {
         out_of_order: &str,
         initiate_in_gates: bool,
         symmetric_covariance: bool,
+        imm: Option<ImmSpec<'_>>,
     ) -> PyResult<Self> {
         let model = motion_model_from_spec(&motion_model)?;
         let n = model.ndim();
         let sensors = sensors
             .iter()
             .enumerate()
-            .map(|(i, (h, r, hi, ri))| sensor_from_arrays(h, r, hi.as_ref(), ri.as_ref(), n, i))
+            .map(|(i, (h, r, hi, ri, pol))| {
+                sensor_from_arrays(h, r, hi.as_ref(), ri.as_ref(), pol.as_ref(), n, i)
+            })
             .collect::<PyResult<Vec<_>>>()?;
         let kind = get_str(association, "kind")?;
         let association = match kind.as_str() {
@@ -284,29 +351,44 @@ impl TrackerCore {
             initiator: init,
             out_of_order,
             initiate_in_gates,
+            imm: imm.map(|s| imm_from_spec(&s)).transpose()?,
         };
         Ok(Self {
             inner: Tracker::new(cfg).map_err(to_py_err)?,
         })
     }
 
-    /// Processes one scan; returns False when it was dropped as out of order.
+    /// Processes one scan (detections with their own noise covariances `(k, m, m)` when
+    /// given); returns False when it was dropped as out of order.
+    #[pyo3(signature = (t, measurements, sensor_ids, covariances=None, origins=None))]
     fn step(
         &mut self,
         py: Python<'_>,
         t: f64,
         measurements: PyReadonlyArray2<'_, f64>,
         sensor_ids: PyReadonlyArray1<'_, i64>,
+        covariances: Option<PyReadonlyArray3<'_, f64>>,
+        origins: Option<PyReadonlyArray2<'_, f64>>,
     ) -> PyResult<bool> {
         let z = slice("measurements", &measurements)?;
         let ids = to_usize("sensor_ids", slice("sensor_ids", &sensor_ids)?)?;
+        let covs = covariances
+            .as_ref()
+            .map(|c| slice("covariances", c))
+            .transpose()?;
+        let orig = origins.as_ref().map(|o| slice("origins", o)).transpose()?;
         let inner = &mut self.inner;
-        let out = py.detach(|| inner.step(t, z, &ids)).map_err(to_py_err)?;
+        let out = py
+            .detach(|| inner.step_with(t, z, &ids, covs, orig))
+            .map_err(to_py_err)?;
         Ok(out == crate::tracker::StepOutcome::Processed)
     }
 
     /// Runs a whole recording: scan `i` at `times[i]` holds the detections with
-    /// `scan_index == i`. Returns, per scan, the confirmed tracks after it.
+    /// `scan_index == i` (with their own noise covariances `(d, m, m)` when given). Returns,
+    /// per scan, the confirmed tracks after it.
+    #[pyo3(signature = (times, measurements, sensor_ids, scan_index, covariances=None, origins=None))]
+    #[allow(clippy::too_many_arguments)]
     fn run<'py>(
         &mut self,
         py: Python<'py>,
@@ -314,9 +396,16 @@ impl TrackerCore {
         measurements: PyReadonlyArray2<'py, f64>,
         sensor_ids: PyReadonlyArray1<'py, i64>,
         scan_index: PyReadonlyArray1<'py, i64>,
+        covariances: Option<PyReadonlyArray3<'py, f64>>,
+        origins: Option<PyReadonlyArray2<'py, f64>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let t = slice("times", &times)?;
         let z = slice("measurements", &measurements)?;
+        let covs = covariances
+            .as_ref()
+            .map(|c| slice("covariances", c))
+            .transpose()?;
+        let orig = origins.as_ref().map(|o| slice("origins", o)).transpose()?;
         let m = self.inner.measurement_dim();
         let ids = to_usize("sensor_ids", slice("sensor_ids", &sensor_ids)?)?;
         let scans = to_usize("scan_index", slice("scan_index", &scan_index)?)?;
@@ -334,6 +423,24 @@ impl TrackerCore {
                 format!("{nd} entries, one per measurement row"),
                 scans.len(),
             )));
+        }
+        if let Some(o) = orig {
+            if o.len() != nd * 2 {
+                return Err(to_py_err(Error::dim(
+                    "origins",
+                    format!("({nd}, 2) values, one sensor position per measurement row"),
+                    o.len(),
+                )));
+            }
+        }
+        if let Some(c) = covs {
+            if c.len() != nd * m * m {
+                return Err(to_py_err(Error::dim(
+                    "covariances",
+                    format!("({nd}, {m}, {m}) values, one matrix per measurement row"),
+                    c.len(),
+                )));
+            }
         }
         if let Some(p) = scans.iter().position(|&s| s >= t.len()) {
             return Err(to_py_err(Error::param(
@@ -365,17 +472,50 @@ impl TrackerCore {
                 let mut p = 0;
                 let mut zs = Vec::<f64>::new();
                 let mut ss = Vec::<usize>::new();
+                let mut cs = Vec::<f64>::new();
+                let mut os = Vec::<f64>::new();
+                let mm = m * m;
                 for (i, &ti) in t.iter().enumerate() {
                     zs.clear();
                     ss.clear();
+                    cs.clear();
+                    os.clear();
                     first_row.push(p as i64);
                     while p < nd && scans[order[p]] == i {
                         let d = order[p];
                         zs.extend_from_slice(&z[d * m..(d + 1) * m]);
                         ss.push(ids[d]);
+                        if let Some(c) = covs {
+                            cs.extend_from_slice(&c[d * mm..(d + 1) * mm]);
+                        }
+                        if let Some(o) = orig {
+                            os.extend_from_slice(&o[2 * d..2 * d + 2]);
+                        }
                         p += 1;
                     }
-                    if inner.step(ti, &zs, &ss)? == crate::tracker::StepOutcome::Dropped {
+                    let ci = covs.map(|_| cs.as_slice());
+                    let oi = orig.map(|_| os.as_slice());
+                    // Errors name the row of the whole run, not of the scan.
+                    let res = inner.step_with(ti, &zs, &ss, ci, oi).map_err(|e| match e {
+                        Error::NotPositiveDefinite { arg, reason } => {
+                            let row = arg
+                                .strip_prefix("covariances[")
+                                .and_then(|r| r.strip_suffix(']'))
+                                .and_then(|r| r.parse::<usize>().ok());
+                            match row {
+                                Some(r) => Error::NotPositiveDefinite {
+                                    arg: format!(
+                                        "covariances[{}]",
+                                        order[first_row[i] as usize + r]
+                                    ),
+                                    reason,
+                                },
+                                None => Error::NotPositiveDefinite { arg, reason },
+                            }
+                        }
+                        e => e,
+                    })?;
+                    if res == crate::tracker::StepOutcome::Dropped {
                         dropped.push(i as i64);
                         continue;
                     }
@@ -406,13 +546,14 @@ impl TrackerCore {
     }
 
     /// Registers one more sensor between scans; returns its index.
-    #[pyo3(signature = (measurement_matrix, measurement_noise, initiation_matrix=None, initiation_noise=None))]
+    #[pyo3(signature = (measurement_matrix, measurement_noise, initiation_matrix=None, initiation_noise=None, polar=None))]
     fn add_sensor(
         &mut self,
         measurement_matrix: PyReadonlyArray2<'_, f64>,
         measurement_noise: PyReadonlyArray2<'_, f64>,
         initiation_matrix: Option<PyReadonlyArray2<'_, f64>>,
         initiation_noise: Option<PyReadonlyArray2<'_, f64>>,
+        polar: Option<PolarSpec>,
     ) -> PyResult<usize> {
         let n = self.inner.config().motion_model.ndim();
         let i = self.inner.config().sensors.len();
@@ -421,6 +562,7 @@ impl TrackerCore {
             &measurement_noise,
             initiation_matrix.as_ref(),
             initiation_noise.as_ref(),
+            polar.as_ref(),
             n,
             i,
         )?;
@@ -514,6 +656,39 @@ impl TrackerCore {
             )?,
         )?;
         d.set_item("detection", arr_i(py, lasti(|h| &h.detection), &[k])?)?;
+        // NIS of the newest entry where it is an update with a detection's innovation (the
+        // most probable detection under JPDA), 0 with 0 degrees of freedom elsewhere.
+        let m = self.inner.measurement_dim();
+        let nis: Vec<f64> = list
+            .iter()
+            .map(|t| t.history.nis[last(t)])
+            .map(|v| if v.is_finite() { v } else { 0.0 })
+            .collect();
+        let dof: Vec<i64> = list
+            .iter()
+            .map(|t| {
+                let h = &t.history;
+                if h.is_update[last(t)] && h.nis[last(t)].is_finite() {
+                    m as i64
+                } else {
+                    0
+                }
+            })
+            .collect();
+        d.set_item("nis", arr_f(py, nis, &[k])?)?;
+        // IMM mode probabilities (k, r); (k, 0) without an IMM.
+        let imm = self.inner.config().imm.as_ref();
+        let r = imm.map_or(0, |c| c.modes.len());
+        let mu: Vec<f64> = list
+            .iter()
+            .flat_map(|t| match (&t.imm, imm) {
+                (Some(st), _) => st.mu.clone(),
+                (None, Some(c)) => c.initial.clone(),
+                (None, None) => vec![],
+            })
+            .collect();
+        d.set_item("mode_probabilities", arr_f(py, mu, &[k, r])?)?;
+        d.set_item("nis_dof", arr_i(py, dof, &[k])?)?;
         d.set_item(
             "missed_probability",
             arr_f(
