@@ -299,3 +299,28 @@ def test_motchallenge_round_trip(tmp_path):
     assert again.skipped == 2 and len(again.frame) == len(back.frame)
     with pytest.raises(FileNotFoundError, match="path"):
         read_motchallenge(tmp_path / "nope.txt")
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_one_target_equals_the_single_target_clear_mot(seed):
+    from usvfast.metrics import clear_mot
+
+    rng = np.random.default_rng(seed)
+    n = 40
+    truth = np.column_stack([np.arange(n) * 5.0, np.zeros(n)])
+    pairs = np.column_stack([rng.integers(0, n, 90), rng.integers(0, 4, 90)])
+    rows = {(int(k), int(i)) for k, i in pairs}
+    scans, ids = (np.array(x, np.int64) for x in zip(*sorted(rows), strict=True))
+    pos = truth[scans] + rng.normal(0, 30, (len(scans), 2))
+    single = clear_mot(truth, scans, ids, pos, gate=50.0)
+    seq = FrameSequence.from_positions(
+        np.arange(n), np.zeros(n, np.int64), truth, scans, ids, pos, max_distance=50.0
+    )
+    multi = mot_metrics(seq)
+    assert (multi.matches, multi.misses, multi.false_positives, multi.switches) == (
+        single.matches,
+        single.misses,
+        single.false_positives,
+        single.switches,
+    )
+    assert multi.mota == pytest.approx(single.mota) and multi.motp == pytest.approx(single.motp)

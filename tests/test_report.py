@@ -123,7 +123,10 @@ def test_animation_has_camera_inset_and_stays_small(tmp_path):
     for f in (out / "camera_frames").iterdir():
         f.unlink()
     (out / "camera_frames").rmdir()
+    (out / "animation.gif").unlink()
     write_report(out, print_table=False)
+    assert not (out / "animation.gif").exists()  # no frames: no animation asked for
+    write_report(out, print_table=False, animation=True)
     with Image.open(out / "animation.gif") as im:
         assert im.size[0] < wide[0]
 
@@ -150,3 +153,18 @@ def test_report_without_truth_in_range_is_empty_of_targets(tmp_path):
     m = write_report(out, truth=tmp_path / "truth.csv", animation=False, print_table=False)
     assert m["thesis"]["n_targets"] == 0 and m["thesis"]["tpd"] is None
     assert m["clear_mot"]["false_positives"] == 21
+
+
+def test_report_command(run, tmp_path):
+    from typer.testing import CliRunner
+
+    from usvfast.cli import app
+
+    r = CliRunner().invoke(
+        app,
+        ["report", str(run / "out"), "--truth", str(run / "truth.csv"), "--no-animation"],
+    )
+    assert r.exit_code == 0, r.output
+    assert "position RMSE" in r.output and "metrics.json" in r.output
+    r = CliRunner().invoke(app, ["report", str(tmp_path)])
+    assert r.exit_code == 2 and "tracks.csv" in r.output

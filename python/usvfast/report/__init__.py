@@ -8,7 +8,8 @@ camera_frames/) and writes
 - `map.png` (harbour, USV path, detections by sensor, truth, tracks with 2σ ellipses; north
   up, metres), `nis.png` (NIS/ANIS with the χ² band, the thesis's Fig. 6.5), `errors.png`
   (per-object position error and NEES over time, with a truth),
-- `animation.gif` (the global tracking animation with the camera image inset).
+- `animation.gif` (the global tracking animation with the camera image inset; by default
+  when the run wrote camera_frames/).
 
 Example::
 
@@ -92,7 +93,7 @@ def write_report(
     scene: str | Path | dict[str, Any] | None = None,
     origin: tuple[float, float, float] | None = None,
     *,
-    animation: bool = True,
+    animation: bool | None = None,
     print_table: bool = True,
     console: Console | None = None,
     **metric_options: Any,
@@ -154,6 +155,8 @@ def _figures(out, tracks, det, nav, inn, gt, sc, org, metrics, animation, option
         m = match_tracks(gt, tracks, window=float(options.get("window", 1.0)), cap=cap)
         targets = [o["object_id"] for o in th.get("objects", []) if o["target"]]
         F.save(F.errors_figure(m, gt.kinds(), targets, cap=cap), out / "errors.png")
+    if animation is None:
+        animation = (out / "camera_frames" / "camera_frames.csv").is_file()
     if animation:
         write_animation(
             out / "animation.gif",
