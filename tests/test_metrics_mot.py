@@ -234,7 +234,10 @@ def test_gospa_ospa_equal_stonesoup(seed):
     gt, tr = _scenario(seed + 20, n_frames=15)
     seq = _seq(gt, tr, False, 3.0)
     c, p = 4.0, [1.0, 2.0, 3.0, 2.0][seed]
-    ours = gospa_metrics(seq, cutoff=c, order=p)
+    ours = gospa_metrics(seq, cutoff=c, order=p, ospa_assignment="distance")
+    exact = gospa_metrics(seq, cutoff=c, order=p)
+    # the definition's minimum is never above Stone Soup's Σd-optimal assignment
+    assert np.all(exact.ospa <= ours.ospa + 1e-12)
     gospa, ospa = GOSPAMetric(c=c, p=p), OSPAMetric(c=c, p=p)
     t0 = datetime(2025, 1, 1)
     for k, (gv, tv) in enumerate(zip(seq.truth_values, seq.track_values, strict=True)):
@@ -250,6 +253,34 @@ def test_gospa_ospa_equal_stonesoup(seed):
         assert ours.false[k] == pytest.approx(ref["false"])
         ref_o = ospa.compute_OSPA_distance(track, truth).value
         assert ours.ospa[k] == pytest.approx(ref_o, rel=1e-12, abs=1e-12)
+
+
+def test_ospa_is_the_minimum_over_permutations():
+    from itertools import permutations
+
+    rng = np.random.default_rng(7)
+    c, p = 4.0, 3.0
+    for _ in range(30):
+        m, n = rng.integers(0, 5, 2)
+        x, y = rng.uniform(0, 6, (m, 2)), rng.uniform(0, 6, (n, 2))
+        seq = FrameSequence.from_positions(
+            np.zeros(m, int), np.arange(m), x, np.zeros(n, int), np.arange(n), y
+        )
+        got = gospa_metrics(seq, cutoff=c, order=p).ospa[0] if m + n else 0.0
+        small, big = (x, y) if m <= n else (y, x)
+        if len(big) == 0:
+            want = 0.0
+        else:
+            d = np.minimum(np.linalg.norm(small[:, None] - big[None], axis=2), c) ** p
+            best = min(
+                (
+                    sum(d[i, j] for i, j in enumerate(perm))
+                    for perm in permutations(range(len(big)), len(small))
+                ),
+                default=0.0,
+            )
+            want = ((best + c**p * (len(big) - len(small))) / len(big)) ** (1 / p)
+        assert got == pytest.approx(want, rel=1e-12, abs=1e-12)
 
 
 def test_box_iou_hand_case():
