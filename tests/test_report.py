@@ -69,6 +69,9 @@ def test_write_report_files_and_metrics(run, tmp_path):
         assert (out / name).is_file(), name
     saved = _strict((out / "metrics.json").read_text())
     assert saved == m
+    # rows at 0.1 s over each track's span: 281 + 141 + 131 + 301 + 201 + 61 + 301 + 301
+    assert m["inputs"]["tracks"] == {"rows": 1718, "skipped_lines": 0}
+    assert m["inputs"]["truth"]["skipped_lines"] == 0 and m["inputs"]["nav"]["rows"] == 301
     # the same figures as the metrics on the same tables
     truth, tracks = read_truth(run / "truth.csv"), read_tracks(out / "tracks.csv")
     inn, nav = read_innovations(out / "innovations.csv"), read_nav(out / "nav.csv")

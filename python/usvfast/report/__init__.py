@@ -121,11 +121,16 @@ def write_report(
     org = _origin(origin, truth)
     metrics: dict[str, Any] = {}
     if gt is not None:
-        metrics = _clean(
-            evaluate_run(
-                gt, tracks, detections=det, nav=nav, innovations=inn, scene=sc, **metric_options
-            )
+        metrics = evaluate_run(
+            gt, tracks, detections=det, nav=nav, innovations=inn, scene=sc, **metric_options
         )
+        tables = {"truth": gt, "tracks": tracks, "detections": det, "nav": nav, "innovations": inn}
+        metrics["inputs"] = {
+            name: {"rows": len(t.time), "skipped_lines": t.skipped}
+            for name, t in tables.items()
+            if t is not None
+        }
+        metrics = _clean(metrics)
         (out / "metrics.json").write_text(json.dumps(metrics, indent=2))
     _figures(out, tracks, det, nav, inn, gt, sc, org, metrics, animation, metric_options)
     if print_table and metrics:

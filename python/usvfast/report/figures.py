@@ -323,8 +323,12 @@ def nis_figure(innovations: Innovations, confidence: float = 0.95, title: str = 
         inside = "inside" if lo <= anis <= hi else "OUTSIDE"
         ax.axhspan(lo, hi, color="#2ca02c", alpha=0.2, label=f"ANIS band ({n} updates)")
         ax.axhline(anis, color="#2ca02c", lw=2, label=f"ANIS = {anis:.2f} ({inside})")
-        hx.hist(np.clip(v, 0, 4 * hi1), bins=40, density=True, color="#bbbbbb", label="NIS")
-    x = np.linspace(1e-3, 4 * hi1, 200)
+    top = 1.2 * max(hi1, float(np.percentile(innovations.nis, 99)) if n else 0.0)
+    if n:
+        hx.hist(
+            np.clip(v, 0, top), bins=40, range=(0, top), density=True, color="#bbbbbb", label="NIS"
+        )
+    x = np.linspace(1e-3, top, 200)
     hx.plot(x, chi2.pdf(x, dof), color="black", label=f"χ²({dof}) density")
     hx.set_xlabel("NIS")
     hx.set_ylabel("density")
