@@ -236,3 +236,33 @@ def test_readers_skip_damaged_lines_and_name_missing_columns(tmp_path):
         read_truth(tmp_path / "bad.csv")
     with pytest.raises(FileNotFoundError, match="path"):
         read_tracks(tmp_path / "none.csv")
+
+
+def test_in_range_with_field_of_view():
+    from usvfast.metrics import Nav, Truth
+
+    t = np.array([0.0, 1.0])
+    nav = Nav(time=t, positions=np.zeros((2, 2)), heading_deg=np.array([90.0, 90.0]))
+    # at t = 0.5: one object 10 m north, one 10 m east, one 50 m east, one 10 m south-east
+    pos = np.array([[10.0, 0.0], [0.0, 10.0], [0.0, 50.0], [-7.0, 7.0]])
+    truth = Truth(
+        time=np.full(4, 0.5), object_id=np.arange(4), kind=np.array(["bottle"] * 4), positions=pos
+    )
+    assert in_range(truth, nav, 20.0).tolist() == [True, True, False, True]
+    assert in_range(truth, nav, 20.0, fov_deg=60).tolist() == [False, True, False, False]
+    assert in_range(truth, nav, 20.0, fov_deg=100).tolist() == [False, True, False, True]
+    assert in_range(truth, nav, 20.0, fov_deg=60, yaw_deg=-90).tolist() == [
+        True,
+        False,
+        False,
+        False,
+    ]
+    late = Truth(
+        time=np.array([2.0]),
+        object_id=np.zeros(1, int),
+        kind=np.array(["bag"]),
+        positions=np.zeros((1, 2)),
+    )
+    assert in_range(late, nav, 20.0).tolist() == [False]  # after the last pose
+    with pytest.raises(ValueError, match="fov_deg"):
+        in_range(truth, nav, 20.0, fov_deg=0)

@@ -171,3 +171,23 @@ def test_report_command(run, tmp_path):
     assert "position RMSE" in r.output and "metrics.json" in r.output
     r = CliRunner().invoke(app, ["report", str(tmp_path)])
     assert r.exit_code == 2 and "tracks.csv" in r.output
+
+
+def test_detector_scores_follow_the_sensor_range_and_fov(run):
+    from usvfast.metrics import read_detections
+    from usvfast.report import evaluate_run
+
+    out = run / "out"
+    tables = {
+        "detections": read_detections(out / "detections.csv"),
+        "nav": read_nav(out / "nav.csv"),
+    }
+    truth, tracks = read_truth(run / "truth.csv"), read_tracks(out / "tracks.csv")
+    wide = evaluate_run(truth, tracks, **tables)["detectors"]
+    narrow = evaluate_run(
+        truth, tracks, sensor_range={"lidar": 15.0}, sensor_fov_deg={"camera": 60.0}, **tables
+    )["detectors"]
+    frames = {k: sum(o["frames"] for o in v["objects"]) for k, v in wide.items()}
+    frames_n = {k: sum(o["frames"] for o in v["objects"]) for k, v in narrow.items()}
+    assert 0 < frames_n["lidar"] < frames["lidar"] and 0 < frames_n["camera"] < frames["camera"]
+    assert narrow["lidar"]["range_m"] == 15.0 and narrow["camera"]["fov_deg"] == 60.0

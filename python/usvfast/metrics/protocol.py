@@ -149,16 +149,31 @@ def match_tracks(truth: Truth, tracks: Tracks, *, window: float = 1.0, cap: floa
     )
 
 
-def in_range(truth: Truth, nav: Nav, max_range: float) -> np.ndarray:
-    """(N,) mask of the truth rows within `max_range` m of the USV (its NED position linearly
-    interpolated at the truth time; rows outside the pose times are out of range)."""
+def in_range(
+    truth: Truth, nav: Nav, max_range: float, fov_deg: float = 360.0, yaw_deg: float = 0.0
+) -> np.ndarray:
+    """(N,) mask of the truth rows within `max_range` m of the USV and, with `fov_deg` < 360,
+    within ±fov_deg/2 of the sensor's axis (the USV heading + `yaw_deg`, clockwise). The USV
+    position and heading are linearly interpolated at the truth time; rows outside the pose
+    times are out of range."""
+    if not max_range > 0:
+        raise ValueError(f"max_range: must be positive, got {max_range}")
+    if not 0 < fov_deg <= 360:
+        raise ValueError(f"fov_deg: must lie in (0, 360], got {fov_deg}")
     if len(nav.time) == 0:
         return np.zeros(len(truth.time), bool)
     order = np.argsort(nav.time, kind="stable")
     t, p = nav.time[order], nav.positions[order]
     usv = np.column_stack([np.interp(truth.time, t, p[:, 0]), np.interp(truth.time, t, p[:, 1])])
     inside = (truth.time >= t[0]) & (truth.time <= t[-1])
-    return inside & (np.linalg.norm(truth.positions - usv, axis=1) <= max_range)
+    rel = truth.positions - usv
+    ok = inside & (np.linalg.norm(rel, axis=1) <= max_range)
+    if fov_deg < 360:
+        heading = np.interp(truth.time, t, np.unwrap(np.radians(nav.heading_deg[order])))
+        bearing = np.arctan2(rel[:, 1], rel[:, 0])  # clockwise from north
+        off = np.angle(np.exp(1j * (bearing - heading - np.radians(yaw_deg))))
+        ok &= np.abs(off) <= np.radians(fov_deg) / 2
+    return ok
 
 
 def _intervals(times: np.ndarray, max_gap: float) -> np.ndarray:

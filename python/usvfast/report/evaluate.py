@@ -10,7 +10,8 @@ returns `metrics.json`'s content:
   truth objects that are visible targets against every track (a track on a moored boat or
   a wall is a false positive), Euclidean gate `cap` m, HOTA similarity zero at
   `hota_zero_distance` m, GOSPA cut-off `cap` m, p = 2;
-- "detectors": Table 6.1 scores per sensor and object, and their totals;
+- "detectors": Table 6.1 scores per sensor and object, and their totals, over the frames in
+  which the object lies within the sensor's range and field of view;
 - "walls": tracks whose median position lies within `wall_distance` m of a harbour wall or
   inside a pier polygon (needs the scene).
 """
@@ -135,13 +136,17 @@ def evaluate_run(
     frame_period: float = 0.5,
     hota_zero_distance: float = 2.0,
     detector_gate: float = 1.0,
+    sensor_range: dict[str, float] | None = None,
+    sensor_fov_deg: dict[str, float] | None = None,
     wall_distance: float = 2.0,
     confidence: float = 0.95,
 ) -> dict[str, Any]:
     """All metrics of a run (module doc). max_range: metres from the USV within which an
     object is visible (all visible without `nav`); window, cap, min_visible: the thesis's
     protocol (s, m, s); frame_period: seconds between the multi-target frames;
-    detector_gate: metres for the Table 6.1 scores; confidence: of the χ² bands."""
+    detector_gate: metres for the Table 6.1 scores; sensor_range / sensor_fov_deg: per sensor
+    name, the range (m, default max_range) and horizontal field of view (deg, centred on the
+    heading; default 360) within which a detector is scored; confidence: of the χ² bands."""
     visible = None if nav is None else in_range(truth, nav, max_range)
     th = thesis_metrics(
         truth,
@@ -191,18 +196,23 @@ def evaluate_run(
             t = np.unique(detections.time[detections.sensor == sensor])
             if len(t) > 1:
                 period = float(np.median(np.diff(t)))
+            rng = (sensor_range or {}).get(sensor, max_range)
+            fov = (sensor_fov_deg or {}).get(sensor, 360.0)
+            seen = None if nav is None else in_range(truth, nav, rng, fov)
             scores = detector_scores(
                 truth,
                 detections,
                 sensor=sensor,
                 period=period,
                 gate=detector_gate,
-                visible=visible,
+                visible=seen,
             )
             tp = sum(s.tp for s in scores)
             frames = sum(s.frames for s in scores)
             det[sensor] = {
                 "frame_period_s": period,
+                "range_m": rng if nav is not None else None,
+                "fov_deg": fov,
                 "tp": tp,
                 "fn": sum(s.fn for s in scores),
                 "cn_max": max((s.cn for s in scores), default=0),
