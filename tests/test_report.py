@@ -83,6 +83,7 @@ def test_write_report_files_and_metrics(run, tmp_path):
     assert m["thesis"]["false_tracks"] == [8, 9]
     assert m["thesis"]["excluded_tracks"] == {"moored_boat": [7]}
     assert m["walls"]["tracks_on_walls"] == [8]
+    assert m["walls"]["tracks_on_moored_boats"] == [7]
     targets = [o.object_id for o in th.objects if o.target]
     seq = frame_sequence(
         truth,

@@ -13,7 +13,7 @@ returns `metrics.json`'s content:
 - "detectors": Table 6.1 scores per sensor and object, and their totals, over the frames in
   which the object lies within the sensor's range and field of view;
 - "walls": tracks whose median position lies within `wall_distance` m of a harbour wall or
-  inside a pier polygon (needs the scene).
+  inside a pier polygon, and of a moored boat's outline (needs the scene).
 """
 
 from __future__ import annotations
@@ -104,9 +104,23 @@ def _segment_distance(points: np.ndarray, line: np.ndarray) -> np.ndarray:
     return d.min(axis=1)
 
 
+def moored_outline(boat: dict[str, Any]) -> np.ndarray:
+    """Corners (4, 2) NED m of a moored boat of scene.json (centre north/east, `length` along
+    `heading_deg` clockwise from north, `width`)."""
+    h = np.radians(float(boat.get("heading_deg", 0.0)))
+    fwd = np.array([np.cos(h), np.sin(h)])
+    side = np.array([-np.sin(h), np.cos(h)])
+    c = np.array([float(boat["north"]), float(boat["east"])])
+    hl, hw = float(boat.get("length", 6.0)) / 2, float(boat.get("width", 2.5)) / 2
+    return np.array(
+        [c + a * hl * fwd + b * hw * side for a, b in ((1, 1), (1, -1), (-1, -1), (-1, 1))]
+    )
+
+
 def tracks_on_walls(tracks: Tracks, walls: list[Any], wall_distance: float) -> list[int]:
     """Ids of the tracks whose median position (NED) is within `wall_distance` m of a wall
-    polyline or inside a closed wall polygon (≥ 3 vertices, first = last or implied)."""
+    polyline or inside a closed wall polygon (≥ 3 vertices, first = last or implied); also
+    used with moored-boat outlines."""
     if not walls or len(tracks.time) == 0:
         return []
     ids = np.unique(tracks.track_id)
@@ -221,8 +235,10 @@ def evaluate_run(
             }
         out["detectors"] = det
     if scene is not None:
+        boats = [moored_outline(b) for b in scene.get("moored", [])]
         out["walls"] = {
             "distance_m": wall_distance,
             "tracks_on_walls": tracks_on_walls(tracks, scene.get("walls", []), wall_distance),
+            "tracks_on_moored_boats": tracks_on_walls(tracks, boats, wall_distance),
         }
     return out

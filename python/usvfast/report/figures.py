@@ -21,6 +21,7 @@ from scipy.stats import chi2
 from usvfast.metrics.consistency import chi2_band
 from usvfast.metrics.protocol import Matches
 from usvfast.metrics.tables import Detections, Innovations, Nav, Tracks, Truth
+from usvfast.report.evaluate import moored_outline
 
 SENSOR_STYLE = {
     "lidar": {"color": "#1f77b4", "marker": "."},
@@ -51,22 +52,6 @@ def ellipse(mean_ne: np.ndarray, cov_ne: np.ndarray, n_sigma: float = 2.0, **kw:
     return Ellipse((mean_ne[1], mean_ne[0]), w, h, angle=angle, **kw)
 
 
-def boat_outline(boat: dict[str, Any]) -> np.ndarray:
-    """Corners (4, 2) in map axes (east, north) of a moored boat of scene.json (centre
-    north/east m, length along heading_deg clockwise from north, width)."""
-    h = np.radians(float(boat.get("heading_deg", 0.0)))
-    fwd = np.array([np.sin(h), np.cos(h)])  # (east, north)
-    side = np.array([np.cos(h), -np.sin(h)])
-    c = np.array([float(boat["east"]), float(boat["north"])])
-    half_l, half_w = float(boat.get("length", 6.0)) / 2, float(boat.get("width", 2.5)) / 2
-    return np.array(
-        [
-            c + s1 * half_l * fwd + s2 * half_w * side
-            for s1, s2 in ((1, 1), (1, -1), (-1, -1), (-1, 1))
-        ]
-    )
-
-
 def draw_scene(ax: Axes, scene: dict[str, Any] | None) -> list[Any]:
     """Harbour walls (grey, polygons filled) and moored boats (brown outlines); legend handles."""
     handles: list[Any] = []
@@ -81,7 +66,9 @@ def draw_scene(ax: Axes, scene: dict[str, Any] | None) -> list[Any]:
     if scene.get("walls"):
         handles.append(Line2D([], [], color=WALL_COLOR, lw=6, alpha=0.6, label="harbour walls"))
     for b in scene.get("moored", []):
-        ax.add_patch(Polygon(boat_outline(b), closed=True, fc="#d9b38c", ec="#8b5a2b", lw=1.2))
+        ax.add_patch(
+            Polygon(moored_outline(b)[:, ::-1], closed=True, fc="#d9b38c", ec="#8b5a2b", lw=1.2)
+        )
     if scene.get("moored"):
         handles.append(
             Line2D([], [], color="#8b5a2b", marker="s", ls="", mfc="#d9b38c", label="moored boats")

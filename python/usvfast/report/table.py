@@ -51,8 +51,11 @@ def summary_tables(metrics: dict[str, Any]) -> list[Table]:
         rows.append((f"tracks on {kind}", f"[red]{len(ids)}[/red] {ids}"))
     walls = metrics.get("walls")
     if walls is not None:
-        n = len(walls["tracks_on_walls"])
-        rows.append(("tracks on walls", f"[red]{n}[/red]" if n else "0"))
+        for key, name in (("tracks_on_walls", "walls"), ("tracks_on_moored_boats", "boat hulls")):
+            ids = walls.get(key, [])
+            rows.append(
+                (f"tracks on {name} (scene)", f"[red]{len(ids)}[/red] {ids}" if ids else "0")
+            )
     mot = metrics.get("clear_mot")
     if mot:
         rows += [
