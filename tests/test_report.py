@@ -192,3 +192,20 @@ def test_detector_scores_follow_the_sensor_range_and_fov(run):
     frames_n = {k: sum(o["frames"] for o in v["objects"]) for k, v in narrow.items()}
     assert 0 < frames_n["lidar"] < frames["lidar"] and 0 < frames_n["camera"] < frames["camera"]
     assert narrow["lidar"]["range_m"] == 15.0 and narrow["camera"]["fov_deg"] == 60.0
+
+
+def test_report_with_no_tracks_and_with_an_empty_truth(tmp_path):
+    objs = default_objects()[:2]
+    write_truth(tmp_path, objs)
+    out = write_run(tmp_path / "out", objs, [], duration=10.0)
+    m = write_report(out, truth=tmp_path / "truth.csv", print_table=False)
+    th = m["thesis"]
+    assert th["n_targets"] == 2 and th["targets_tracked"] == 0 and th["tpd"] == 0.0
+    assert th["rmse"] is None and th["anees"] is None and th["anis"] is None
+    assert m["clear_mot"]["mota"] == 0.0 and m["clear_mot"]["false_positives"] == 0
+    assert (out / "map.png").is_file() and (out / "errors.png").is_file()
+    (tmp_path / "empty.csv").write_text("time,object_id,kind,north,east\n")
+    write_run(out, objs, [TrackSpec(1, 1, 0, 10)], duration=10.0)
+    m = write_report(out, truth=tmp_path / "empty.csv", print_table=False)
+    assert m["thesis"]["n_targets"] == 0 and m["thesis"]["false_tracks"] == [1]
+    assert m["clear_mot"]["false_positives"] == 21 and m["clear_mot"]["mota"] is None

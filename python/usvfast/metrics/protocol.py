@@ -87,7 +87,7 @@ def truth_at(truth: Truth, object_id: int, times: Any, window: float = 1.0) -> n
 
 def _row_nees(errors: np.ndarray, cov: np.ndarray) -> np.ndarray:
     out = np.full(len(errors), np.nan)
-    ok = np.all(np.isfinite(cov.reshape(len(cov), -1)), axis=1)
+    ok = np.all(np.isfinite(cov.reshape(len(cov), 4)), axis=1)
     if ok.any():
         sym = 0.5 * (cov[ok] + np.swapaxes(cov[ok], 1, 2))
         pd = np.linalg.eigvalsh(sym)[:, 0] > 0
@@ -105,6 +105,9 @@ def match_tracks(truth: Truth, tracks: Tracks, *, window: float = 1.0, cap: floa
         raise ValueError(f"cap: must be positive, got {cap}")
     objects = np.unique(truth.object_id)
     n = len(tracks.time)
+    if n == 0 or len(objects) == 0:
+        z = np.zeros(0, np.int64)
+        return Matches(z, np.zeros(0), z, z, np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0))
     cost = np.full((n, len(objects)), np.nan)
     truth_pos = np.full((n, len(objects), 2), np.nan)
     for j, o in enumerate(objects):

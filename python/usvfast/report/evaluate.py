@@ -45,6 +45,8 @@ def _frame_rows(times: np.ndarray, ids: np.ndarray, t0: float, period: float) ->
     idx = np.flatnonzero(ok)
     order = np.lexsort((off[idx], ids[idx], k[idx]))
     idx = idx[order]
+    if len(idx) == 0:
+        return idx
     first = np.r_[True, (k[idx][1:] != k[idx][:-1]) | (ids[idx][1:] != ids[idx][:-1])]
     return idx[first]
 

@@ -183,7 +183,7 @@ def draw_tracks(
 ) -> list[Any]:
     """Track lines coloured by id, 2σ covariance ellipses along them (semi-transparent, as
     the thesis's Fig. 6.1), the id at each track's last point; legend handles."""
-    has_cov = np.all(np.isfinite(tracks.covariances.reshape(len(tracks.time), -1)), axis=1)
+    has_cov = np.all(np.isfinite(tracks.covariances.reshape(len(tracks.time), 4)), axis=1)
     placed: list[np.ndarray] = []
     for tid in np.unique(tracks.track_id):
         sel = tracks.track_id == tid
