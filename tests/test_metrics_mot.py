@@ -4,8 +4,10 @@ against TrackEval, GOSPA/OSPA against Stone Soup; MOTChallenge text round trip."
 
 from __future__ import annotations
 
+import hypothesis.strategies as st
 import numpy as np
 import pytest
+from hypothesis import given
 
 from usvfast import DimensionError
 from usvfast.metrics import (
@@ -355,3 +357,35 @@ def test_one_target_equals_the_single_target_clear_mot(seed):
         single.switches,
     )
     assert multi.mota == pytest.approx(single.mota) and multi.motp == pytest.approx(single.motp)
+
+
+@given(
+    st.lists(
+        st.tuples(st.integers(0, 5), st.integers(0, 3), st.integers(0, 4), st.integers(0, 4)),
+        max_size=40,
+    ),
+    st.lists(
+        st.tuples(st.integers(0, 5), st.integers(0, 4), st.integers(0, 4), st.integers(0, 4)),
+        max_size=40,
+    ),
+)
+def test_mot_metrics_equal_motmetrics_on_grids_with_ties(gt_rows, tr_rows):
+    # integer positions: many equal distances, so the tie-breaking must agree as well
+    def table(rows):
+        rows = list({(f, i): (f, i, x, y) for f, i, x, y in rows}.values())
+        a = np.array(rows, float).reshape(-1, 4)
+        return a[:, 0].astype(int), a[:, 1].astype(int), a[:, 2:]
+
+    seq = FrameSequence.from_positions(*table(gt_rows), *table(tr_rows), max_distance=2.0)
+    if seq.n_truth == 0:
+        return
+    ours = mot_metrics(seq)
+    ref = _motmetrics(seq, False, 2.0)
+    assert (ours.matches, ours.switches, ours.misses, ours.false_positives) == (
+        ref.num_matches,
+        ref.num_switches,
+        ref.num_misses,
+        ref.num_false_positives,
+    )
+    assert ours.idtp == ref.idtp
+    assert ours.mota == pytest.approx(ref.mota, abs=1e-12)
