@@ -108,8 +108,11 @@ def write_scene(d: Path, objects: list[Obj]) -> Path:
     ]
     scene = {
         "walls": [
-            [[-40.0, 45.0], [60.0, 45.0], [60.0, 50.0], [-40.0, 50.0]],
+            # a pier polygon (closed: first vertex repeated), a straight quay, and an L-shaped
+            # quay polyline whose closing would wrongly cover the basin
+            [[-40.0, 45.0], [60.0, 45.0], [60.0, 50.0], [-40.0, 50.0], [-40.0, 45.0]],
             [[60, -40], [60, 45]],
+            [[-45.0, -45.0], [-45.0, 43.0], [70.0, 43.0]],
         ],
         "moored": moored,
         "usv": [

@@ -106,6 +106,12 @@ def _segment_distance(points: np.ndarray, line: np.ndarray) -> np.ndarray:
     return d.min(axis=1)
 
 
+def is_closed(poly: np.ndarray) -> bool:
+    """Whether a wall outline (k, 2) is a polygon: ≥ 4 vertices, the last equal to the first
+    (scene.json walls are polylines otherwise, e.g. a quay edge)."""
+    return len(poly) >= 4 and bool(np.allclose(poly[0], poly[-1]))
+
+
 def moored_outline(boat: dict[str, Any]) -> np.ndarray:
     """Corners (4, 2) NED m of a moored boat of scene.json (centre north/east, `length` along
     `heading_deg` clockwise from north, `width`)."""
@@ -119,10 +125,12 @@ def moored_outline(boat: dict[str, Any]) -> np.ndarray:
     )
 
 
-def tracks_on_walls(tracks: Tracks, walls: list[Any], wall_distance: float) -> list[int]:
+def tracks_on_walls(
+    tracks: Tracks, walls: list[Any], wall_distance: float, *, closed: bool = False
+) -> list[int]:
     """Ids of the tracks whose median position (NED) is within `wall_distance` m of a wall
-    polyline or inside a closed wall polygon (≥ 3 vertices, first = last or implied); also
-    used with moored-boat outlines."""
+    polyline or inside a closed wall polygon (≥ 4 vertices with the first repeated last);
+    `closed=True` closes every outline (moored boats)."""
     if not walls or len(tracks.time) == 0:
         return []
     ids = np.unique(tracks.track_id)
@@ -132,7 +140,7 @@ def tracks_on_walls(tracks: Tracks, walls: list[Any], wall_distance: float) -> l
         poly = np.asarray(w, float).reshape(-1, 2)
         if len(poly) >= 2:
             near |= _segment_distance(med, poly) <= wall_distance
-        if len(poly) >= 3:
+        if is_closed(poly) or (closed and len(poly) >= 3):
             near |= MplPath(np.vstack([poly, poly[:1]])).contains_points(med)
     return [int(i) for i in ids[near]]
 
@@ -241,6 +249,6 @@ def evaluate_run(
         out["walls"] = {
             "distance_m": wall_distance,
             "tracks_on_walls": tracks_on_walls(tracks, scene.get("walls", []), wall_distance),
-            "tracks_on_moored_boats": tracks_on_walls(tracks, boats, wall_distance),
+            "tracks_on_moored_boats": tracks_on_walls(tracks, boats, wall_distance, closed=True),
         }
     return out

@@ -21,7 +21,7 @@ from scipy.stats import chi2
 from usvfast.metrics.consistency import chi2_band
 from usvfast.metrics.protocol import Matches
 from usvfast.metrics.tables import Detections, Innovations, Nav, Tracks, Truth
-from usvfast.report.evaluate import moored_outline
+from usvfast.report.evaluate import is_closed, moored_outline
 
 SENSOR_STYLE = {
     "lidar": {"color": "#1f77b4", "marker": "."},
@@ -59,12 +59,12 @@ def draw_scene(ax: Axes, scene: dict[str, Any] | None) -> list[Any]:
         return handles
     for w in scene.get("walls", []):
         p = np.asarray(w, float).reshape(-1, 2)
-        if len(p) >= 3:
+        if is_closed(p):
             ax.add_patch(Polygon(p[:, ::-1], closed=True, fc=WALL_COLOR, ec="#555555", alpha=0.6))
-        elif len(p) == 2:
-            ax.plot(p[:, 1], p[:, 0], color="#555555", lw=3)
+        elif len(p) >= 2:
+            ax.plot(p[:, 1], p[:, 0], color="#555555", lw=3, solid_capstyle="butt")
     if scene.get("walls"):
-        handles.append(Line2D([], [], color=WALL_COLOR, lw=6, alpha=0.6, label="harbour walls"))
+        handles.append(Line2D([], [], color="#555555", lw=3, label="harbour walls"))
     for b in scene.get("moored", []):
         ax.add_patch(
             Polygon(moored_outline(b)[:, ::-1], closed=True, fc="#d9b38c", ec="#8b5a2b", lw=1.2)
