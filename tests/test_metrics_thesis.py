@@ -266,3 +266,23 @@ def test_in_range_with_field_of_view():
     assert in_range(late, nav, 20.0).tolist() == [False]  # after the last pose
     with pytest.raises(ValueError, match="fov_deg"):
         in_range(truth, nav, 20.0, fov_deg=0)
+
+
+def test_truth_with_text_object_ids(tmp_path):
+    # the simulator names its objects ("box0", "bottle1"): numbered in sorted order, named back
+    objs = default_objects()[:2]
+    write_truth(tmp_path, objs)
+    text = (tmp_path / "truth.csv").read_text().splitlines()
+    rows = [text[0]] + [
+        ",".join([r.split(",")[0], r.split(",")[2] + r.split(",")[1], *r.split(",")[2:]])
+        for r in text[1:]
+    ]
+    (tmp_path / "truth.csv").write_text("\n".join(rows) + "\n")
+    truth = read_truth(tmp_path / "truth.csv")
+    assert truth.names == ("bag2", "bottle1") and set(truth.object_id.tolist()) == {0, 1}
+    assert truth.kinds() == {0: "bag", 1: "bottle"} and truth.name(1) == "bottle1"
+    write_run(tmp_path, objs, [TrackSpec(10, 1, 0.0, 30.0, offset=(0.2, 0.0))])
+    m = thesis_metrics(truth, read_tracks(tmp_path / "tracks.csv"))
+    bottle = next(o for o in m.objects if o.name == "bottle1")
+    assert bottle.rmse == pytest.approx(0.2, abs=1e-4) and bottle.track_ids == [10]
+    assert detector_scores(truth, read_detections(tmp_path / "detections.csv"))[1].name == "bottle1"

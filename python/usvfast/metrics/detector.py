@@ -26,10 +26,12 @@ from usvfast.metrics.tables import Detections, Truth
 
 @dataclass(frozen=True)
 class DetectorScore:
-    """Table 6.1 figures of one object: frames scored, tp, fn, cn (longest run of consecutive
-    misses), tp_rate = tp / frames (NaN when no frame was scored)."""
+    """Table 6.1 figures of one object (name: its id in the truth file): frames scored, tp,
+    fn, cn (longest run of consecutive misses), tp_rate = tp / frames (NaN when no frame was
+    scored)."""
 
     object_id: int
+    name: str
     kind: str
     frames: int
     tp: int
@@ -119,6 +121,7 @@ def detector_scores(
         out.append(
             DetectorScore(
                 object_id=oid,
+                name=truth.name(oid),
                 kind=kind,
                 frames=len(scored),
                 tp=int(h.sum()),

@@ -214,12 +214,14 @@ def _overlap(a: np.ndarray, b: np.ndarray) -> float:
 
 @dataclass(frozen=True)
 class ObjectScore:
-    """Figures of one truth object (module doc): visible_time and tracked_time in seconds,
-    tpd = tracked_time / visible_time, tt seconds, trf tracks, rmse metres (NaN when never
-    matched), anees its ANEES (None without covariances), track_ids the matched tracks,
-    target: whether it counts in the run's figures."""
+    """Figures of one truth object (module doc): name its id in the truth file,
+    visible_time and tracked_time in seconds, tpd = tracked_time / visible_time, tt seconds,
+    trf tracks, rmse metres (NaN when never matched), anees its ANEES (None without
+    covariances), track_ids the matched tracks, target: whether it counts in the run's
+    figures."""
 
     object_id: int
+    name: str
     kind: str
     target: bool
     visible_time: float
@@ -328,6 +330,7 @@ def thesis_metrics(
         objects.append(
             ObjectScore(
                 object_id=oid,
+                name=truth.name(oid),
                 kind=kind,
                 target=bool(target),
                 visible_time=visible_time,

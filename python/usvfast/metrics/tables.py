@@ -76,13 +76,20 @@ def _read(
 
 @dataclass(frozen=True)
 class Truth:
-    """Ground truth: time (N,) s, object_id (N,) int, kind (N,) str, positions (N, 2) NED m."""
+    """Ground truth: time (N,) s, object_id (N,) int, kind (N,) str, positions (N, 2) NED m.
+    When the file names its objects with text ids (e.g. "bottle1"), object_id holds their
+    index in `names` (sorted), and `name(i)` gives the text back."""
 
     time: np.ndarray
     object_id: np.ndarray
     kind: np.ndarray
     positions: np.ndarray
     skipped: int = 0
+    names: tuple[str, ...] = ()
+
+    def name(self, object_id: int) -> str:
+        """The file's id of an object (its text id, or the integer as text)."""
+        return self.names[object_id] if self.names else str(object_id)
 
     def kinds(self) -> dict[int, str]:
         """Kind of every object id."""
@@ -147,14 +154,24 @@ def _cov(a: dict[str, np.ndarray], n: int) -> np.ndarray:
 
 
 def read_truth(path: str | Path) -> Truth:
-    """Read `truth.csv` (columns time,object_id,kind,north,east[,lat,lon])."""
-    a, skipped = _read(path, TRUTH_COLUMNS, (), ("kind",))
+    """Read `truth.csv` (columns time,object_id,kind,north,east[,lat,lon]); object ids may be
+    integers or text."""
+    a, skipped = _read(path, TRUTH_COLUMNS, (), ("kind", "object_id"))
+    raw = a["object_id"]
+    names: tuple[str, ...] = ()
+    try:
+        ids = np.array([int(v) for v in raw], dtype=np.int64)
+    except ValueError:  # text ids: number them in sorted order
+        uniq, ids = np.unique(raw, return_inverse=True)
+        ids = ids.astype(np.int64)
+        names = tuple(str(u) for u in uniq)
     return Truth(
         time=a["time"],
-        object_id=a["object_id"].astype(np.int64),
+        object_id=ids.reshape(-1),
         kind=a["kind"],
         positions=np.column_stack([a["north"], a["east"]]).reshape(-1, 2),
         skipped=skipped,
+        names=names,
     )
 
 

@@ -159,7 +159,8 @@ def _figures(out, tracks, det, nav, inn, gt, sc, org, metrics, animation, option
         cap = float(options.get("cap", 5.0))
         m = match_tracks(gt, tracks, window=float(options.get("window", 1.0)), cap=cap)
         targets = [o["object_id"] for o in th.get("objects", []) if o["target"]]
-        F.save(F.errors_figure(m, gt.kinds(), targets, cap=cap), out / "errors.png")
+        names = {i: gt.name(i) for i in gt.kinds()} if gt.names else None
+        F.save(F.errors_figure(m, gt.kinds(), targets, cap=cap, names=names), out / "errors.png")
     if animation is None:
         animation = (out / "camera_frames" / "camera_frames.csv").is_file()
     if animation:

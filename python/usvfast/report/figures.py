@@ -132,7 +132,7 @@ def draw_truth(ax: Axes, truth: Truth | None, upto: float | None = None, label: 
         ax.plot(p[-1, 1], p[-1, 0], "o", mfc="none", mec=TRUTH_COLOR, ms=7, zorder=3)
         if label:
             ax.annotate(
-                f"{oid} {kind}",
+                truth.name(oid) if truth.names else f"{oid} {kind}",
                 (p[-1, 1], p[-1, 0]),
                 xytext=(4, -10),
                 textcoords="offset points",
@@ -338,10 +338,15 @@ def errors_figure(
     *,
     confidence: float = 0.95,
     cap: float = 5.0,
+    names: dict[int, str] | None = None,
 ) -> Figure:
     """Per-object position error |track − truth| (m) over time (top) and NEES (bottom, log,
-    with the one-sample χ²(2) band); one colour per target object."""
+    with the one-sample χ²(2) band); one colour per target object, labelled by `names` (the
+    truth file's ids) when given."""
     from matplotlib import colormaps
+
+    def label(oid: int) -> str:
+        return names[oid] if names and oid in names else f"{oid} {kinds.get(oid, '')}"
 
     fig = Figure(figsize=(11, 7), dpi=110)
     ax, nx = fig.subplots(2, 1, sharex=True)
@@ -363,7 +368,7 @@ def errors_figure(
                 es,
                 color=col,
                 lw=1.3,
-                label=f"{oid} {kinds.get(oid, '')} (RMSE {rmse:.2f} m)" if j == 0 else None,
+                label=f"{label(oid)} (RMSE {rmse:.2f} m)" if j == 0 else None,
             )
         nees = matches.nees[sel]
         ok = np.isfinite(nees)

@@ -84,7 +84,7 @@ def summary_tables(metrics: dict[str, Any]) -> list[Table]:
     for o in th.get("objects", []):
         a = o.get("anees")
         per.add_row(
-            str(o["object_id"]),
+            str(o.get("name", o["object_id"])),
             o["kind"],
             "yes" if o["target"] else "no",
             _f(o["visible_time"], "{:.1f}"),
