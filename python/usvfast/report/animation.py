@@ -83,10 +83,7 @@ def write_animation(
         ax, cx = fig.add_subplot(1, 1, 1), None
         fig.subplots_adjust(left=0.12, right=0.97, bottom=0.1, top=0.92)
     colors = F.track_colors(tracks.track_id)
-    parts = [tracks.positions] + ([nav.positions] if nav is not None else [])
-    if truth is not None:
-        sel = (truth.time >= t0) & (truth.time <= t1)
-        parts.append(truth.positions[sel])
+    parts = F.map_extent(tracks, detections, nav, truth)
     # the static layer once: harbour, axes, limits
     F.draw_scene(ax, scene)
     F._limits(ax, parts)

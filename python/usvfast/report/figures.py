@@ -76,6 +76,31 @@ def draw_scene(ax: Axes, scene: dict[str, Any] | None) -> list[Any]:
     return handles
 
 
+def map_extent(
+    tracks: Tracks,
+    detections: Detections | None,
+    nav: Nav | None,
+    truth: Truth | None,
+    near: float = 30.0,
+) -> list[np.ndarray]:
+    """The points a map frames: tracks, detections, the USV path, and the truth within `near`
+    m of the USV path (all of it without a path), so that far-away objects that were never
+    in view do not shrink the action to a corner."""
+    parts = [tracks.positions]
+    if detections is not None and len(detections.time):
+        parts.append(detections.positions)
+    if nav is not None and len(nav.time):
+        parts.append(nav.positions)
+        if truth is not None and len(truth.time):
+            from scipy.spatial import cKDTree
+
+            d, _ = cKDTree(nav.positions).query(truth.positions)
+            parts.append(truth.positions[d <= near])
+    elif truth is not None:
+        parts.append(truth.positions)
+    return parts
+
+
 def _limits(ax: Axes, parts: list[np.ndarray], margin: float = 5.0) -> None:
     pts = np.concatenate([p.reshape(-1, 2) for p in parts if len(p)] or [np.zeros((1, 2))])
     pts = pts[np.all(np.isfinite(pts), axis=1)]
@@ -149,7 +174,7 @@ def draw_detections(
     det: Detections | None,
     since: float | None = None,
     upto: float | None = None,
-    size: float = 6.0,
+    size: float = 9.0,
 ) -> list[Any]:
     """Detections by sensor (LiDAR blue dots, camera orange crosses); legend handles."""
     if det is None or len(det.time) == 0:
@@ -163,7 +188,7 @@ def draw_detections(
             sel &= det.time <= upto
         st = SENSOR_STYLE.get(sensor, {"color": "#9467bd", "marker": "+"})
         p = det.positions[sel]
-        ax.scatter(p[:, 1], p[:, 0], s=size, c=st["color"], marker=st["marker"], alpha=0.35, lw=0.6)
+        ax.scatter(p[:, 1], p[:, 0], s=size, c=st["color"], marker=st["marker"], alpha=0.5, lw=0.6)
         handles.append(
             Line2D(
                 [], [], color=st["color"], marker=st["marker"], ls="", label=f"{sensor} detections"
@@ -253,13 +278,7 @@ def map_figure(
     handles += draw_truth(ax, truth)
     handles += draw_usv(ax, nav)
     handles += draw_tracks(ax, tracks, track_colors(tracks.track_id))
-    parts = [tracks.positions]
-    if nav is not None:
-        parts.append(nav.positions)
-    if truth is not None:
-        parts.append(truth.positions)
-    if detections is not None and len(detections.time):
-        parts.append(detections.positions)
+    parts = map_extent(tracks, detections, nav, truth)
     _limits(ax, parts)
     ax.set_xlabel("east (m)")
     ax.set_ylabel("north (m)")
@@ -351,7 +370,8 @@ def errors_figure(
     fig = Figure(figsize=(11, 7), dpi=110)
     ax, nx = fig.subplots(2, 1, sharex=True)
     t0 = float(matches.time.min()) if len(matches.time) else 0.0
-    cmap = colormaps["tab10"]
+    cmap = colormaps["tab10" if len(targets) <= 10 else "tab20"]
+    n_col = cmap.N
     for k, oid in enumerate(targets):
         sel = matches.object_id == oid
         if not sel.any():
@@ -359,7 +379,7 @@ def errors_figure(
         t = matches.time[sel] - t0
         e = np.linalg.norm(matches.error[sel], axis=1)
         rmse = float(np.sqrt(np.mean(e**2)))
-        col = cmap(k % 10)
+        col = cmap(k % n_col)
         # break the line where the object was not matched for more than 1 s
         gaps = np.flatnonzero(np.diff(t) > 1.0) + 1
         for j, (ts, es) in enumerate(zip(np.split(t, gaps), np.split(e, gaps), strict=True)):
@@ -389,7 +409,10 @@ def errors_figure(
     )
     ax.grid(True, alpha=0.3)
     if any(np.any(matches.object_id == o) for o in targets):
-        ax.legend(fontsize=8, loc="upper right", ncol=2)
+        if len(targets) > 6:  # many objects: the legend beside the plots, not over them
+            ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
+        else:
+            ax.legend(fontsize=8, loc="upper right", ncol=2)
     else:
         ax.text(0.5, 0.5, "no track matched any object", transform=ax.transAxes, ha="center")
     fig.tight_layout()

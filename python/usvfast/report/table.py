@@ -79,13 +79,13 @@ def summary_tables(metrics: dict[str, Any]) -> list[Table]:
     for name, value in rows:
         run.add_row(name, value)
     per = Table(title="Per object")
-    for col in ("id", "kind", "target", "visible s", "TPD", "TT s", "TRF", "RMSE m", "ANEES"):
+    for col in ("id", "kind", "target", "seen s", "TPD", "TT s", "TRF", "RMSE m", "ANEES"):
         per.add_column(col, justify="right" if col not in ("kind",) else "left")
     for o in th.get("objects", []):
         a = o.get("anees")
         per.add_row(
             str(o.get("name", o["object_id"])),
-            o["kind"],
+            o["kind"].replace("moored_boat", "moored"),
             "yes" if o["target"] else "no",
             _f(o["visible_time"], "{:.1f}"),
             _f(o["tpd"], "{:.2f}"),
