@@ -60,6 +60,13 @@ def test_constant_offset_gives_its_rmse_and_full_coverage(tmp_path):
     moored = next(o for o in m.objects if o.kind == "moored_boat")
     assert not moored.target and moored.n_matches == 0
     assert m.false_tracks == [] and m.excluded_tracks == {}
+    assert set(m.by_kind) == {"bottle", "bag", "box", "vessel"}
+    assert m.by_kind["bag"] == {
+        "n_targets": 1,
+        "targets_tracked": 1,
+        "mean_tpd": 1.0,
+        "rmse": pytest.approx(0.2, abs=1e-4),
+    }
     # NEES of a constant error e with P = 0.04 I: |e|² / 0.04 = 1.0 every row
     assert m.anees.mean == pytest.approx(1.0, abs=1e-3)
 

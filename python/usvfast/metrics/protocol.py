@@ -247,7 +247,8 @@ class ThesisMetrics:
     the targets' time fractions; mean_trf over tracked targets; rmse metres over every matched
     row of a target; anees / anis with their χ² bands (None without data); anis_by_sensor;
     false_tracks: ids never matched; excluded_tracks: ids matched mostly to an excluded kind,
-    by kind; n_tracks: distinct track ids."""
+    by kind; n_tracks: distinct track ids; by_kind: targets, tracked, mean TPD and RMSE per
+    target kind."""
 
     objects: list[ObjectScore]
     n_targets: int
@@ -264,6 +265,7 @@ class ThesisMetrics:
     excluded_tracks: dict[str, list[int]]
     n_tracks: int
     matches: Matches
+    by_kind: dict[str, dict[str, Any]] = field(default_factory=dict)
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready dict (without the per-row matches)."""
@@ -283,8 +285,24 @@ class ThesisMetrics:
             "false_tracks": self.false_tracks,
             "excluded_tracks": self.excluded_tracks,
             "n_tracks": self.n_tracks,
+            "by_kind": self.by_kind,
             "objects": [o.as_dict() for o in self.objects],
         }
+
+
+def _by_kind(targets: list[ObjectScore], m: Matches) -> dict[str, dict[str, Any]]:
+    """Targets, tracked targets, mean time fraction and RMSE per kind of target."""
+    out: dict[str, dict[str, Any]] = {}
+    for kind in sorted({o.kind for o in targets}):
+        mine = [o for o in targets if o.kind == kind]
+        rows = np.isin(m.object_id, [o.object_id for o in mine])
+        out[kind] = {
+            "n_targets": len(mine),
+            "targets_tracked": sum(1 for o in mine if o.n_matches),
+            "mean_tpd": float(np.mean([o.tpd for o in mine])),
+            "rmse": _rmse(m.error[rows]),
+        }
+    return out
 
 
 def _rmse(err: np.ndarray) -> float:
@@ -385,5 +403,6 @@ def thesis_metrics(
         false_tracks=[int(t) for t in np.setdiff1d(all_tracks, m.track_id)],
         excluded_tracks=excluded,
         n_tracks=len(all_tracks),
+        by_kind=_by_kind(targets, m),
         matches=m,
     )

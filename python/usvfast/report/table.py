@@ -39,6 +39,13 @@ def summary_tables(metrics: dict[str, Any]) -> list[Table]:
             f"{_f(th.get('mean_trf'), '{:.2f}')} / {th.get('max_trf', '–')}",
         ),
         ("position RMSE (m)", _f(th.get("rmse"))),
+        *(
+            (
+                f"  {kind}: tracked / targets, RMSE",
+                f"{k['targets_tracked']} / {k['n_targets']}, {_f(k['rmse'])} m",
+            )
+            for kind, k in (th.get("by_kind") or {}).items()
+        ),
         ("ANEES (position, χ² band)", _band(th.get("anees"))),
         ("ANIS (χ² band)", _band(th.get("anis"))),
     ]
