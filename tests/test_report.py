@@ -164,12 +164,12 @@ def test_report_command(run, tmp_path):
 
     from usvfast.cli import app
 
-    r = CliRunner().invoke(
-        app,
-        ["report", str(run / "out"), "--truth", str(run / "truth.csv"), "--no-animation"],
-    )
+    args = ["report", str(run / "out"), "--truth", str(run / "truth.csv"), "--no-animation"]
+    r = CliRunner().invoke(app, [*args, "--html", "--scene", str(run / "scene.json")])
     assert r.exit_code == 0, r.output
-    assert "position RMSE" in r.output and "metrics.json" in r.output
+    assert "position RMSE" in r.output and "metrics.json" in r.output and "map.html" in r.output
+    page = (run / "out" / "map.html").read_text()
+    assert "plotly" in page and "track 9" in page and "truth 5 (moored_boat)" in page
     r = CliRunner().invoke(app, ["report", str(tmp_path)])
     assert r.exit_code == 2 and "tracks.csv" in r.output
 

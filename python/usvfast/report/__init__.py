@@ -8,6 +8,7 @@ camera_frames/) and writes
 - `map.png` (harbour, USV path, detections by sensor, truth, tracks with 2σ ellipses; north
   up, metres), `nis.png` (NIS/ANIS with the χ² band, the thesis's Fig. 6.5), `errors.png`
   (per-object position error and NEES over time, with a truth),
+- `map.html` with `html=True` (the map, interactive; plotly, the `report` extra),
 - `animation.gif` (the global tracking animation with the camera image inset; by default
   when the run wrote camera_frames/).
 
@@ -94,6 +95,7 @@ def write_report(
     origin: tuple[float, float, float] | None = None,
     *,
     animation: bool | None = None,
+    html: bool = False,
     print_table: bool = True,
     console: Console | None = None,
     **metric_options: Any,
@@ -132,13 +134,13 @@ def write_report(
         }
         metrics = _clean(metrics)
         (out / "metrics.json").write_text(json.dumps(metrics, indent=2))
-    _figures(out, tracks, det, nav, inn, gt, sc, org, metrics, animation, metric_options)
+    _figures(out, tracks, det, nav, inn, gt, sc, org, metrics, animation, html, metric_options)
     if print_table and metrics:
         print_summary(metrics, console)
     return metrics
 
 
-def _figures(out, tracks, det, nav, inn, gt, sc, org, metrics, animation, options) -> None:
+def _figures(out, tracks, det, nav, inn, gt, sc, org, metrics, animation, html, options) -> None:
     from usvfast.metrics.protocol import match_tracks
     from usvfast.report import figures as F
     from usvfast.report.animation import write_animation
@@ -161,6 +163,12 @@ def _figures(out, tracks, det, nav, inn, gt, sc, org, metrics, animation, option
         targets = [o["object_id"] for o in th.get("objects", []) if o["target"]]
         names = {i: gt.name(i) for i in gt.kinds()} if gt.names else None
         F.save(F.errors_figure(m, gt.kinds(), targets, cap=cap, names=names), out / "errors.png")
+    if html:
+        from usvfast.report.interactive import write_html_map
+
+        write_html_map(
+            out / "map.html", tracks, detections=det, nav=nav, truth=gt, scene=sc, title=title
+        )
     if animation is None:
         animation = (out / "camera_frames" / "camera_frames.csv").is_file()
     if animation:

@@ -27,6 +27,9 @@ def report_command(
             "--animation/--no-animation", help="Write animation.gif (default: with camera_frames/)"
         ),
     ] = None,
+    html: Annotated[
+        bool, typer.Option(help="Also write the interactive map.html (needs plotly)")
+    ] = False,
     max_range: Annotated[
         float, typer.Option(help="Objects count as targets within this range of the USV, m")
     ] = 40.0,
@@ -41,6 +44,7 @@ def report_command(
             truth=truth,
             scene=scene,
             animation=animation,
+            html=html,
             console=console,
             max_range=max_range,
         )
@@ -50,7 +54,7 @@ def report_command(
     written = [
         p.name
         for p in sorted(out.iterdir())
-        if p.suffix in (".png", ".gif", ".json") and p.stat().st_mtime >= start - 1
+        if p.suffix in (".png", ".gif", ".json", ".html") and p.stat().st_mtime >= start - 1
     ]
     console.print(f"wrote {', '.join(written)} in {escape(str(out))}", soft_wrap=True)
     if not metrics:
