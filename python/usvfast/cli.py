@@ -8,6 +8,7 @@ from usvfast import __version__
 from usvfast.bearing.command import bearing_command, demo_command
 from usvfast.lidar.command import lidar_command
 from usvfast.nav.inspect import inspect_command
+from usvfast.report.command import report_command
 from usvfast.trackcmd import track_command
 
 app = typer.Typer(
@@ -44,6 +45,7 @@ app.command("demo")(demo_command)
 app.command("lidar")(lidar_command)
 app.command("inspect")(inspect_command)
 app.command("track")(track_command)
+app.command("report")(report_command)
 
 
 def main() -> None:
