@@ -51,12 +51,14 @@ class TrainConfig:
     input_size: tuple[int, int] = (640, 368)
     crop_size: tuple[int, int] = (320, 192)
     width: int = 16
-    steps: int = 900
+    steps: int = 1500
     batch: int = 12
     lr: float = 3e-3
     frames_per_seed: int = 24
     heldout_frames_per_seed: int = 8
     min_box_px: float = 3.0
+    conf_threshold: float = 0.3
+    trash_weight: float = 4.0
     threads: int = 2
     train_seeds: tuple[int, ...] = TRAIN_SEEDS
     heldout_seeds: tuple[int, ...] = HELDOUT_SEEDS
@@ -179,15 +181,16 @@ def to_sample(frame: Frame, input_size: tuple[int, int]) -> Sample:
 
 
 def random_crop(
-    s: Sample, crop: tuple[int, int], rng: np.random.Generator
+    s: Sample, crop: tuple[int, int], rng: np.random.Generator, weights: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """A `crop` (w, h) window of a sample, centred near a random object 80 % of the time,
-    randomly flipped left-right and jittered in brightness/contrast; boxes clipped to the
+    """A `crop` (w, h) window of a sample, centred near a random object 80 % of the time (drawn
+    with per-class `weights`, e.g. to favour the small floating objects), randomly flipped left-right and jittered in brightness/contrast; boxes clipped to the
     window, those left with < 40 % of their area dropped."""
     h, w = s.image.shape[:2]
     cw, ch = crop
     if len(s.boxes) and rng.random() < 0.8:
-        b = s.boxes[rng.integers(len(s.boxes))]
+        p = None if weights is None else weights[s.classes] / weights[s.classes].sum()
+        b = s.boxes[rng.choice(len(s.boxes), p=p)]
         cx = (b[0] + b[2]) / 2 + rng.uniform(-0.4, 0.4) * cw
         cy = (b[1] + b[3]) / 2 + rng.uniform(-0.4, 0.4) * ch
         x0, y0 = int(np.clip(cx - cw / 2, 0, w - cw)), int(np.clip(cy - ch / 2, 0, h - ch))
@@ -248,6 +251,9 @@ def train(
     torch.manual_seed(config.seed)
     rng = np.random.default_rng(config.seed)
     samples = [to_sample(f, config.input_size) for f in train_frames]
+    # The first three classes are the small floating objects (usvfast.sim.FLOAT_KINDS).
+    weights = np.ones(len(config.classes))
+    weights[:3] = config.trash_weight
     net = HarbourNet(len(config.classes), config.input_size, config.width)
     crop_net = HarbourNet(len(config.classes), config.crop_size, config.width)
     crop_net.load_state_dict(net.state_dict())  # same weights; grids sized for the crops
@@ -259,7 +265,7 @@ def train(
     t0 = time.perf_counter()
     for step in range(config.steps):
         batch = [
-            random_crop(samples[i], config.crop_size, rng)
+            random_crop(samples[i], config.crop_size, rng, weights)
             for i in rng.integers(len(samples), size=config.batch)
         ]
         x = torch.from_numpy(np.stack([b[0] for b in batch]).transpose(0, 3, 1, 2).copy())
@@ -317,7 +323,9 @@ def run(
     t1 = time.perf_counter()
     net = train(config, train_frames, log)
     t_train = time.perf_counter() - t1
-    det = YoloDetector(net, input_size=config.input_size, conf_threshold=0.4, iou_threshold=0.5)
+    det = YoloDetector(
+        net, input_size=config.input_size, conf_threshold=config.conf_threshold, iou_threshold=0.5
+    )
     metrics = evaluate(det, held, config.min_box_px)
     log(f"held-out: {json.dumps(metrics)}")
     card = {
@@ -329,7 +337,7 @@ def run(
         "layout": "v8",
         "input_size": list(config.input_size),
         "classes": list(config.classes),
-        "conf_threshold": 0.4,
+        "conf_threshold": config.conf_threshold,
         "iou_threshold": 0.5,
         "parameters": int(sum(p.numel() for p in net.parameters())),
         "train": {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(config).items()},
