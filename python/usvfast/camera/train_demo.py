@@ -51,14 +51,14 @@ class TrainConfig:
     input_size: tuple[int, int] = (640, 368)
     crop_size: tuple[int, int] = (320, 192)
     width: int = 16
-    steps: int = 1500
+    steps: int = 600
     batch: int = 12
     lr: float = 3e-3
     frames_per_seed: int = 24
     heldout_frames_per_seed: int = 8
     min_box_px: float = 3.0
     conf_threshold: float = 0.3
-    trash_weight: float = 4.0
+    trash_weight: float = 1.0
     threads: int = 2
     train_seeds: tuple[int, ...] = TRAIN_SEEDS
     heldout_seeds: tuple[int, ...] = HELDOUT_SEEDS
@@ -184,13 +184,17 @@ def random_crop(
     s: Sample, crop: tuple[int, int], rng: np.random.Generator, weights: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A `crop` (w, h) window of a sample, centred near a random object 80 % of the time (drawn
-    with per-class `weights`, e.g. to favour the small floating objects), randomly flipped left-right and jittered in brightness/contrast; boxes clipped to the
-    window, those left with < 40 % of their area dropped."""
+    uniformly, or with per-class `weights` to favour e.g. the small floating objects), randomly
+    flipped left-right and jittered in brightness/contrast; boxes clipped to the window, those
+    left with < 40 % of their area dropped."""
     h, w = s.image.shape[:2]
     cw, ch = crop
     if len(s.boxes) and rng.random() < 0.8:
-        p = None if weights is None else weights[s.classes] / weights[s.classes].sum()
-        b = s.boxes[rng.choice(len(s.boxes), p=p)]
+        if weights is None:
+            b = s.boxes[rng.integers(len(s.boxes))]
+        else:
+            p = weights[s.classes] / weights[s.classes].sum()
+            b = s.boxes[rng.choice(len(s.boxes), p=p)]
         cx = (b[0] + b[2]) / 2 + rng.uniform(-0.4, 0.4) * cw
         cy = (b[1] + b[3]) / 2 + rng.uniform(-0.4, 0.4) * ch
         x0, y0 = int(np.clip(cx - cw / 2, 0, w - cw)), int(np.clip(cy - ch / 2, 0, h - ch))
@@ -252,8 +256,10 @@ def train(
     rng = np.random.default_rng(config.seed)
     samples = [to_sample(f, config.input_size) for f in train_frames]
     # The first three classes are the small floating objects (usvfast.sim.FLOAT_KINDS).
-    weights = np.ones(len(config.classes))
-    weights[:3] = config.trash_weight
+    weights = None
+    if config.trash_weight != 1.0:
+        weights = np.ones(len(config.classes))
+        weights[:3] = config.trash_weight
     net = HarbourNet(len(config.classes), config.input_size, config.width)
     crop_net = HarbourNet(len(config.classes), config.crop_size, config.width)
     crop_net.load_state_dict(net.state_dict())  # same weights; grids sized for the crops
