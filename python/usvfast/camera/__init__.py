@@ -1,6 +1,9 @@
-"""Camera: calibration, detection (YOLO through torch), filters, and georeferencing onto the
-water plane with per-detection covariance. See the submodules for details; the YOLO wrapper
-(`usvfast.camera.yolo`) needs the optional torch dependency and is not imported here."""
+"""Camera: calibration, detection, filters, and georeferencing onto the water plane with
+per-detection covariance. See the submodules for details. Detector backends share
+`usvfast.camera.detect` (letterbox, YOLO decoding, NMS): `usvfast.camera.dnn.OnnxDetector`
+(ONNX through OpenCV DNN) and `usvfast.camera.yolo.YoloDetector` (torch, optional dependency);
+`usvfast.camera.backends.load_detector` picks one by name, and `usvfast.camera.chain.CameraPipeline`
+chains either with the filters and georeferencing. They are not imported here."""
 
 from usvfast.camera.calibration import CalibrationResult, CameraModel, calibrate
 from usvfast.camera.georef import (

@@ -1,0 +1,121 @@
+"""The bundled harbour demo detector on frames rendered by the simulator from seeds it never saw
+in training: both backends (ONNX through OpenCV DNN, TorchScript through torch) give the same
+boxes; the detector reaches the stated precision and recall at IoU >= 0.5; wrong input shapes
+are clear errors; the training is reproducible from its seed."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from usvfast.camera.backends import demo_weights, load_detector, model_card
+from usvfast.camera.detect import Detections
+from usvfast.camera.dnn import OnnxDetector
+from usvfast.camera.train_demo import (
+    HELDOUT_SEEDS,
+    TRAIN_SEEDS,
+    Frame,
+    TrainConfig,
+    evaluate,
+    match_counts,
+    render_frames,
+    train,
+)
+from usvfast.camera.yolo import YoloDetector
+
+# Held-out seeds for this test: after those of the training and of the model card's figures.
+TEST_SEEDS = (2100, 2101, 2102)
+
+
+@pytest.fixture(scope="module")
+def frames():
+    return [f for s in TEST_SEEDS for f in render_frames(s, 4)]
+
+
+@pytest.fixture(scope="module")
+def card():
+    return model_card(demo_weights("onnx"))
+
+
+def test_bundled_weights_are_small_and_described(card):
+    for backend in ("onnx", "torch"):
+        assert demo_weights(backend).stat().st_size < 2_000_000
+    assert card["layout"] == "v8" and card["input_size"] == [640, 368]
+    assert card["classes"][:3] == ["bottle", "bag", "box"]
+    assert "not a detector of real floating trash" in card["about"]
+    assert set(TEST_SEEDS).isdisjoint(TRAIN_SEEDS + HELDOUT_SEEDS)
+    assert card["train"]["train_seeds"] == list(TRAIN_SEEDS)
+
+
+def test_both_backends_same_boxes_on_rendered_frames(frames):
+    onnx = load_detector("onnx", demo_weights("onnx"), conf_threshold=0.3)
+    pt = load_detector("torch", demo_weights("torch"), conf_threshold=0.3)
+    assert isinstance(onnx, OnnxDetector) and isinstance(pt, YoloDetector)
+    n = 0
+    for f in frames:
+        raw_o, _ = onnx.raw([f.image])
+        raw_t, _ = pt.raw([f.image])
+        np.testing.assert_allclose(raw_o, raw_t, rtol=1e-4, atol=1e-3)
+        (do,), (dt,) = onnx([f.image]), pt([f.image])
+        assert len(do.boxes) == len(dt.boxes)
+        np.testing.assert_allclose(do.boxes, dt.boxes, atol=1e-2)  # px
+        np.testing.assert_allclose(do.scores, dt.scores, atol=1e-4)
+        np.testing.assert_array_equal(do.classes, dt.classes)
+        n += len(do.boxes)
+    assert n >= len(frames)  # the comparison covered real detections
+
+
+def test_precision_recall_on_unseen_seeds(frames, card):
+    det = load_detector("onnx", demo_weights("onnx"), conf_threshold=card["conf_threshold"])
+    m = evaluate(det, frames, min_box_px=card["train"]["min_box_px"])
+    assert m["truth"] >= 20
+    # Measured on these 12 frames: precision 0.72, recall 0.70 (the model card's 24 frames of
+    # seeds 2000-2002: 0.61 / 0.66). Most misses and false alarms are trash boxes of 3-6 px,
+    # where a 1 px offset already costs IoU 0.5.
+    assert m["precision"] >= 0.6, m
+    assert m["recall"] >= 0.6, m
+
+
+def test_wrong_input_shape_is_a_clear_error(frames):
+    with pytest.raises(ValueError, match=r"input_size: harbour-demo.onnx takes"):
+        OnnxDetector(demo_weights("onnx"), input_size=(640, 640))
+    det = YoloDetector(demo_weights("torch"), input_size=(640, 640))
+    with pytest.raises(ValueError, match="input_size: the network rejected"):
+        det([frames[0].image])
+    with pytest.raises(FileNotFoundError, match="weights"):
+        load_detector("onnx", "harbour-missing.onnx")
+
+
+def test_match_counts_greedy_by_score():
+    truth = np.array([[0, 0, 10, 10], [20, 0, 30, 10], [50, 50, 52, 52.0]])
+    det = Detections(
+        np.array([[0, 0, 10, 9], [1, 0, 10, 10], [20, 0, 26, 10], [100, 100, 110, 110.0]]),
+        np.array([0.9, 0.8, 0.7, 0.6]),
+        np.array([0, 0, 1, 0]),
+    )
+    ignore = np.array([False, False, True])
+    # 0 matches truth 0; 1 is a duplicate (fp); 2 has IoU 0.6 with truth 1; 3 matches nothing.
+    assert match_counts(det, truth, np.array([0, 1, 0]), ignore) == (2, 2, 0)
+    assert match_counts(det, truth, np.array([0, 0, 0]), ignore, class_aware=True) == (1, 3, 1)
+    assert match_counts(det, truth, np.zeros(3), ignore, iou=0.7) == (1, 3, 1)
+
+
+def test_training_is_reproducible():
+    rng = np.random.default_rng(0)
+    frames = [
+        Frame(
+            rng.integers(0, 255, (96, 160, 3), dtype=np.uint8),
+            np.array([[20.0, 30.0, 40.0, 42.0]]),
+            np.array([1]),
+        )
+        for _ in range(2)
+    ]
+    cfg = TrainConfig(
+        input_size=(160, 96), crop_size=(96, 64), width=4, steps=3, batch=2, classes=("a", "b")
+    )
+    nets = [train(cfg, frames, log=lambda _: None) for _ in range(2)]
+    for (k, a), (_, b) in zip(
+        nets[0].state_dict().items(), nets[1].state_dict().items(), strict=True
+    ):
+        assert torch.equal(a, b), k
