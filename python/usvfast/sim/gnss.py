@@ -165,7 +165,8 @@ def simulate_gnss(
     quality = np.full(k.size, 4)
     n_out = rng.poisson(errors.outages_per_minute * duration / 60.0)
     for _ in range(n_out):
-        t_out = rng.uniform(5.0, max(duration - 3.0, 5.0))
+        lo = min(5.0, 0.2 * duration)
+        t_out = rng.uniform(lo, max(duration - 2.0, lo))
         length = rng.uniform(1.0, 2.0)
         quality[(rel >= t_out) & (rel < t_out + length)] = 0
         after = (rel >= t_out + length) & (rel < t_out + length + errors.float_seconds)
@@ -189,7 +190,7 @@ def simulate_gnss(
     cog = np.degrees(np.mod(np.arctan2(ve, vn), 2 * np.pi))
     lat0, lon0, h0 = world.origin
     lat, lon, h = geodesy.ned2geodetic(measured[:, 0], measured[:, 1], -up, lat0, lon0, h0)
-    latency = rng.uniform(*errors.latency, size=(k.size, 3))
+    latency = rng.uniform(*errors.latency, size=k.size)  # one per epoch: sentences stay in order
     lost = rng.random((k.size, 3)) < errors.loss
     sats = np.clip(np.round(22 + 2 * np.sin(rel / 40.0) + rng.normal(0, 0.5, k.size)), 12, 30)
     records: list[GnssRecord] = []
@@ -213,7 +214,7 @@ def simulate_gnss(
         for j, (kind, fields) in enumerate((("GGA", gga), ("RMC", rmc), ("HDT", hdt))):
             if lost[i, j]:
                 continue
-            stamp = float(epoch[i] + latency[i, j] + 0.002 * j)
+            stamp = float(epoch[i] + latency[i] + 0.002 * j)
             records.append(GnssRecord(stamp, float(epoch[i]), _sentence("GN", kind, fields), kind))
             if kind == "HDT":
                 sent_heading[i] = heading_m[i]
