@@ -477,7 +477,12 @@ class _D1Writer:
     mp4 video with a frame,time CSV, and the NMEA log as text."""
 
     def __init__(self, folder: Path, size: tuple[int, int], fps: float) -> None:
-        import dpkt
+        try:
+            import dpkt
+        except ImportError as exc:  # pragma: no cover - dpkt ships with the sim/lidar extras
+            raise RuntimeError(
+                "d1: writing the pcap needs dpkt (pip install usvfast[sim])"
+            ) from exc
 
         self.dpkt = dpkt
         folder.mkdir(parents=True, exist_ok=False)
