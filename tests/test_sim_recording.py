@@ -207,7 +207,11 @@ def test_truth_is_consistent_with_the_scene(rec):
     )
     assert np.abs(pn - n).max() < 2e-3 and np.abs(pe - e).max() < 2e-3
     assert np.all((n > SOUTH) & (n < NORTH) & (np.abs(e) < HALF_WIDTH))
-    moored = {m["id"]: (m["north"], m["east"]) for m in scene["moored"]}
+    moored = {str(m["id"]): (m["north"], m["east"]) for m in scene["moored"]}
+    assert all(r["object_id"].isdigit() for r in rows)
+    names = {str(o["id"]): o["kind"] for o in scene["objects"]}
+    for r in rows:
+        assert names.get(r["object_id"], "moored_boat") == r["kind"]
     for r in rows:
         if r["kind"] == "moored_boat":
             assert (float(r["north"]), float(r["east"])) == pytest.approx(

@@ -7,7 +7,8 @@ Layout of DIR (see `simulate`):
     recording.toml       the pipeline config that runs the bag
     bag/                 rosbag2 (sqlite3, zstd-compressed messages)
     camera_info.yaml     the camera's calibration (ROS camera_info YAML)
-    truth.csv            time,object_id,kind,north,east,lat,lon   (every object, every 0.1 s)
+    truth.csv            time,object_id,kind,north,east,lat,lon   (every object, every 0.1 s;
+                         object_id an int, its name in scene.json "objects")
     origin.json          {"lat", "lon", "height"} of the NED origin
     scene.json           walls, moored boats, the USV's true path (1 Hz)
     d1/lidar.pcap, d1/camera.mp4, d1/camera_times.csv, d1/gnss.nmea, recording-d1.toml
@@ -320,13 +321,14 @@ def write_truth(world: World, path: Path, duration: float) -> int:
         out = csv.writer(fh, lineterminator="\n")
         out.writerow(["time", "object_id", "kind", "north", "east", "lat", "lon"])
         per = world.truth_at(rel)
+        ids = world.truth_ids()
         geo = [geodesy.ned2geodetic(n, e, np.zeros_like(n), lat0, lon0, h0) for _, _, n, e in per]
         for i, t in enumerate(rel):
             for (oid, kind, n, e), (lat, lon, _) in zip(per, geo, strict=True):
                 out.writerow(
                     [
                         f"{EPOCH + t:.1f}",
-                        oid,
+                        ids[oid],
                         kind,
                         f"{n[i]:.4f}",
                         f"{e[i]:.4f}",
@@ -339,14 +341,17 @@ def write_truth(world: World, path: Path, duration: float) -> int:
 
 
 def write_scene(world: World, path: Path, duration: float) -> None:
-    """scene.json: walls (polylines, NED m), moored boats, the USV's true path at 1 Hz."""
+    """scene.json: walls (polylines, NED m), moored boats, the USV's true path at 1 Hz
+    ([UNIX s, north m, east m, heading deg]), and the moving objects (id = truth.csv
+    object_id, name, kind, size: length, width, top above the water m)."""
     rel = np.arange(int(np.floor(duration + 1e-9)) + 1, dtype=np.float64)
     n, e, h = world.usv.pose(rel)
     data = {
         "walls": [np.round(w, 4).tolist() for w in world.walls],
         "moored": [
             {
-                "id": b.object_id,
+                "id": world.truth_ids()[b.object_id],
+                "name": b.object_id,
                 "north": round(float(b.shape.center[0]), 4),
                 "east": round(float(b.shape.center[1]), 4),
                 "length": round(float(b.shape.length), 4),
@@ -364,8 +369,13 @@ def write_scene(world: World, path: Path, duration: float) -> None:
             ]
             for t, a, b, c in zip(rel, n, e, h, strict=True)
         ],
-        "floats": [
-            {"id": m.object_id, "kind": m.kind, "size": [round(float(v), 4) for v in m.size]}
+        "objects": [
+            {
+                "id": world.truth_ids()[m.object_id],
+                "name": m.object_id,
+                "kind": m.kind,
+                "size": [round(float(v), 4) for v in m.size],
+            }
             for m in world.movers
         ],
         "seed": world.seed,
@@ -409,6 +419,7 @@ def _config_text(name: str, origin: tuple, streams: list[dict], attitude: bool) 
     out.write(f"waterline_height = {WATERLINE_HEIGHT!r}\n")
     out.write("max_range = 40.0\n")
     out.write('\n[detector]\nbackend = "onnx"\nweights = "models/harbour-demo.onnx"\n')
+    out.write("classes = [0, 1, 2]  # the trash kinds of the demo network; boats stay out\n")
     out.write('\n[tracker]\nbackend = "native"\n')
     out.write("\n[outputs]\nanimation = true\n")
     return out.getvalue()
