@@ -177,7 +177,8 @@ class Vlp16Recorder:
             if dist > reach:
                 half = np.arcsin(reach / dist)
                 to = np.arctan2(c[1] - centre[1], c[0] - centre[0])
-                idx = np.flatnonzero(np.abs(np.angle(np.exp(1j * (bearing - to)))) <= half)
+                off = np.mod(bearing - to + np.pi, 2 * np.pi) - np.pi
+                idx = np.flatnonzero(np.abs(off) <= half)
                 if idx.size == 0:
                     continue
             else:
