@@ -29,7 +29,7 @@ from usvfast.nav.nmea import read_nmea
 from usvfast.sim.camera import default_camera
 from usvfast.sim.gnss import GNSS_LEVER_ARM, GnssErrors, simulate_gnss
 from usvfast.sim.recording import EPOCH, TOPICS, SimulationOptions, simulate
-from usvfast.sim.scene import HALF_WIDTH, NORTH, SOUTH, TRUTH_KINDS
+from usvfast.sim.scene import HALF_WIDTH, NORTH, SOUTH, TRUTH_KINDS, make_world
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -270,3 +270,22 @@ def test_cli_bad_arguments(tmp_path):
     res = CliRunner().invoke(app, ["simulate", "--duration", "1", "--out", str(tmp_path / "full")])
     assert res.exit_code != 0 and "out" in res.output
     assert not Path(tmp_path / "x").exists()
+
+
+def test_the_bundled_recording_is_the_current_simulator_s():
+    """The demo bundle (seed 7, 30 s) reads back and its truth is make_world(7, 30)'s."""
+    folder = Path(__file__).resolve().parents[1] / "python" / "usvfast" / "data" / "harbour"
+    topics = bag_topics(folder / "bag")
+    assert {t: i.count for t, i in topics.items()}[TOPICS["image"][0]] == 300
+    assert {t: i.count for t, i in topics.items()}[TOPICS["lidar"][0]] >= 299
+    cfg = tomllib.loads((folder / "recording.toml").read_text())
+    assert {s["topic"] for s in cfg["stream"]} <= set(topics)
+    with open(folder / "truth.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    world = make_world(7, 30.0)
+    names = {v: k for k, v in world.truth_ids().items()}
+    for r in rows[:: len(rows) // 50]:
+        oid = names[int(r["object_id"])]
+        t = float(r["time"]) - EPOCH
+        n, e = next((n, e) for i, _, n, e in world.truth_at(np.array([t])) if i == oid)
+        assert (float(r["north"]), float(r["east"])) == pytest.approx((n[0], e[0]), abs=1e-4)
