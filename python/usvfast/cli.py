@@ -10,6 +10,7 @@ from usvfast.lidar.command import lidar_command
 from usvfast.nav.inspect import inspect_command
 from usvfast.report.command import report_command
 from usvfast.trackcmd import track_command
+from usvfast.sim.command import simulate_command
 
 app = typer.Typer(
     help="usvfast: fast maritime multi-sensor detection and tracking.",
@@ -46,6 +47,7 @@ app.command("lidar")(lidar_command)
 app.command("inspect")(inspect_command)
 app.command("track")(track_command)
 app.command("report")(report_command)
+app.command("simulate")(simulate_command)
 
 
 def main() -> None:

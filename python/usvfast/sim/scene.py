@@ -114,6 +114,12 @@ class World:
             out.extend(place_body(b, n, e, yaw) for b in m.bodies)
         return out
 
+    def truth_ids(self) -> dict[str, int]:
+        """Integer id (truth.csv `object_id`) of every truth object by name ('box0', ...):
+        movers first, then moored boats, in world order."""
+        names = [m.object_id for m in self.movers] + [b.object_id for b in self.moored]
+        return {name: k for k, name in enumerate(names)}
+
     def truth_at(self, t: np.ndarray) -> list[tuple[str, str, np.ndarray, np.ndarray]]:
         """(object_id, kind, north (k,), east (k,)) of every truth object at times `t` (k,):
         floating objects, vessels, moored boats."""
