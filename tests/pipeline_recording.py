@@ -57,7 +57,7 @@ def _ddmm(value: float, lat: bool) -> str:
     v = abs(value)
     d = int(v)
     m = (v - d) * 60
-    return f"{d:02d}{m:07.4f},{hemi}" if lat else f"{d:03d}{m:07.4f},{hemi}"
+    return f"{d:02d}{m:09.6f},{hemi}" if lat else f"{d:03d}{m:09.6f},{hemi}"
 
 
 def nmea_sentences(t: float, lat: float, lon: float, heading_deg: float) -> list[str]:

@@ -8,6 +8,8 @@ from usvfast import __version__
 from usvfast.bearing.command import bearing_command, demo_command
 from usvfast.lidar.command import lidar_command
 from usvfast.nav.inspect import inspect_command
+from usvfast.pipeline.command import demo_command as pipeline_demo_command
+from usvfast.pipeline.command import run_command
 
 app = typer.Typer(
     help="usvfast: fast maritime multi-sensor detection and tracking.",
@@ -23,7 +25,9 @@ def version() -> None:
 
 
 app.command("bearing")(bearing_command)
-app.command("demo")(demo_command)
+app.command("bearing-demo")(demo_command)
+app.command("demo")(pipeline_demo_command)
+app.command("run")(run_command)
 app.command("lidar")(lidar_command)
 app.command("inspect")(inspect_command)
 

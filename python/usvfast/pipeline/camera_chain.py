@@ -50,31 +50,41 @@ def load_camera(settings: dict[str, Any]) -> Any:
     return FovCamera((int(w), int(h)), tuple(settings["fov_deg"]))
 
 
-def load_detector(settings: dict[str, Any]) -> Any:
-    """The detector callable of the [detector] table, or None for backend "none"."""
+def load_detector(settings: dict[str, Any], base: Any = None) -> Any:
+    """The detector callable of the [detector] table, or None for backend "none". Relative
+    weights are looked up from `base` (the config's folder), then among the bundled models
+    (usvfast.camera.backends.load_detector)."""
     backend = settings.get("backend", "none")
     if backend == "none":
         return None
-    weights = settings["weights"]
-    size = settings.get("input_size") or (640, 640)
-    kwargs = dict(
-        input_size=(int(size[0]), int(size[1])),
-        conf_threshold=settings["conf_threshold"],
-        iou_threshold=settings["iou_threshold"],
-        classes=None if settings.get("classes") is None else [int(c) for c in settings["classes"]],
+    options: dict[str, Any] = dict(
+        conf_threshold=settings["conf_threshold"], iou_threshold=settings["iou_threshold"]
     )
+    if settings.get("input_size") is not None:
+        options["input_size"] = tuple(int(v) for v in settings["input_size"])
+    if settings.get("classes") is not None:
+        options["classes"] = [int(c) for c in settings["classes"]]
+    try:
+        from usvfast.camera.backends import load_detector as _load  # type: ignore[import-not-found]
+    except ImportError:
+        _load = None
+    if _load is not None:
+        try:
+            return _load(backend, settings["weights"], base=base, **options)
+        except FileNotFoundError as exc:
+            raise ValueError(f"detector.weights: {exc}") from exc
     if backend == "torch":
+        from pathlib import Path
+
         from usvfast.camera.yolo import YoloDetector
 
-        return YoloDetector(str(weights), **kwargs)
-    try:
-        from usvfast.camera.onnx import OnnxDetector  # type: ignore[import-not-found]
-    except ImportError as exc:  # pragma: no cover - until the ONNX backend ships
-        raise ValueError(
-            "detector.backend: 'onnx' needs usvfast.camera.onnx (OpenCV DNN backend), "
-            "not available in this install"
-        ) from exc
-    return OnnxDetector(str(weights), **kwargs)
+        weights = Path(settings["weights"])
+        if not weights.is_absolute() and base is not None:
+            weights = Path(base) / weights
+        return YoloDetector(str(weights), **options)
+    raise ValueError(
+        f"detector.backend: {backend!r} needs usvfast.camera.backends (not in this install)"
+    )
 
 
 @dataclass(frozen=True)

@@ -42,6 +42,7 @@ __all__ = [
     "SCHEMA",
     "ConfigError",
     "PipelineConfig",
+    "apply_overrides",
     "config_from_dict",
     "load_config",
     "preset_names",
@@ -98,7 +99,7 @@ _CAMERA = {
 }
 _DETECTOR = {
     "backend": ("str", "none"),
-    "weights": ("path", None),
+    "weights": ("str", None),
     "conf_threshold": ("float", 0.25),
     "iou_threshold": ("float", 0.45),
     "input_size": ("floats:2", None),
@@ -404,8 +405,6 @@ def _build(data: dict[str, Any], file: Path) -> PipelineConfig:
     det = tables["detector"]
     if det["backend"] in ("onnx", "torch") and det["weights"] is None:
         raise ConfigError(f"{file}: key 'detector.weights': missing for backend {det['backend']!r}")
-    if det["weights"] is not None and det["backend"] != "none" and not det["weights"].exists():
-        raise ConfigError(f"{file}: key 'detector.weights': {det['weights']} does not exist")
     for name in ("lidar", "camera"):
         if tables[name]["waterline_height"] is None:
             other = tables["camera" if name == "lidar" else "lidar"]["waterline_height"]
@@ -426,16 +425,36 @@ def _build(data: dict[str, Any], file: Path) -> PipelineConfig:
     )
 
 
-def load_config(path: Path | str) -> PipelineConfig:
-    """Read and validate a pipeline config (TOML, or YAML for `.yaml`/`.yml`).
+def apply_overrides(data: dict[str, Any], overrides: dict[str, Any] | None) -> dict[str, Any]:
+    """A copy of the parsed config with dotted-key overrides applied, e.g.
+    {"tracker.prob_detect": 0.9, "lidar.radius": 12.0} (tables are created as needed)."""
+    out = copy.deepcopy(data)
+    for key, value in (overrides or {}).items():
+        if not isinstance(key, str) or not key:
+            raise ConfigError(f"overrides: expected dotted string keys, got {key!r}")
+        *tables, last = key.split(".")
+        node = out
+        for t in tables:
+            nxt = node.setdefault(t, {})
+            if not isinstance(nxt, dict):
+                raise ConfigError(f"overrides: key {key!r}: {t!r} is not a table")
+            node = nxt
+        node[last] = copy.deepcopy(value)
+    return out
+
+
+def load_config(path: Path | str, overrides: dict[str, Any] | None = None) -> PipelineConfig:
+    """Read and validate a pipeline config (TOML, or YAML for `.yaml`/`.yml`); `overrides`
+    are dotted keys applied over the file (and its preset) before validation, e.g.
+    `load_config("run.toml", {"tracker.prob_detect": 0.9})`.
 
     Raises ConfigError naming the file and the key on: unknown keys or tables, values of the
     wrong type, unknown presets, stream types or choices, missing files (stream paths,
-    camera.calibration, detector.weights), a camera stream without calibration, a missing
+    camera.calibration), a camera stream without calibration, a missing
     `recording.navigation`.
     """
     file = Path(path)
-    return _build(_read(file), file)
+    return _build(apply_overrides(_read(file), overrides), file)
 
 
 def config_from_dict(data: dict[str, Any], base: Path | str = ".") -> PipelineConfig:

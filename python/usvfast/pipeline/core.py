@@ -71,7 +71,10 @@ class Pipeline:
                 self.chains[spec.id] = LidarChain(cfg.lidar, spec.mount, self.timer)
         cameras = cfg.streams_of("camera") if cfg.camera["enabled"] else []
         if cameras:
-            det = detector if detector is not None else load_detector(cfg.detector)
+            det = detector
+            if det is None:
+                base = cfg.path.parent if cfg.path is not None else None
+                det = load_detector(cfg.detector, base)
             for spec in cameras:
                 self.chains[spec.id] = CameraChain(cfg.camera, det, spec.mount, self.timer)
         self.tracker = make_tracker(cfg.tracker)

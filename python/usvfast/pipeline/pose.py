@@ -213,7 +213,9 @@ def _read_nav(spec: Any) -> tuple[np.ndarray, ...]:
     except NavigationError:
         raise
     except ValueError as exc:
-        raise NavigationError(f"navigation stream {spec.id!r}: {exc}") from exc
+        raise NavigationError(
+            f"no GNSS position fix in the navigation stream {spec.id!r}: {exc}"
+        ) from exc
     p = log.positions
     ok = (p.fix_quality > 0) & np.isfinite(p.lat_deg) & np.isfinite(p.lon_deg)
     h = log.headings
@@ -261,6 +263,15 @@ def parse_sentence(sentence: str) -> tuple[str, tuple[float, ...]] | None:
     return None
 
 
+def _append(samples: deque, sample: tuple[float, ...]) -> None:
+    """Keep the newest two samples; a sample at the time of the newest replaces it."""
+    if samples and sample[0] <= samples[-1][0]:
+        if sample[0] == samples[-1][0]:
+            samples[-1] = sample
+        return
+    samples.append(sample)
+
+
 class LivePose:
     """Pose from navigation messages fed one at a time (`add_fix`, `add_heading`,
     `add_attitude`, all with UNIX times), for `Pipeline.process`.
@@ -288,15 +299,15 @@ class LivePose:
         if self.origin is None:
             self.origin = (float(lat_deg), float(lon_deg), 0.0)
         n, e, _ = geodesy.geodetic2ned(lat_deg, lon_deg, 0.0, *self.origin)
-        self._fix.append((float(t), float(n), float(e)))
+        _append(self._fix, (float(t), float(n), float(e)))
 
     def add_heading(self, t: float, heading: float) -> None:
         """A true heading (rad clockwise from north) at UNIX time t."""
-        self._head.append((float(t), float(heading)))
+        _append(self._head, (float(t), float(heading)))
 
     def add_attitude(self, t: float, roll: float, pitch: float) -> None:
         """Roll and pitch (rad, FRD) at UNIX time t."""
-        self._att.append((float(t), float(roll), float(pitch)))
+        _append(self._att, (float(t), float(roll), float(pitch)))
 
     def _value(self, samples: deque, t: float, angle: tuple[bool, ...]) -> tuple[float, ...] | None:
         if not samples:

@@ -291,9 +291,10 @@ class StoneSoupTracker(_Base):
             if not isinstance(st, Update) or st.timestamp != ts:
                 continue
             hyp = st.hypothesis
-            best = max((h for h in hyp if h), key=lambda h: h.probability, default=None)
-            if hasattr(hyp, "measurement") and hyp:  # GNN: a single hypothesis
-                best = hyp
+            if hasattr(hyp, "measurement"):  # a single hypothesis (GNN, the initiator)
+                best = hyp if hyp else None
+            else:  # JPDA: the most probable detection of the mixture
+                best = max((h for h in hyp if h), key=lambda h: h.probability, default=None)
             if best is not None and id(best.measurement) in row_of:
                 rows[i] = row_of[id(best.measurement)]
         nis = self._nis(t, ids, rows, z, sensors, noise)
