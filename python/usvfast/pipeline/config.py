@@ -76,6 +76,7 @@ _LIDAR = {
     "bin_seeding": ("bool", False),
     "cluster_all": ("bool", False),
     "backend": ("str", "rust"),
+    "los_backend": ("str", "rust"),
     "min_cluster_points": ("int", 15),
     "min_position_std": ("float", 0.1),
 }
@@ -153,6 +154,7 @@ SCHEMA: dict[str, dict[str, tuple[str, Any]]] = {
 
 _CHOICES = {
     ("lidar", "backend"): ("rust", "sklearn"),
+    ("lidar", "los_backend"): ("rust", "numpy"),
     ("camera", "horizon"): ("attitude", "none", "line"),
     ("detector", "backend"): ("none", "onnx", "torch"),
     ("tracker", "backend"): ("native", "stonesoup"),

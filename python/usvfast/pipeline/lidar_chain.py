@@ -53,12 +53,13 @@ def level_points(points: np.ndarray, mount: Mount, roll: float, pitch: float) ->
 class _TimedDetector(LidarDetector):
     """`LidarDetector.process`, stage by stage, with each stage timed (same results)."""
 
-    def __init__(self, config: LidarConfig, timer: StageTimer) -> None:
+    def __init__(self, config: LidarConfig, timer: StageTimer, los_backend: str = "rust") -> None:
         super().__init__(config)
         self.timer = timer
+        self.los_backend = los_backend
 
     def process(self, frame: LidarFrame, pose: Any) -> FrameResult:
-        from usvfast.lidar.line_of_sight import line_of_sight_filter
+        from usvfast.lidar.line_of_sight import line_of_sight_filter, line_of_sight_filter_numpy
         from usvfast.lidar.lines import blur, detect_segments, extend_segments, rasterize
 
         cfg, tm = self.config, self.timer
@@ -90,10 +91,13 @@ class _TimedDetector(LidarDetector):
             los_segments = extend_segments(segments, cfg.segment_extension)
         with tm("lidar.line_of_sight"):
             if xy.shape[0]:
+                los = (
+                    line_of_sight_filter_numpy
+                    if self.los_backend == "numpy"
+                    else line_of_sight_filter
+                )
                 keep = np.asarray(
-                    line_of_sight_filter(
-                        xy, los_segments, sensor=(0.0, 0.0), tolerance=cfg.los_tolerance
-                    ),
+                    los(xy, los_segments, sensor=(0.0, 0.0), tolerance=cfg.los_tolerance),
                     dtype=bool,
                 )
             else:
@@ -116,8 +120,10 @@ class LidarChain:
     closed clustering cycle (a list of `LidarDetection`, world NED metres with covariance) or
     None between cycles.
 
-    settings: the config's [lidar] table; mount: the stream's mount (None: at the reference
-    point, level); timer: a StageTimer for the per-stage times.
+    settings: the config's [lidar] table (`los_backend` "rust" or "numpy": the line-of-sight
+    filter's implementation, the numpy one being the thesis-style reference); mount: the
+    stream's mount (None: at the reference point, level); timer: a StageTimer for the
+    per-stage times.
     """
 
     def __init__(self, settings: dict[str, Any], mount: Mount | None, timer: StageTimer) -> None:
@@ -139,7 +145,7 @@ class LidarChain:
             **kw, lever_arm=(float(lever[0]), float(lever[1])), mount_yaw=0.0, sensor_id="lidar"
         )
         self.timer = timer
-        self.detector = _TimedDetector(self.config, timer)
+        self.detector = _TimedDetector(self.config, timer, settings.get("los_backend", "rust"))
         self.frames = 0
 
     def process(self, frame: LidarFrame, pose: VesselPose) -> list[LidarDetection] | None:
