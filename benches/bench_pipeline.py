@@ -8,8 +8,7 @@ span / wall time.
 Default recording: tests/pipeline_recording.py (VLP-16 PointCloud2 at 10 Hz, NMEA at 10 Hz,
 IMU at 50 Hz, 640x360 jpeg camera frames at 10 Hz, five floats, two moored boats), with its
 colour-threshold detector; `--config` runs any recording config instead (its own detector).
-Per-detection covariances are off in every run so the native and Stone Soup trackers get the
-same inputs.
+Every detection carries its own covariance in every run (Stone Soup: its own LinearGaussian).
 """
 
 from __future__ import annotations
@@ -48,7 +47,7 @@ def main() -> None:
             config, detector = built.config, pr.disc_detector
         else:
             config = args.config
-        base = {"tracker.per_detection_covariance": False}
+        base: dict = {}
         runs = {
             "usvfast, camera": load_config(config, base),
             "usvfast, no camera": load_config(config, {**base, "camera.enabled": False}),

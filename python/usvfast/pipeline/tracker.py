@@ -147,9 +147,21 @@ class NativeTracker(_Base):
             tracks = self.tracker.step(t, z, sensors, covariances=covs)
         else:
             tracks = self.tracker.step(t, z, sensors)
-        noise = self._noise(sensors, covs if self.uses_detection_covariance else None)
-        rows = np.where(tracks.is_update, tracks.detection, -1)
-        nis = self._nis(t, tracks.ids, rows, z, sensors, noise)
+        if hasattr(tracks, "nis_dof"):  # the tracker's own NIS of each track's last update
+            upd = (tracks.nis_dof > 0) & (tracks.times == t) & (tracks.detection >= 0)
+            nis = [
+                (int(i), int(sensors[d]), float(v))
+                for i, d, v in zip(
+                    tracks.ids[upd].tolist(),
+                    tracks.detection[upd].tolist(),
+                    tracks.nis[upd].tolist(),
+                    strict=True,
+                )
+            ]
+        else:
+            noise = self._noise(sensors, covs if self.uses_detection_covariance else None)
+            rows = np.where(tracks.is_update, tracks.detection, -1)
+            nis = self._nis(t, tracks.ids, rows, z, sensors, noise)
         self._remember(t, tracks.ids, tracks.states, tracks.covariances)
         return Snapshot(tracks.ids, tracks.states, tracks.covariances, nis)
 
