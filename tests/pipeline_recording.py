@@ -259,6 +259,8 @@ ypr_deg = {list(CAMERA_YPR)}
 
 [lidar]
 waterline_height = {WATERLINE}
+# A cluster's centroid is that of the face the LiDAR sees: up to half an object (0.15 m) off.
+min_position_std = 0.2
 
 [camera]
 calibration = "camera_info.yaml"

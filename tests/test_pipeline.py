@@ -187,6 +187,12 @@ def test_imu_roll_pitch_from_rep103():
     roll, pitch = imu_roll_pitch(q)
     assert math.degrees(roll[0]) == pytest.approx(5.0, abs=1e-9)
     assert math.degrees(pitch[0]) == pytest.approx(3.0, abs=1e-9)
+    # Many random attitudes: scipy's Rotation is the peer for the quaternion algebra.
+    rng = np.random.default_rng(2)
+    ypr = rng.uniform([-180, -30, -30], [180, 30, 30], (100, 3))
+    roll, pitch = imu_roll_pitch(Rotation.from_euler("ZYX", ypr, degrees=True).as_quat())
+    np.testing.assert_allclose(np.degrees(roll), ypr[:, 2], atol=1e-9)
+    np.testing.assert_allclose(np.degrees(pitch), -ypr[:, 1], atol=1e-9)
 
 
 def test_thesis_preset_shipped_and_overrides(rec):
@@ -243,3 +249,17 @@ def test_recording_without_gnss(tmp_path):
     pipe = Pipeline(built.config)
     with pytest.raises(NavigationError, match=r"no GNSS position fix.*'gnss'"):
         list(pipe.run())
+
+
+def test_nav_track_pose_equals_channel_interpolation(rec):
+    from usvfast.pipeline.pose import NavTrack
+
+    nav = NavTrack.from_config(load_config(rec.config))
+    times = np.random.default_rng(0).uniform(nav.start, nav.end, 200)
+    for t in times:
+        pose = nav.pose_at(t)
+        n, e = nav.position.at(np.array([t]))[0]
+        assert (pose.north, pose.east) == pytest.approx((n, e), abs=1e-9)
+        # The reference point is the antenna 0.94 m forward (heading north).
+        assert pose.north == pytest.approx(pr.START_N + pr.SPEED * (t - pr.EPOCH), abs=1e-3)
+    assert nav.pose_at(nav.end + 10.0) is None

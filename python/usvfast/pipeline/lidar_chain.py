@@ -145,6 +145,7 @@ class LidarChain:
             **kw, lever_arm=(float(lever[0]), float(lever[1])), mount_yaw=0.0, sensor_id="lidar"
         )
         self.timer = timer
+        self._reach2 = (self.config.radius + self.config.line_margin + 1.0) ** 2
         self.detector = _TimedDetector(self.config, timer, settings.get("los_backend", "rust"))
         self.frames = 0
 
@@ -152,7 +153,11 @@ class LidarChain:
         """Level the frame at `pose`, run one frame of the chain; detections when the buffer
         of `buffer_frames` frames closes (their time: this frame's stamp)."""
         with self.timer("lidar.level"):
-            points = level_points(frame.points, self.mount, pose.roll, pose.pitch)
+            # Only points that can reach the raster (radius + line margin, plus 1 m for the
+            # tilt) are levelled.
+            p = frame.points
+            near = p["x"] * p["x"] + p["y"] * p["y"] <= self._reach2
+            points = level_points(p[near], self.mount, pose.roll, pose.pitch)
         levelled = LidarFrame(frame.stamp, points, frame.source, self.frames)
         self.frames += 1
         result = self.detector.process(levelled, pose.planar)

@@ -16,6 +16,7 @@ roll and pitch (the yaw is not used: heading comes from the GNSS).
 
 from __future__ import annotations
 
+import bisect
 import math
 from collections import deque
 from dataclasses import dataclass
@@ -24,7 +25,6 @@ from typing import Any
 import numpy as np
 
 from usvfast import geodesy
-from usvfast.frames import euler_angles
 from usvfast.nav.pose import Channel, PoseGapError
 
 __all__ = [
@@ -67,13 +67,25 @@ class VesselPose:
 def imu_roll_pitch(orientation_xyzw: Any) -> tuple[np.ndarray, np.ndarray]:
     """Roll and pitch (rad, FRD body in NED) from REP-103 quaternions (n, 4) x, y, z, w of
     the body FLU in ENU. Returns two (n,) arrays."""
-    from scipy.spatial.transform import Rotation
-
     q = np.asarray(orientation_xyzw, dtype=np.float64).reshape(-1, 4)
-    r = Rotation.from_quat(q).as_matrix()  # ENU <- FLU
-    r_ned = _ENU_NED @ r @ _FLU_FRD  # NED <- FRD
-    angles = np.array([euler_angles(m)[:2] for m in r_ned]).reshape(-1, 2)
-    return angles[:, 0], angles[:, 1]
+    q = q / np.linalg.norm(q, axis=1, keepdims=True)
+    x, y, z, w = q.T
+    # ENU <- FLU rotation of a unit quaternion (the tests check it against scipy's Rotation;
+    # importing scipy.spatial costs more than the whole navigation read).
+    r = np.empty((len(q), 3, 3))
+    r[:, 0, 0] = 1 - 2 * (y * y + z * z)
+    r[:, 0, 1] = 2 * (x * y - z * w)
+    r[:, 0, 2] = 2 * (x * z + y * w)
+    r[:, 1, 0] = 2 * (x * y + z * w)
+    r[:, 1, 1] = 1 - 2 * (x * x + z * z)
+    r[:, 1, 2] = 2 * (y * z - x * w)
+    r[:, 2, 0] = 2 * (x * z - y * w)
+    r[:, 2, 1] = 2 * (y * z + x * w)
+    r[:, 2, 2] = 1 - 2 * (x * x + y * y)
+    r_ned = _ENU_NED @ r @ _FLU_FRD  # NED <- FRD = Rz(yaw) Ry(pitch) Rx(roll), eq. 3.9
+    pitch = np.arcsin(np.clip(-r_ned[:, 2, 0], -1.0, 1.0))
+    roll = np.arctan2(r_ned[:, 2, 1], r_ned[:, 2, 2])
+    return roll, pitch
 
 
 def _lever_ne(lever: np.ndarray, heading: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -101,6 +113,9 @@ class NavTrack:
         self.heading = heading
         self.attitude = attitude
         self.damaged = damaged
+        self._pos = (position.time.tolist(), position.values)
+        self._head = (heading.time.tolist(), heading.values)
+        self._att = None if attitude is None else (attitude.time.tolist(), attitude.values)
         self.start = float(max(position.time[0], heading.time[0]))
         self.end = float(min(position.time[-1], heading.time[-1]))
 
@@ -173,15 +188,39 @@ class NavTrack:
     def pose_at(self, t: float) -> VesselPose | None:
         """The pose at UNIX time t, or None when the GNSS does not cover t (a gap). Without
         attitude samples around t, roll and pitch are 0."""
-        tt = np.array([t])
-        if not (self.position.covered(tt)[0] and self.heading.covered(tt)[0]):
+        ne = _interp(self._pos, t, self.position.max_gap, False)
+        h = _interp(self._head, t, self.heading.max_gap, True)
+        if ne is None or h is None:
             return None
-        n, e = self.position.at(tt)[0]
-        h = float(self.heading.at(tt)[0, 0]) % (2 * math.pi)
         roll = pitch = 0.0
-        if self.attitude is not None and self.attitude.covered(tt)[0]:
-            roll, pitch = (float(x) for x in self.attitude.at(tt)[0])
-        return VesselPose(float(t), float(n), float(e), h, roll, pitch)
+        if self._att is not None:
+            att = _interp(self._att, t, self.attitude.max_gap, True)  # type: ignore[union-attr]
+            if att is not None:
+                roll, pitch = float(att[0]), float(att[1])
+        return VesselPose(
+            float(t), float(ne[0]), float(ne[1]), float(h[0]) % (2 * math.pi), roll, pitch
+        )
+
+
+def _interp(
+    channel: tuple[list[float], np.ndarray], t: float, max_gap: float, angle: bool
+) -> np.ndarray | None:
+    """Channel.at for one time (same rule: exactly on a sample, or between two samples at
+    most max_gap apart), without the array overhead."""
+    times, values = channel
+    j = bisect.bisect_right(times, t)
+    if j == 0:
+        return None
+    i = j - 1
+    if times[i] == t:
+        return values[i]
+    if j == len(times) or times[j] - times[i] > max_gap:
+        return None
+    f = (t - times[i]) / (times[j] - times[i])
+    d = values[j] - values[i]
+    if angle:
+        d = (d + math.pi) % (2 * math.pi) - math.pi
+    return values[i] + f * d
 
 
 def _read_nav(spec: Any) -> tuple[np.ndarray, ...]:
