@@ -10,6 +10,7 @@ from usvfast.lidar.command import lidar_command
 from usvfast.nav.inspect import inspect_command
 from usvfast.pipeline.command import demo_command as pipeline_demo_command
 from usvfast.pipeline.command import run_command
+from usvfast.report.command import report_command
 
 app = typer.Typer(
     help="usvfast: fast maritime multi-sensor detection and tracking.",
@@ -30,6 +31,7 @@ app.command("demo")(pipeline_demo_command)
 app.command("run")(run_command)
 app.command("lidar")(lidar_command)
 app.command("inspect")(inspect_command)
+app.command("report")(report_command)
 
 
 def main() -> None:

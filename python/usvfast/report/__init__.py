@@ -1,0 +1,174 @@
+"""Reports of a pipeline run: metrics against a ground truth, a printed table, and pictures.
+
+`write_report(out_dir, truth=..., scene=..., origin=...)` reads the files a run wrote into
+`out_dir` (tracks.csv, and when present detections.csv, nav.csv, innovations.csv,
+camera_frames/) and writes
+
+- `metrics.json` (with a truth; `usvfast.report.evaluate.evaluate_run`),
+- `map.png` (harbour, USV path, detections by sensor, truth, tracks with 2σ ellipses; north
+  up, metres), `nis.png` (NIS/ANIS with the χ² band, the thesis's Fig. 6.5), `errors.png`
+  (per-object position error and NEES over time, with a truth),
+- `animation.gif` (the global tracking animation with the camera image inset; by default
+  when the run wrote camera_frames/).
+
+Example::
+
+    from usvfast.report import write_report
+    metrics = write_report("out", truth="sim/truth.csv", scene="sim/scene.json")
+    metrics["thesis"]["rmse"]
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+from rich.console import Console
+
+from usvfast.metrics.tables import (
+    read_detections,
+    read_innovations,
+    read_nav,
+    read_tracks,
+    read_truth,
+)
+from usvfast.report.evaluate import evaluate_run
+from usvfast.report.table import print_summary, summary_tables
+
+__all__ = ["evaluate_run", "print_summary", "summary_tables", "write_report"]
+
+
+def _clean(v: Any) -> Any:
+    """NaN/inf to None, numpy scalars to Python, recursively (strict JSON)."""
+    if isinstance(v, dict):
+        return {str(k): _clean(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_clean(x) for x in v]
+    if hasattr(v, "item") and not isinstance(v, (str, bytes)):
+        v = v.item()
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    return v
+
+
+def _load_scene(scene: Any) -> dict[str, Any] | None:
+    if scene is None:
+        return None
+    if isinstance(scene, dict):
+        return scene
+    p = Path(scene)
+    if not p.is_file():
+        raise FileNotFoundError(f"scene: no such file {p}")
+    try:
+        data = json.loads(p.read_text())
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"scene: {p} is not valid JSON ({exc})") from exc
+    if not isinstance(data, dict):
+        raise ValueError(f"scene: {p} must hold a JSON object")
+    return data
+
+
+def _origin(origin: Any, truth: Any) -> tuple[float, float, float] | None:
+    if origin is not None:
+        try:
+            o = tuple(float(x) for x in origin)
+        except (TypeError, ValueError) as exc:
+            raise TypeError(f"origin: expected (lat, lon, height), got {origin!r}") from exc
+        if len(o) != 3:
+            raise ValueError(f"origin: expected (lat, lon, height), got {origin!r}")
+        return o  # type: ignore[return-value]
+    if truth is not None:
+        p = Path(truth).with_name("origin.json")
+        if p.is_file():
+            d = json.loads(p.read_text())
+            return (float(d["lat"]), float(d["lon"]), float(d.get("height", 0.0)))
+    return None
+
+
+def write_report(
+    out_dir: str | Path,
+    truth: str | Path | None = None,
+    scene: str | Path | dict[str, Any] | None = None,
+    origin: tuple[float, float, float] | None = None,
+    *,
+    animation: bool | None = None,
+    print_table: bool = True,
+    console: Console | None = None,
+    **metric_options: Any,
+) -> dict[str, Any]:
+    """Write the report of the run in `out_dir` (module doc) and return the metrics dict
+    (empty without `truth`).
+
+    truth: path of a truth.csv (columns time,object_id,kind,north,east). scene: scene.json
+    path or its dict (walls, moored boats). origin: (lat deg, lon deg, height m) of the NED
+    frame, shown on the map (default: origin.json beside the truth). animation: write
+    animation.gif. metric_options: keywords of `evaluate_run` (max_range, cap, ...). Raises
+    FileNotFoundError naming a missing tracks.csv, truth or scene."""
+    out = Path(out_dir)
+    if not (out / "tracks.csv").is_file():
+        raise FileNotFoundError(f"out_dir: no tracks.csv in {out}")
+    tracks = read_tracks(out / "tracks.csv")
+    det = read_detections(out / "detections.csv") if (out / "detections.csv").is_file() else None
+    nav = read_nav(out / "nav.csv") if (out / "nav.csv").is_file() else None
+    inn_path = out / "innovations.csv"
+    inn = read_innovations(inn_path) if inn_path.is_file() else None
+    if truth is not None and not Path(truth).is_file():
+        raise FileNotFoundError(f"truth: no such file {truth}")
+    gt = read_truth(truth) if truth is not None else None
+    sc = _load_scene(scene)
+    org = _origin(origin, truth)
+    metrics: dict[str, Any] = {}
+    if gt is not None:
+        metrics = evaluate_run(
+            gt, tracks, detections=det, nav=nav, innovations=inn, scene=sc, **metric_options
+        )
+        tables = {"truth": gt, "tracks": tracks, "detections": det, "nav": nav, "innovations": inn}
+        metrics["inputs"] = {
+            name: {"rows": len(t.time), "skipped_lines": t.skipped}
+            for name, t in tables.items()
+            if t is not None
+        }
+        metrics = _clean(metrics)
+        (out / "metrics.json").write_text(json.dumps(metrics, indent=2))
+    _figures(out, tracks, det, nav, inn, gt, sc, org, metrics, animation, metric_options)
+    if print_table and metrics:
+        print_summary(metrics, console)
+    return metrics
+
+
+def _figures(out, tracks, det, nav, inn, gt, sc, org, metrics, animation, options) -> None:
+    from usvfast.metrics.protocol import match_tracks
+    from usvfast.report import figures as F
+    from usvfast.report.animation import write_animation
+
+    th = metrics.get("thesis", {})
+    title = f"usvfast run: {len(set(tracks.track_id.tolist()))} tracks"
+    if det is not None:
+        title += f", {len(det.time)} detections"
+    if th.get("rmse") is not None:
+        title += f" — RMSE {th['rmse']:.2f} m, TPD {th['tpd']:.2f}"
+    F.save(
+        F.map_figure(tracks, detections=det, nav=nav, truth=gt, scene=sc, title=title, origin=org),
+        out / "map.png",
+    )
+    if inn is not None and len(inn.time):
+        F.save(F.nis_figure(inn), out / "nis.png")
+    if gt is not None:
+        cap = float(options.get("cap", 5.0))
+        m = match_tracks(gt, tracks, window=float(options.get("window", 1.0)), cap=cap)
+        targets = [o["object_id"] for o in th.get("objects", []) if o["target"]]
+        F.save(F.errors_figure(m, gt.kinds(), targets, cap=cap), out / "errors.png")
+    if animation is None:
+        animation = (out / "camera_frames" / "camera_frames.csv").is_file()
+    if animation:
+        write_animation(
+            out / "animation.gif",
+            tracks,
+            detections=det,
+            nav=nav,
+            truth=gt,
+            scene=sc,
+            camera_dir=out / "camera_frames",
+        )

@@ -1,0 +1,101 @@
+"""The printed summary of a run's metrics (rich tables): the run's figures, then one row per
+truth object."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from rich.console import Console
+from rich.table import Table
+
+
+def _f(v: Any, fmt: str = "{:.3f}") -> str:
+    if v is None or (isinstance(v, float) and math.isnan(v)):
+        return "–"
+    return fmt.format(v)
+
+
+def _band(c: dict[str, Any] | None) -> str:
+    if not c:
+        return "–"
+    mark = "inside" if c["inside"] else "[red]OUTSIDE[/red]"
+    return f"{c['mean']:.3f}  [{c['lower']:.3f}, {c['upper']:.3f}] {mark} (n={c['n']})"
+
+
+def summary_tables(metrics: dict[str, Any]) -> list[Table]:
+    """The run table and the per-object table of a `metrics.json` dict."""
+    th = metrics.get("thesis", {})
+    run = Table(title="Tracking metrics (thesis §4.3, matching §7.3.1)", show_lines=False)
+    run.add_column("metric")
+    run.add_column("value", justify="right")
+    rows = [
+        ("targets (visible ≥ 5 s)", str(th.get("n_targets", "–"))),
+        ("targets tracked", str(th.get("targets_tracked", "–"))),
+        ("TPD (tracked / targets)", _f(th.get("tpd"))),
+        ("mean time fraction tracked", _f(th.get("mean_tpd"))),
+        (
+            "TRF (mean / max tracks per target)",
+            f"{_f(th.get('mean_trf'), '{:.2f}')} / {th.get('max_trf', '–')}",
+        ),
+        ("position RMSE (m)", _f(th.get("rmse"))),
+        ("ANEES (position, χ² band)", _band(th.get("anees"))),
+        ("ANIS (χ² band)", _band(th.get("anis"))),
+    ]
+    for sensor, c in (th.get("anis_by_sensor") or {}).items():
+        rows.append((f"  ANIS {sensor}", _band(c)))
+    rows.append(
+        ("tracks / false tracks", f"{th.get('n_tracks', '–')} / {len(th.get('false_tracks', []))}")
+    )
+    for kind, ids in (th.get("excluded_tracks") or {}).items():
+        rows.append((f"tracks on {kind}", f"[red]{len(ids)}[/red] {ids}"))
+    walls = metrics.get("walls")
+    if walls is not None:
+        n = len(walls["tracks_on_walls"])
+        rows.append(("tracks on walls", f"[red]{n}[/red]" if n else "0"))
+    mot = metrics.get("clear_mot")
+    if mot:
+        rows += [
+            ("MOTA / MOTP (m)", f"{_f(mot['mota'])} / {_f(mot['motp'])}"),
+            ("IDF1 / ID switches", f"{_f(mot['idf1'])} / {mot['switches']}"),
+            ("precision / recall", f"{_f(mot['precision'])} / {_f(mot['recall'])}"),
+        ]
+    if metrics.get("hota"):
+        h = metrics["hota"]
+        rows.append(("HOTA (DetA, AssA)", f"{_f(h['hota'])} ({_f(h['deta'])}, {_f(h['assa'])})"))
+    if metrics.get("gospa"):
+        g = metrics["gospa"]
+        rows.append(("mean GOSPA / OSPA (m)", f"{_f(g['gospa'])} / {_f(g['ospa'])}"))
+    for sensor, d in (metrics.get("detectors") or {}).items():
+        rows.append(
+            (
+                f"{sensor} detector TP / FN / CN max",
+                f"{d['tp']} / {d['fn']} / {d['cn_max']} (TP rate {_f(d['tp_rate'])})",
+            )
+        )
+    for name, value in rows:
+        run.add_row(name, value)
+    per = Table(title="Per object")
+    for col in ("id", "kind", "target", "visible s", "TPD", "TT s", "TRF", "RMSE m", "ANEES"):
+        per.add_column(col, justify="right" if col not in ("kind",) else "left")
+    for o in th.get("objects", []):
+        a = o.get("anees")
+        per.add_row(
+            str(o["object_id"]),
+            o["kind"],
+            "yes" if o["target"] else "no",
+            _f(o["visible_time"], "{:.1f}"),
+            _f(o["tpd"], "{:.2f}"),
+            _f(o["tt"], "{:.1f}"),
+            str(o["trf"]),
+            _f(o["rmse"]),
+            _f(a["mean"] if a else None, "{:.2f}"),
+        )
+    return [run, per]
+
+
+def print_summary(metrics: dict[str, Any], console: Console | None = None) -> None:
+    """Print the summary tables of a `metrics.json` dict."""
+    console = console or Console()
+    for t in summary_tables(metrics):
+        console.print(t)
