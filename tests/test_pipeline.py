@@ -65,6 +65,12 @@ def test_every_float_tracked_no_track_on_boats(rec, run):
         assert d_boat > 2.0
     assert pipe.summary["tracks"] == 5
     assert updates[-1].tracks.ids.size == 5
+    # The same through usvfast.report (the thesis's metrics, section 4.3 / 7.3.1 matching).
+    thesis = json.loads((out / "metrics.json").read_text())["thesis"]
+    assert thesis["targets_tracked"] == thesis["n_targets"] == 5
+    assert thesis["rmse"] < 0.3 and thesis["max_trf"] <= 1.5
+    assert thesis["false_tracks"] == []
+    assert (out / "map.png").stat().st_size > 10_000
 
 
 def test_output_files_and_summary(rec, run):
