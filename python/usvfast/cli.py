@@ -11,6 +11,7 @@ from usvfast.nav.inspect import inspect_command
 from usvfast.pipeline.command import demo_command as pipeline_demo_command
 from usvfast.pipeline.command import run_command
 from usvfast.report.command import report_command
+from usvfast.sim.command import simulate_command
 
 app = typer.Typer(
     help="usvfast: fast maritime multi-sensor detection and tracking.",
@@ -32,6 +33,7 @@ app.command("run")(run_command)
 app.command("lidar")(lidar_command)
 app.command("inspect")(inspect_command)
 app.command("report")(report_command)
+app.command("simulate")(simulate_command)
 
 
 def main() -> None:

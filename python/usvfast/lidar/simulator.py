@@ -155,20 +155,7 @@ class VLP16Simulator:
         un, ue = np.cos(bearing), np.sin(bearing)
         h, tan = self.mount_height, self._tan
         n_rays = un.size
-        best = np.full(n_rays, np.inf)  # horizontal distance of the nearest hit
-        label = np.full(n_rays, -1, dtype=np.int64)
-        for k, obj in enumerate(self.scene.objects):
-            if isinstance(obj, Wall):
-                r = self._hit_wall(obj, sensor, un, ue, tan)
-            elif isinstance(obj, Box):
-                r = self._hit_box(obj, sensor, un, ue, tan)
-            elif isinstance(obj, Cylinder):
-                r = self._hit_cylinder(obj, sensor, un, ue, tan)
-            else:
-                raise TypeError(f"scene.objects[{k}]: unknown object {type(obj).__name__}")
-            closer = r < best
-            best[closer] = r[closer]
-            label[closer] = k
+        best, label = self.cast(self.scene.objects, sensor, h, un, ue, tan)
         # water: downward beams meet z = 0 at r = h / tan(-elevation)
         with np.errstate(divide="ignore"):
             r_water = np.where(tan < 0, h / -np.where(tan < 0, tan, -1.0), np.inf)
@@ -206,7 +193,32 @@ class VLP16Simulator:
             frame, labels, dict(zip(ids.tolist(), counts.tolist(), strict=True)), np.asarray(sensor)
         )
 
-    def _hit_wall(self, wall: Wall, sensor, un, ue, tan) -> np.ndarray:
+    def cast(self, objects, origin, height, un, ue, tan) -> tuple[np.ndarray, np.ndarray]:
+        """Nearest object along each ray: (horizontal distance m, inf when none; index into
+        `objects`, −1 when none), each (n,).
+
+        Rays start at `origin` = (north, east) m and `height` m above the water (scalars or
+        (n,) arrays, one per ray) and run along the horizontal unit vector (`un`, `ue`)
+        rising `tan` m per horizontal metre. The water itself is not tested.
+        """
+        best = np.full(np.shape(un), np.inf)
+        label = np.full(np.shape(un), -1, dtype=np.int64)
+        for k, obj in enumerate(objects):
+            if isinstance(obj, Wall):
+                r = self._hit_wall(obj, origin, un, ue, tan, height)
+            elif isinstance(obj, Box):
+                r = self._hit_box(obj, origin, un, ue, tan, height)
+            elif isinstance(obj, Cylinder):
+                r = self._hit_cylinder(obj, origin, un, ue, tan, height)
+            else:
+                raise TypeError(f"scene.objects[{k}]: unknown object {type(obj).__name__}")
+            closer = r < best
+            best[closer] = r[closer]
+            label[closer] = k
+        return best, label
+
+    def _hit_wall(self, wall: Wall, sensor, un, ue, tan, height=None) -> np.ndarray:
+        h = self.mount_height if height is None else height
         poly = np.asarray(wall.polyline, dtype=np.float64).reshape(-1, 2)
         out = np.full(un.size, np.inf)
         for a, b in itertools.pairwise(poly):
@@ -216,12 +228,13 @@ class VLP16Simulator:
             with np.errstate(divide="ignore", invalid="ignore"):
                 r = _cross(wn, we, dn, de) / den
                 s = _cross(wn, we, un, ue) / den
-            z = self.mount_height + r * tan
+            z = h + r * tan
             ok = (den != 0) & (r > 0) & (s >= 0) & (s <= 1) & (z >= 0) & (z <= wall.height)
             out = np.where(ok & (r < out), r, out)
         return out
 
-    def _hit_box(self, box: Box, sensor, un, ue, tan) -> np.ndarray:
+    def _hit_box(self, box: Box, sensor, un, ue, tan, height=None) -> np.ndarray:
+        h = self.mount_height if height is None else height
         c, s = np.cos(box.yaw), np.sin(box.yaw)
         # sensor and directions in the box frame (x along yaw, y across), z up
         on, oe = sensor[0] - box.center[0], sensor[1] - box.center[1]
@@ -232,7 +245,7 @@ class VLP16Simulator:
         for o, d, lo, hi in (
             (ox, dx, -box.length / 2, box.length / 2),
             (oy, dy, -box.width / 2, box.width / 2),
-            (self.mount_height, tan, box.bottom, box.top),
+            (h, tan, box.bottom, box.top),
         ):
             with np.errstate(divide="ignore", invalid="ignore"):
                 t1, t2 = (lo - o) / d, (hi - o) / d
@@ -246,18 +259,19 @@ class VLP16Simulator:
         ok = (t_min <= t_max) & (t_min > 0)
         return np.where(ok, t_min, np.inf)
 
-    def _hit_cylinder(self, cyl: Cylinder, sensor, un, ue, tan) -> np.ndarray:
+    def _hit_cylinder(self, cyl: Cylinder, sensor, un, ue, tan, height=None) -> np.ndarray:
+        h = self.mount_height if height is None else height
         wn, we = cyl.center[0] - sensor[0], cyl.center[1] - sensor[1]
         b = un * wn + ue * we
         disc = b * b - (wn * wn + we * we - cyl.radius**2)
         root = np.sqrt(np.maximum(disc, 0.0))
         r_side = b - root
-        z = self.mount_height + r_side * tan
+        z = h + r_side * tan
         side = (disc >= 0) & (r_side > 0) & (z >= cyl.bottom) & (z <= cyl.top)
         out = np.where(side, r_side, np.inf)
         # top cap, met by downward beams
         with np.errstate(divide="ignore", invalid="ignore"):
-            r_top = (cyl.top - self.mount_height) / tan
+            r_top = (cyl.top - h) / tan
         pn, pe = r_top * un - wn, r_top * ue - we
         cap = (tan < 0) & (r_top > 0) & (pn * pn + pe * pe <= cyl.radius**2)
         return np.where(cap & (r_top < out), r_top, out)
