@@ -269,3 +269,26 @@ def test_nav_track_pose_equals_channel_interpolation(rec):
         # The reference point is the antenna 0.94 m forward (heading north).
         assert pose.north == pytest.approx(pr.START_N + pr.SPEED * (t - pr.EPOCH), abs=1e-3)
     assert nav.pose_at(nav.end + 10.0) is None
+
+
+def test_video_times_stream(tmp_path):
+    import cv2
+
+    from usvfast.nav.replay import StreamSpec, open_stream
+
+    path = tmp_path / "cam.avi"
+    w = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 4.0, (64, 48))
+    for k in range(6):
+        w.write(np.full((48, 64, 3), 40 * k, np.uint8))
+    w.release()
+    # Frame 4 has no time (dropped and counted); times need not be evenly spaced.
+    rows = "frame,time\n0,100.0\n1,100.26\n2,100.49\n3,100.77\n5,101.3\n"
+    (tmp_path / "times.csv").write_text(rows)
+    spec = StreamSpec("cam", "video_times", path, options={"times": "times.csv"})
+    records = open_stream(spec)
+    got = list(records)
+    assert [t for t, _ in got] == [100.0, 100.26, 100.49, 100.77, 101.3]
+    assert got[2][1].shape == (48, 64, 3) and abs(int(got[2][1].mean()) - 80) <= 3
+    assert records.damaged == 1
+    with pytest.raises(ValueError, match="times"):
+        open_stream(StreamSpec("cam", "video_times", path, options={"times": "none.csv"}))

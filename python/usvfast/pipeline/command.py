@@ -17,6 +17,10 @@ from rich.table import Table
 
 __all__ = ["bundled_recording", "demo_command", "run_command", "run_pipeline"]
 
+#: The bundled recording's seed and length (usvfast simulate --seed 7 --duration 60).
+DEMO_SEED = 7
+DEMO_DURATION = 60.0
+
 
 def _parse_set(items: list[str] | None) -> dict[str, Any]:
     import tomllib
@@ -157,17 +161,13 @@ def demo_command(
     console = Console()
     config = bundled_recording()
     if config is None:
-        try:
-            from usvfast.simulate import simulate  # type: ignore[import-not-found]
-        except ImportError:
-            Console(stderr=True).print(
-                "[red]error:[/red] the bundled harbour recording (usvfast/data/harbour/) is "
-                "not installed"
-            )
-            raise typer.Exit(2) from None
+        # No bundle in this install: simulate the same recording (seed 7, 60 s) first.
+        from usvfast.sim.recording import SimulationOptions, simulate
+
         rec = out / "recording"
-        console.print(f"simulating the harbour recording into {escape(str(rec))}")
-        simulate(seed=7, duration=60.0, out=rec)
+        if not (rec / "recording.toml").exists():
+            console.print(f"simulating the harbour recording into {escape(str(rec))}")
+            simulate(rec, SimulationOptions(seed=DEMO_SEED, duration=DEMO_DURATION))
         config = rec / "recording.toml"
     folder = config.parent
     truth = folder / "truth.csv"
