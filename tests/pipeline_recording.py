@@ -268,8 +268,6 @@ waterline_height = {WATERLINE}
 max_range = 15.0
 
 [tracker]
-# 10 Hz camera scans between 2.5 Hz LiDAR cycles: delete by time, not by scans.
-init_delete_after_s = 1.0
 delete_after_s = 5.0
 
 [outputs]

@@ -123,6 +123,7 @@ _TRACKER = {
     "min_points": ("int", 2),
     "init_delete_steps": ("int", 3),
     "delete_steps": ("int", 35),
+    "deletion": ("str", "steps"),
     "init_delete_after_s": ("float", None),
     "delete_after_s": ("float", None),
     "covariance_trace": ("float", 1.5),
@@ -160,6 +161,7 @@ _CHOICES = {
     ("tracker", "backend"): ("native", "stonesoup"),
     ("tracker", "association"): ("jpda", "gnn"),
     ("tracker", "method"): ("ehm", "brute_force"),
+    ("tracker", "deletion"): ("steps", "time"),
 }
 _ROLES = ("lidar", "camera", "navigation")
 
@@ -404,6 +406,14 @@ def _build(data: dict[str, Any], file: Path) -> PipelineConfig:
             raise ConfigError(
                 f"{file}: key 'camera.calibration': {cam['calibration']} does not exist"
             )
+    trk = tables["tracker"]
+    if trk["deletion"] == "time":
+        for key in ("init_delete_after_s", "delete_after_s"):
+            if trk[key] is None or trk[key] <= 0:
+                raise ConfigError(
+                    f"{file}: key 'tracker.{key}': a number of seconds > 0 is needed with "
+                    'tracker.deletion = "time"'
+                )
     det = tables["detector"]
     if det["backend"] in ("onnx", "torch") and det["weights"] is None:
         raise ConfigError(f"{file}: key 'detector.weights': missing for backend {det['backend']!r}")

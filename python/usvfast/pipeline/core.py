@@ -20,6 +20,7 @@ from __future__ import annotations
 import json
 import math
 import time
+import warnings
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -324,4 +325,9 @@ def _report(out: Path, truth: Any, scene: Any, origin: Any) -> dict[str, Any]:
         from usvfast.report import write_report  # type: ignore[import-not-found]
     except ImportError:
         return {}
-    return write_report(out, truth=truth, scene=scene, origin=tuple(origin)) or {}
+    try:
+        return write_report(out, truth=truth, scene=scene, origin=tuple(origin)) or {}
+    except (ValueError, TypeError, KeyError, OSError) as exc:
+        # The run's files are written; a report failure must not lose them.
+        warnings.warn(f"report: not written ({type(exc).__name__}: {exc})", stacklevel=3)
+        return {"error": f"{type(exc).__name__}: {exc}"}

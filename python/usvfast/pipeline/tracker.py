@@ -99,12 +99,12 @@ class NativeTracker(_Base):
         prior = np.diag([0.0, s["prior_velocity_var"], 0.0, s["prior_velocity_var"]])
         deleter: Any = (
             tk.StepsSinceUpdate(s["delete_steps"])
-            if s["delete_after_s"] is None
+            if s["deletion"] == "steps"
             else tk.TimeSinceUpdate(s["delete_after_s"])
         )
         init_deleter = (
             tk.StepsSinceUpdate(s["init_delete_steps"])
-            if s["init_delete_after_s"] is None
+            if s["deletion"] == "steps"
             else tk.TimeSinceUpdate(s["init_delete_after_s"])
         )
         if s["covariance_trace"] is not None:
@@ -210,7 +210,7 @@ class StoneSoupTracker(_Base):
         updater = KalmanUpdater(self.models[0])
 
         def by_time(seconds: float | None, steps: int) -> Any:
-            if seconds is None:
+            if s["deletion"] == "steps":
                 return UpdateTimeStepsDeleter(time_steps_since_update=steps)
             return UpdateTimeDeleter(timedelta(seconds=seconds))
 
