@@ -292,3 +292,32 @@ def test_video_times_stream(tmp_path):
     assert records.damaged == 1
     with pytest.raises(ValueError, match="times"):
         open_stream(StreamSpec("cam", "video_times", path, options={"times": "none.csv"}))
+
+
+def test_level_points_deskews_the_rotation():
+    from usvfast.lidar.frame import make_points
+
+    # A fixed point at NED (10, 3) seen during a rotation in which the vessel moves 1 m north
+    # and turns 0.1 rad: each firing sees it from the pose of its own time.
+    mount = Mount(lever_arm=[0.4, 0.1, -0.6])
+    frac = np.linspace(1.0, 0.0, 11)  # first firing ... stamp
+    north, heading = 1.0 * (1 - frac), 0.3 + 0.1 * (1 - frac)
+    target = np.array([10.0, 3.0])
+    xyz = []
+    for n, h in zip(north, heading, strict=True):
+        c, s = np.cos(h), np.sin(h)
+        d = target - [n, 0.0]
+        body = np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1], 0.5]) - mount.lever_arm
+        xyz.append(body * [1, -1, -1])  # FRD -> Velodyne FLU
+    xyz = np.array(xyz)
+    pts = make_points(xyz[:, 0], xyz[:, 1], xyz[:, 2])
+    h1 = heading[-1]
+    motion = (north - north[-1], np.zeros(11), heading - h1, h1)
+    out = level_points(pts, mount, 0.0, 0.0, motion)
+    c, s = np.cos(h1), np.sin(h1)
+    d = target - [north[-1], 0.0]
+    want = np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]]) - mount.lever_arm[:2]
+    np.testing.assert_allclose(out["x"], want[0], atol=1e-5)
+    np.testing.assert_allclose(out["y"], -want[1], atol=1e-5)
+    skewed = level_points(pts, mount, 0.0, 0.0)
+    assert np.ptp(skewed["x"]) > 0.5  # without de-skewing the point smears over the turn

@@ -156,7 +156,7 @@ class Pipeline:
         chain = self.chains[stream]
         if isinstance(chain, LidarChain):
             sensor = "lidar"
-            dets = chain.process(data, pose)
+            dets = chain.process(data, pose, self._pose_source(message))
             if dets is None:
                 return []
             z = np.array([d.position for d in dets], dtype=np.float64).reshape(-1, 2)
@@ -191,6 +191,13 @@ class Pipeline:
                 self.writer.write_detections(t, sensor, z, covs, scores)
                 self.writer.write_tracks(t, snap)
         return [TrackUpdate(t, sensor, stream, len(z), snap, pose)]
+
+    def _pose_source(self, message: Any) -> Any:
+        """The pose at any time for de-skewing a LiDAR rotation: the recording's track in
+        `run`, the live pose otherwise."""
+        if isinstance(getattr(message, "pose", None), VesselPose) and self._nav is not None:
+            return self._nav.pose_at
+        return self.live.at
 
     # --- whole recording ------------------------------------------------------------------
     def _pose_at(self, t: float) -> VesselPose | None:

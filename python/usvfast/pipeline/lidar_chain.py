@@ -10,6 +10,7 @@ whose height above the water is `waterline_height`.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -34,15 +35,35 @@ _FLU_FRD = np.diag([1.0, -1.0, -1.0])
 _DETECTOR_KEYS = set(LidarConfig.__dataclass_fields__) - {"lever_arm", "mount_yaw", "sensor_id"}
 
 
-def level_points(points: np.ndarray, mount: Mount, roll: float, pitch: float) -> np.ndarray:
+def level_points(
+    points: np.ndarray,
+    mount: Mount,
+    roll: float,
+    pitch: float,
+    motion: tuple[np.ndarray, np.ndarray, np.ndarray, float] | None = None,
+) -> np.ndarray:
     """Structured Velodyne points (n,) -> the same fields with x, y, z in the detector's
-    levelled frame (x forward along the heading, y left, z up from the vessel reference point,
-    horizontal origin at the mount's lever arm), metres."""
+    levelled frame at the frame's stamp (x forward along the heading, y left, z up from the
+    vessel reference point, horizontal origin at the mount's lever arm), metres.
+
+    motion: per point (d_north (n,), d_east (n,), d_heading (n,)) of the vessel at the point's
+    firing time relative to the stamp (m, m, rad), and the heading at the stamp (rad): the
+    rotation is de-skewed, each point is placed where the vessel was when it fired."""
     xyz = np.column_stack([points["x"], points["y"], points["z"]]).astype(np.float64)
     lever = np.asarray(mount.lever_arm, dtype=np.float64)
     # level <- body (remove roll, pitch) @ body <- sensor FRD @ sensor FRD <- Velodyne FLU
     r = rotation_matrix(roll, pitch, 0.0) @ mount.rotation @ _FLU_FRD
     level = xyz @ r.T + rotation_matrix(roll, pitch, 0.0) @ lever
+    if motion is not None:
+        # p_stamp = Rz(-h) (pos_i - pos) + Rz(h_i - h) p_i, horizontal part (level frame at the
+        # stamp; dn, de are NED, rotated into it by the stamp heading h).
+        dn, de, dh, h = motion
+        c, s_ = np.cos(dh), np.sin(dh)
+        x = c * level[:, 0] - s_ * level[:, 1]
+        y = s_ * level[:, 0] + c * level[:, 1]
+        ch, sh = np.cos(h), np.sin(h)
+        level[:, 0] = x + ch * dn + sh * de
+        level[:, 1] = y - sh * dn + ch * de
     out = points.copy()
     out["x"] = level[:, 0] - lever[0]
     out["y"] = -(level[:, 1] - lever[1])
@@ -149,15 +170,33 @@ class LidarChain:
         self.detector = _TimedDetector(self.config, timer, settings.get("los_backend", "rust"))
         self.frames = 0
 
-    def process(self, frame: LidarFrame, pose: VesselPose) -> list[LidarDetection] | None:
-        """Level the frame at `pose`, run one frame of the chain; detections when the buffer
-        of `buffer_frames` frames closes (their time: this frame's stamp)."""
+    def process(
+        self,
+        frame: LidarFrame,
+        pose: VesselPose,
+        pose_at: Callable[[float], VesselPose | None] | None = None,
+    ) -> list[LidarDetection] | None:
+        """Level the frame at `pose` (de-skewed with `pose_at(t)`, the vessel pose at any
+        time, when given), run one frame of the chain; detections when the buffer of
+        `buffer_frames` frames closes (their time: this frame's stamp)."""
         with self.timer("lidar.level"):
             # Only points that can reach the raster (radius + line margin, plus 1 m for the
             # tilt) are levelled.
-            p = frame.points
-            near = p["x"] * p["x"] + p["y"] * p["y"] <= self._reach2
-            points = level_points(p[near], self.mount, pose.roll, pose.pitch)
+            p = frame.points[frame.points["x"] ** 2 + frame.points["y"] ** 2 <= self._reach2]
+            motion = None
+            dt = p["time"].astype(np.float64)
+            t0 = float(dt.min()) if len(dt) else 0.0
+            start = pose_at(frame.stamp + t0) if pose_at is not None and t0 < 0 else None
+            if start is not None:
+                f = dt / t0  # 1 at the first firing, 0 at the stamp
+                dh = (start.heading - pose.heading + np.pi) % (2 * np.pi) - np.pi
+                motion = (
+                    f * (start.north - pose.north),
+                    f * (start.east - pose.east),
+                    f * dh,
+                    pose.heading,
+                )
+            points = level_points(p, self.mount, pose.roll, pose.pitch, motion)
         levelled = LidarFrame(frame.stamp, points, frame.source, self.frames)
         self.frames += 1
         result = self.detector.process(levelled, pose.planar)
