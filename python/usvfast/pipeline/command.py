@@ -173,11 +173,26 @@ def demo_command(
     truth = folder / "truth.csv"
     scene = folder / "scene.json"
     console.print(f"recording: {escape(str(config))}", soft_wrap=True)
+    overrides: dict[str, Any] = {}
+    try:
+        from usvfast.pipeline import load_config
+        from usvfast.pipeline.camera_chain import load_detector
+
+        cfg = load_config(config)
+        load_detector(cfg.detector, config.parent)
+    except (ValueError, ImportError) as exc:
+        console.print(
+            f"[yellow]camera detector unavailable ({escape(str(exc))}): running the LiDAR "
+            "chain only[/yellow]",
+            soft_wrap=True,
+        )
+        overrides["detector.backend"] = "none"
     summary = run_pipeline(
         config,
         out,
         truth=truth if truth.exists() else None,
         scene=scene if scene.exists() else None,
+        overrides=overrides,
         console=console,
     )
     (out / "demo.json").write_text(json.dumps({"config": str(config), "tracks": summary["tracks"]}))

@@ -77,6 +77,7 @@ _LIDAR = {
     "cluster_all": ("bool", False),
     "backend": ("str", "rust"),
     "los_backend": ("str", "rust"),
+    "covariance": ("str", "spread"),
     "min_cluster_points": ("int", 15),
     "min_position_std": ("float", 0.1),
 }
@@ -156,6 +157,7 @@ SCHEMA: dict[str, dict[str, tuple[str, Any]]] = {
 _CHOICES = {
     ("lidar", "backend"): ("rust", "sklearn"),
     ("lidar", "los_backend"): ("rust", "numpy"),
+    ("lidar", "covariance"): ("spread", "centroid"),
     ("camera", "horizon"): ("attitude", "none", "line"),
     ("detector", "backend"): ("none", "onnx", "torch"),
     ("tracker", "backend"): ("native", "stonesoup"),

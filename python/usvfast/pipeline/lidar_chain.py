@@ -142,7 +142,10 @@ class LidarChain:
     None between cycles.
 
     settings: the config's [lidar] table (`los_backend` "rust" or "numpy": the line-of-sight
-    filter's implementation, the numpy one being the thesis-style reference); mount: the
+    filter's implementation, the numpy one being the thesis-style reference; `covariance`
+    "spread": each detection's R is its cluster's sample covariance, as LidarDetector gives
+    it, or "centroid": that divided by the cluster size, the centroid's standard error; both
+    floored at min_position_std²); mount: the
     stream's mount (None: at the reference point, level); timer: a StageTimer for the
     per-stage times.
     """
@@ -166,6 +169,7 @@ class LidarChain:
             **kw, lever_arm=(float(lever[0]), float(lever[1])), mount_yaw=0.0, sensor_id="lidar"
         )
         self.timer = timer
+        self.covariance = settings.get("covariance", "spread")
         self._reach2 = (self.config.radius + self.config.line_margin + 1.0) ** 2
         self.detector = _TimedDetector(self.config, timer, settings.get("los_backend", "rust"))
         self.frames = 0
@@ -202,4 +206,11 @@ class LidarChain:
         result = self.detector.process(levelled, pose.planar)
         if result.cycle is None:
             return None
-        return result.cycle.detections
+        dets = result.cycle.detections
+        if self.covariance == "centroid":
+            # The centroid's standard error (spread / n), floored at min_position_std².
+            floor = self.config.min_position_std**2
+            for d in dets:
+                w, v = np.linalg.eigh(d.covariance / max(d.n_points, 1))
+                d.covariance = (v * np.maximum(w, floor)) @ v.T
+        return dets
