@@ -321,3 +321,20 @@ def test_level_points_deskews_the_rotation():
     np.testing.assert_allclose(out["y"], -want[1], atol=1e-5)
     skewed = level_points(pts, mount, 0.0, 0.0)
     assert np.ptp(skewed["x"]) > 0.5  # without de-skewing the point smears over the turn
+
+
+def test_cli_run_prints_the_summary(rec, tmp_path):
+    from typer.testing import CliRunner
+
+    from usvfast.cli import app
+
+    runner = CliRunner()
+    out = tmp_path / "cli"
+    args = ["run", str(rec.config), "--out", str(out), "--set", "outputs.report=false"]
+    with pytest.warns(UserWarning, match="skipped 2"):  # the recording's damaged frames
+        result = runner.invoke(app, [*args, "--set", "tracker.backend='native'"])
+    assert result.exit_code == 0, result.output
+    assert "real-time factor" in result.output and "lidar.mean_shift" in result.output
+    assert json.loads((out / "summary.json").read_text())["tracks"] >= 4
+    bad = runner.invoke(app, [*args, "--set", "lidar.radius='ten'"])
+    assert bad.exit_code == 2 and "lidar.radius" in bad.output
