@@ -43,7 +43,8 @@ test-python: dev torch ## Python tests (parity with peers, real data, bad input)
 
 test: lint test-rust test-python ## Everything CI runs: lint, Rust tests, Python tests
 
-demo: dev ## Main job on bundled data: bearing fusion of visible + thermal cameras vs AIS
+demo: $(VENV)/bin/maturin ## Main job: the bundled harbour recording through the whole pipeline (installs only what it needs)
+	maturin develop --release --extras demo
 	usvfast demo --out out/demo
 
 bench: dev torch ## Criterion benches and Python comparisons against the peers

@@ -1,5 +1,5 @@
 """Bearing files and commands: the bundled sample (reproducible, readable), CSV readers with
-damaged rows, `usvfast bearing` and `usvfast demo` end to end."""
+damaged rows, `usvfast bearing` and `usvfast bearing-demo` end to end."""
 
 from __future__ import annotations
 
@@ -124,7 +124,7 @@ def test_cli_bearing_end_to_end(tmp_path):
 
 
 def test_cli_demo_writes_into_out(tmp_path):
-    result = runner.invoke(app, ["demo", "--out", str(tmp_path / "demo")])
+    result = runner.invoke(app, ["bearing-demo", "--out", str(tmp_path / "demo")])
     assert result.exit_code == 0, result.output
     assert "fused KF + RTS" in result.output
     for name in ("fused_bearing.csv", "rmse.csv", "bearing.png"):

@@ -1,0 +1,209 @@
+"""The camera chain of the pipeline (thesis Code 5.5 generalised): detector -> image filters
+(confidence, own-vessel polygon, horizon from the attitude) -> georeferencing onto the water
+with per-detection covariance (lens distortion undone on the contact points) -> range gate.
+
+The detector is any callable `images -> [Detections | (boxes, scores[, classes])]` (see
+`usvfast.camera.yolo.CameraPipeline`); `load_detector` builds it from the [detector] table:
+"torch" (usvfast.camera.yolo.YoloDetector), "onnx" (OpenCV DNN) or "none" (no camera
+detections).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from usvfast.camera.georef import (
+    OK,
+    FovCamera,
+    box_contact_points,
+    georeference,
+    horizon_line,
+    mount_rotation,
+)
+from usvfast.camera.yolo import CameraPipeline, Detections, _as_detections
+from usvfast.frames import Mount
+from usvfast.pipeline.pose import VesselPose
+from usvfast.pipeline.timing import StageTimer
+
+__all__ = ["CameraChain", "CameraResult", "load_camera", "load_detector"]
+
+
+def load_camera(settings: dict[str, Any]) -> Any:
+    """The camera model of the [camera] table: a calibration file (ROS camera_info YAML or
+    our JSON, `usvfast.camera.CameraModel`) or the thesis's FOV model (image_size, fov_deg)."""
+    from usvfast.camera.calibration import CameraModel
+
+    if settings.get("calibration") is not None:
+        try:
+            return CameraModel.load(settings["calibration"])
+        except (OSError, ValueError, TypeError) as exc:
+            raise ValueError(
+                f"camera.calibration: cannot load {settings['calibration']}: {exc}"
+            ) from exc
+    if settings.get("image_size") is None or settings.get("fov_deg") is None:
+        raise ValueError("camera.calibration: missing (or give camera.image_size and fov_deg)")
+    w, h = settings["image_size"]
+    return FovCamera((int(w), int(h)), tuple(settings["fov_deg"]))
+
+
+def load_detector(settings: dict[str, Any], base: Any = None) -> Any:
+    """The detector callable of the [detector] table, or None for backend "none". Relative
+    weights are looked up from `base` (the config's folder), then among the bundled models
+    (usvfast.camera.backends.load_detector)."""
+    backend = settings.get("backend", "none")
+    if backend == "none":
+        return None
+    options: dict[str, Any] = dict(
+        conf_threshold=settings["conf_threshold"], iou_threshold=settings["iou_threshold"]
+    )
+    if settings.get("input_size") is not None:
+        options["input_size"] = tuple(int(v) for v in settings["input_size"])
+    if settings.get("classes") is not None:
+        options["classes"] = [int(c) for c in settings["classes"]]
+    try:
+        from usvfast.camera.backends import load_detector as _load  # type: ignore[import-not-found]
+    except ImportError:
+        _load = None
+    if _load is not None:
+        try:
+            return _load(backend, settings["weights"], base=base, **options)
+        except FileNotFoundError as exc:
+            raise ValueError(f"detector.weights: {exc}") from exc
+    if backend == "torch":
+        from pathlib import Path
+
+        from usvfast.camera.yolo import YoloDetector
+
+        weights = Path(settings["weights"])
+        if not weights.is_absolute() and base is not None:
+            weights = Path(base) / weights
+        return YoloDetector(str(weights), **options)
+    raise ValueError(
+        f"detector.backend: {backend!r} needs usvfast.camera.backends (not in this install)"
+    )
+
+
+@dataclass(frozen=True)
+class CameraResult:
+    """Georeferenced detections of one frame: positions (k, 2) NED m, covariances (k, 2, 2)
+    m², scores (k,), boxes (k, 4) xyxy px; `n_boxes` detector boxes before the filters,
+    `rejected` {reason: count}."""
+
+    positions: np.ndarray
+    covariances: np.ndarray
+    scores: np.ndarray
+    boxes: np.ndarray
+    n_boxes: int
+    rejected: dict[str, int]
+
+
+class CameraChain:
+    """One camera stream through the chain; `process(image, pose)` -> CameraResult.
+
+    settings: the config's [camera] table; detector: the callable (see module doc); mount:
+    the stream's mount (lever arm body FRD m, ypr as `usvfast.camera.mount_rotation`).
+    """
+
+    def __init__(
+        self,
+        settings: dict[str, Any],
+        detector: Any,
+        mount: Mount | None,
+        timer: StageTimer,
+    ) -> None:
+        self.settings = settings
+        self.camera = load_camera(settings)
+        self.detector = detector
+        mount = mount or Mount()
+        lever = np.asarray(mount.lever_arm, dtype=np.float64)
+        ypr = [math.degrees(mount.yaw), math.degrees(mount.pitch), math.degrees(mount.roll)]
+        self.rotation = mount_rotation(ypr)
+        self.position = lever
+        water = settings.get("waterline_height")
+        if water is None:
+            raise ValueError(
+                "camera.waterline_height: missing; give the vessel reference point's height "
+                "above the water"
+            )
+        self.height = float(water) - float(lever[2])
+        if not self.height > 0:
+            raise ValueError(
+                f"camera.waterline_height: the camera is {self.height} m above the water "
+                "(waterline_height - lever_arm z must be > 0)"
+            )
+        fixed = settings.get("horizon_line") if settings.get("horizon") == "line" else None
+        self.filters = CameraPipeline(
+            detector=detector or (lambda images: [Detections.empty() for _ in images]),
+            camera=self.camera,
+            height=self.height,
+            min_confidence=float(settings.get("min_confidence", 0.0)),
+            own_vessel_polygon=None
+            if settings.get("own_vessel_polygon") is None
+            else np.asarray(settings["own_vessel_polygon"], dtype=np.float64),
+            horizon_line=None if fixed is None else (float(fixed[0]), float(fixed[1])),
+        )
+        self.timer = timer
+
+    def _horizon(self, pose: VesselPose) -> tuple[float, float] | None:
+        if self.settings.get("horizon") != "attitude" or not hasattr(self.camera, "project"):
+            return self.filters.horizon_line
+        try:
+            return horizon_line(
+                self.camera,
+                mount_rotation=self.rotation,
+                roll=pose.roll,
+                pitch=pose.pitch,
+                margin_deg=float(self.settings.get("horizon_margin_deg", 0.0)),
+            )
+        except ValueError:
+            return None  # horizon not in front of the camera: georeferencing still gates rays
+
+    def process(self, image: np.ndarray, pose: VesselPose) -> CameraResult:
+        """Detect, filter and georeference one frame taken at `pose`."""
+        from usvfast.camera.georef import REASONS
+
+        tm = self.timer
+        with tm("camera.detector"):
+            raw = self.detector([image])[0] if self.detector is not None else Detections.empty()
+        det = _as_detections(raw)
+        with tm("camera.filters"):
+            self.filters.horizon_line = self._horizon(pose)
+            reason = self.filters.filter(det)
+        ok = reason == OK
+        positions = np.zeros((0, 2))
+        covs = np.zeros((0, 2, 2))
+        if ok.any():
+            px = box_contact_points(det.boxes[ok])
+            with tm("camera.georeference"):
+                s = self.settings
+                g = georeference(
+                    px,
+                    self.camera,
+                    height=self.height,
+                    mount_rotation=self.rotation,
+                    mount_position=self.position,
+                    roll=pose.roll,
+                    pitch=pose.pitch,
+                    heading=pose.heading,
+                    vessel_ne=(pose.north, pose.east),
+                    pixel_sigma=s.get("pixel_sigma", 0.0),
+                    attitude_sigma=math.radians(s.get("attitude_sigma_deg", 0.0)),
+                    height_sigma=s.get("height_sigma", 0.0),
+                    heading_sigma=math.radians(s.get("heading_sigma_deg", 0.0)),
+                    min_depression_deg=s.get("min_depression_deg", 0.0),
+                    max_range=s.get("max_range"),
+                )
+            reason[ok] = g.reason
+            good = g.reason == OK
+            positions, covs = g.positions[good], g.covariances[good]
+        keep = reason == OK
+        rejected: dict[str, int] = {}
+        for code in np.unique(reason[~keep]):
+            rejected[REASONS[int(code)]] = int(np.sum(reason == code))
+        return CameraResult(
+            positions, covs, det.scores[keep], det.boxes[keep], len(det.boxes), rejected
+        )

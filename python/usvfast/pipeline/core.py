@@ -1,0 +1,340 @@
+"""`Pipeline`: the thesis's whole flow (section 5.3, Figures 3.6 and 5.4) as one streaming
+object. Streams merged in time order (usvfast.nav.replay) -> vessel pose at each sensor
+timestamp -> the LiDAR chain or the camera chain -> the two-sensor tracker -> track updates,
+written to the output files as they happen.
+
+    from usvfast.pipeline import Pipeline
+    pipe = Pipeline("recording.toml")
+    for update in pipe.run(out="out/run"):      # a whole recording
+        print(update.time, update.tracks.ids)
+    pipe.summary                                # counts, damaged messages, time per stage
+
+Live use: `pipe.process(message)` for each message (anything with `time` (UNIX s), `stream`
+(a stream id of the config) and `data`: an NMEA sentence / NmeaFix / NmeaHeading for the
+navigation stream, an ImuSample for the attitude stream, a LidarFrame or an image for the
+sensor streams); it returns the track updates that message caused (a list, usually of 0 or 1).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+import warnings
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
+
+import numpy as np
+
+from usvfast.nav.replay import Replay
+from usvfast.pipeline.camera_chain import CameraChain, load_detector
+from usvfast.pipeline.config import ConfigError, PipelineConfig, load_config
+from usvfast.pipeline.lidar_chain import LidarChain
+from usvfast.pipeline.outputs import OutputWriter
+from usvfast.pipeline.pose import LivePose, NavTrack, VesselPose, imu_roll_pitch, parse_sentence
+from usvfast.pipeline.timing import StageTimer
+from usvfast.pipeline.tracker import SENSORS, Snapshot, make_tracker
+
+__all__ = ["Pipeline", "TrackUpdate"]
+
+
+@dataclass(frozen=True)
+class TrackUpdate:
+    """The tracker's state after one scan: time (UNIX s), sensor ("lidar" | "camera"), stream
+    id, detections (number handed to the tracker), tracks (the confirmed tracks: ids, states
+    [n, v_n, e, v_e] NED, covariances), pose (the vessel at `time`)."""
+
+    time: float
+    sensor: str
+    stream: str
+    detections: int
+    tracks: Snapshot
+    pose: VesselPose
+
+
+class Pipeline:
+    """The pipeline of one config (a PipelineConfig or the path of a TOML/YAML file).
+
+    detector: a camera detector callable overriding the config's [detector] (see
+    usvfast.pipeline.camera_chain); None builds it from the config.
+    """
+
+    def __init__(self, config: PipelineConfig | str | Path, *, detector: Any = None) -> None:
+        self.config = config if isinstance(config, PipelineConfig) else load_config(config)
+        cfg = self.config
+        self.timer = StageTimer()
+        self.chains: dict[str, LidarChain | CameraChain] = {}
+        if cfg.lidar["enabled"]:
+            for spec in cfg.streams_of("lidar"):
+                self.chains[spec.id] = LidarChain(cfg.lidar, spec.mount, self.timer)
+        cameras = cfg.streams_of("camera") if cfg.camera["enabled"] else []
+        if cameras:
+            det = detector
+            if det is None:
+                base = cfg.path.parent if cfg.path is not None else None
+                det = load_detector(cfg.detector, base)
+            for spec in cameras:
+                self.chains[spec.id] = CameraChain(cfg.camera, det, spec.mount, self.timer)
+        self.tracker = make_tracker(cfg.tracker)
+        nav = cfg.recording.stream(cfg.navigation[0])
+        self.live = LivePose(
+            cfg.origin,
+            nav.mount.lever_arm if nav.mount is not None else (0.0, 0.0, 0.0),
+            cfg.recording.max_pose_gap,
+        )
+        self.origin = cfg.origin
+        self.epoch: float | None = None
+        self.writer: OutputWriter | None = None
+        self.counts: dict[str, dict[str, int]] = {
+            s.id: {"messages": 0, "no_pose": 0, "damaged": 0} for s in cfg.recording.streams
+        }
+        self.detections = dict.fromkeys(SENSORS, 0)
+        self.scans = 0
+        self.track_ids: set[int] = set()
+        self.summary: dict[str, Any] = {}
+        self._nav: NavTrack | None = None
+
+    # --- live -----------------------------------------------------------------------------
+    def _live_nav(self, t: float, stream: str, data: Any) -> None:
+        from usvfast.nav.replay import NmeaFix, NmeaHeading
+
+        if isinstance(data, str):
+            parsed = parse_sentence(data)
+            if parsed is None:
+                return
+            kind, values = parsed
+            if kind == "fix":
+                self.live.add_fix(t, *values)
+            else:
+                self.live.add_heading(t, math.radians(values[0]))
+        elif isinstance(data, NmeaFix):
+            if data.fix_quality > 0:
+                self.live.add_fix(t, data.lat_deg, data.lon_deg)
+        elif isinstance(data, NmeaHeading):
+            self.live.add_heading(t, math.radians(data.heading_deg))
+        elif hasattr(data, "lat_deg") and hasattr(data, "status"):  # NavSatFixSample
+            if data.status >= 0:
+                self.live.add_fix(t, data.lat_deg, data.lon_deg)
+        elif hasattr(data, "orientation_xyzw"):  # ImuSample
+            roll, pitch = imu_roll_pitch(data.orientation_xyzw)
+            self.live.add_attitude(t, float(roll[0]), float(pitch[0]))
+        if self.origin is None and self.live.origin is not None:
+            self.origin = self.live.origin
+
+    def process(self, message: Any) -> list[TrackUpdate]:
+        """Process one message (see the module doc); returns the track updates it caused.
+
+        A message's own `pose` (a VesselPose, as `run` attaches) is used when present;
+        otherwise the pose follows the navigation messages given so far. Sensor messages
+        without a pose are counted (`no_pose`) and skipped. Raises ConfigError for a stream
+        id the config does not have.
+        """
+        t = float(message.time)
+        stream = message.stream
+        data = getattr(message, "data", None)
+        if stream not in self.counts:
+            raise ConfigError(
+                f"message.stream: {stream!r} is not a stream of the config "
+                f"(streams: {sorted(self.counts)})"
+            )
+        self.counts[stream]["messages"] += 1
+        if stream not in self.chains:
+            if stream in self.config.navigation or stream == self.config.attitude:
+                self._live_nav(t, stream, data)
+            return []
+        pose = getattr(message, "pose", None)
+        if not isinstance(pose, VesselPose):
+            pose = self.live.at(t)
+        if pose is None:
+            self.counts[stream]["no_pose"] += 1
+            return []
+        if self.epoch is None:
+            self.epoch = math.floor(t)
+        chain = self.chains[stream]
+        if isinstance(chain, LidarChain):
+            sensor = "lidar"
+            dets = chain.process(data, pose, self._pose_source(message))
+            if dets is None:
+                return []
+            z = np.array([d.position for d in dets], dtype=np.float64).reshape(-1, 2)
+            covs = np.array([d.covariance for d in dets], dtype=np.float64).reshape(-1, 2, 2)
+            scores = np.array([d.n_points for d in dets], dtype=np.float64)
+        else:
+            sensor = "camera"
+            image = data.image if hasattr(data, "image") else data
+            if not isinstance(image, np.ndarray) or image.ndim not in (2, 3):
+                self.counts[stream]["damaged"] += 1
+                return []
+            if image.ndim == 2:
+                import cv2
+
+                image = cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
+            res = chain.process(image, pose)
+            z, covs, scores = res.positions, res.covariances, res.scores
+            if self.writer is not None:
+                with self.timer("outputs"):
+                    self.writer.write_frame(t, image)
+        sid = SENSORS.index(sensor)
+        with self.timer("tracker"):
+            snap = self.tracker.step(
+                round(t - self.epoch, 6), z, np.full(len(z), sid, dtype=np.int64), covs
+            )
+        self.scans += 1
+        self.detections[sensor] += len(z)
+        self.track_ids.update(snap.ids.tolist())
+        if self.writer is not None:
+            with self.timer("outputs"):
+                self.writer.write_nav(pose)
+                self.writer.write_detections(t, sensor, z, covs, scores)
+                self.writer.write_tracks(t, snap)
+        return [TrackUpdate(t, sensor, stream, len(z), snap, pose)]
+
+    def _pose_source(self, message: Any) -> Any:
+        """The pose at any time for de-skewing a LiDAR rotation: the recording's track in
+        `run`, the live pose otherwise."""
+        if isinstance(getattr(message, "pose", None), VesselPose) and self._nav is not None:
+            return self._nav.pose_at
+        return self.live.at
+
+    # --- whole recording ------------------------------------------------------------------
+    def _pose_at(self, t: float) -> VesselPose | None:
+        t0 = time.perf_counter()
+        try:
+            assert self._nav is not None
+            return self._nav.pose_at(t)
+        finally:
+            self._pose_seconds += time.perf_counter() - t0
+
+    def run(
+        self,
+        *,
+        out: str | Path | None = None,
+        truth: str | Path | None = None,
+        scene: str | Path | None = None,
+        progress: Callable[[float, float], None] | None = None,
+        start: float | None = None,
+        end: float | None = None,
+    ) -> Iterator[TrackUpdate]:
+        """Replay the whole recording (optionally from `start` to `end`, UNIX s); yields track
+        updates as they happen. With `out`, writes the output files there and, at the end,
+        summary.json and (when `outputs.report` and usvfast.report is installed) the report:
+        metrics.json against `truth` (truth.csv), map/NIS/error plots and the animation.
+        progress(t, span) is called per message with the seconds since the start and the
+        recording's span.
+
+        Raises NavigationError when the navigation streams give no GNSS fix or heading, and
+        ConfigError (naming the stream and topic) when a bag lacks a configured topic.
+        """
+        cfg = self.config
+        wall0 = time.perf_counter()
+        with self.timer("navigation"):
+            self._nav = NavTrack.from_config(cfg)
+        self.origin = self._nav.origin
+        self._check_topics()
+        sensors = [s.id for s in cfg.recording.streams if s.id in self.chains]
+        if not sensors:
+            raise ConfigError(
+                f"{cfg.path}: no sensor stream: mark LiDAR/camera streams with "
+                'sensor = "lidar" or "camera"'
+            )
+        self._pose_seconds = 0.0
+        replay = Replay(
+            cfg.recording,
+            pose_track=SimpleNamespace(pose_at=self._pose_at),  # type: ignore[arg-type]
+            skip_without_pose=True,
+            streams=sensors,
+            start=start,
+            end=end,
+        )
+        if out is not None:
+            self.writer = OutputWriter(
+                out,
+                self.origin,
+                frames_hz=cfg.outputs["frames_hz"] if cfg.outputs["animation"] else 0.0,
+                frame_width=cfg.outputs["frame_width"],
+            )
+        first = last = None
+        span = self._nav.end - self._nav.start
+        it = iter(replay)
+        try:
+            while True:
+                t0 = time.perf_counter()
+                p0 = self._pose_seconds
+                try:
+                    item = next(it)
+                except StopIteration:
+                    break
+                dt = time.perf_counter() - t0
+                dp = self._pose_seconds - p0
+                self.timer.add("reader", dt - dp)
+                self.timer.add("pose", dp)
+                first = item.time if first is None else first
+                last = item.time
+                yield from self.process(item)
+                if progress is not None:
+                    progress(item.time - self._nav.start, span)
+        finally:
+            it.close()
+            if self.writer is not None:
+                self.writer.close()
+        for sid, c in replay.counts.items():
+            self.counts[sid]["no_pose"] += c.no_pose
+            self.counts[sid]["damaged"] += c.damaged + c.out_of_order
+        for sid, bad in self._nav.damaged.items():
+            self.counts[sid]["damaged"] += bad
+        wall = time.perf_counter() - wall0
+        duration = 0.0 if first is None else float(last - first)
+        self.summary = {
+            "recording": cfg.recording.name,
+            "config": str(cfg.path),
+            "origin": list(self.origin),
+            "tracker_backend": cfg.tracker["backend"],
+            "per_detection_covariance": bool(
+                getattr(self.tracker, "uses_detection_covariance", self.tracker.per_detection)
+            ),
+            "start_time": first,
+            "end_time": last,
+            "duration_s": duration,
+            "wall_s": wall,
+            "real_time_factor": duration / wall if wall > 0 else math.inf,
+            "scans": self.scans,
+            "detections": dict(self.detections),
+            "tracks": len(self.track_ids),
+            "streams": self.counts,
+            "damaged_messages": sum(c["damaged"] for c in self.counts.values()),
+            "stages": self.timer.as_dict(),
+        }
+        if out is not None:
+            Path(out, "summary.json").write_text(json.dumps(self.summary, indent=2))
+            if cfg.outputs["report"]:
+                self.summary["metrics"] = _report(Path(out), truth, scene, self.origin)
+
+    def _check_topics(self) -> None:
+        from usvfast.pipeline.streams import check_topic
+
+        for spec in self.config.recording.streams:
+            if spec.topic is None or spec.path is None or spec.type not in ("bag", "lidar"):
+                continue
+            if spec.path.suffix.lower() in (".pcap", ".cap"):
+                continue
+            try:
+                check_topic(spec.path, spec.topic)
+            except ValueError as exc:
+                raise ConfigError(f"{self.config.path}: stream {spec.id!r}: {exc}") from None
+
+
+def _report(out: Path, truth: Any, scene: Any, origin: Any) -> dict[str, Any]:
+    """usvfast.report.write_report when it is installed (metrics and pictures), else {}."""
+    try:
+        from usvfast.report import write_report  # type: ignore[import-not-found]
+    except ImportError:
+        return {}
+    try:
+        return write_report(out, truth=truth, scene=scene, origin=tuple(origin)) or {}
+    except (ValueError, TypeError, KeyError, OSError) as exc:
+        # The run's files are written; a report failure must not lose them.
+        warnings.warn(f"report: not written ({type(exc).__name__}: {exc})", stacklevel=3)
+        return {"error": f"{type(exc).__name__}: {exc}"}

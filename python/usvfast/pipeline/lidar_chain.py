@@ -1,0 +1,216 @@
+"""The LiDAR chain of the pipeline: level the frame with the vessel's roll and pitch and the
+sensor mount, then the thesis's chain (`usvfast.lidar.LidarDetector`: prefilter -> raster +
+LSD -> line memory -> line-of-sight -> buffered mean shift), each stage timed.
+
+Frames: Velodyne points (x forward, y left, z up) -> sensor FRD (y, z flipped) -> body FRD by
+the mount (`R_mount p + lever_arm`) -> level (roll and pitch removed) -> the detector's frame:
+level axes, horizontal origin at the mount's lever arm, z up from the vessel reference point,
+whose height above the water is `waterline_height`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from usvfast.frames import Mount, rotation_matrix
+from usvfast.lidar.frame import LidarFrame
+from usvfast.lidar.pipeline import (
+    FrameResult,
+    LidarConfig,
+    LidarDetection,
+    LidarDetector,
+    prefilter,
+    sensor_motion,
+    sensor_to_world,
+)
+from usvfast.pipeline.pose import VesselPose
+from usvfast.pipeline.timing import StageTimer
+
+__all__ = ["LidarChain", "level_points"]
+
+_FLU_FRD = np.diag([1.0, -1.0, -1.0])
+_DETECTOR_KEYS = set(LidarConfig.__dataclass_fields__) - {"lever_arm", "mount_yaw", "sensor_id"}
+
+
+def level_points(
+    points: np.ndarray,
+    mount: Mount,
+    roll: float,
+    pitch: float,
+    motion: tuple[np.ndarray, np.ndarray, np.ndarray, float] | None = None,
+) -> np.ndarray:
+    """Structured Velodyne points (n,) -> the same fields with x, y, z in the detector's
+    levelled frame at the frame's stamp (x forward along the heading, y left, z up from the
+    vessel reference point, horizontal origin at the mount's lever arm), metres.
+
+    motion: per point (d_north (n,), d_east (n,), d_heading (n,)) of the vessel at the point's
+    firing time relative to the stamp (m, m, rad), and the heading at the stamp (rad): the
+    rotation is de-skewed, each point is placed where the vessel was when it fired."""
+    xyz = np.column_stack([points["x"], points["y"], points["z"]]).astype(np.float64)
+    lever = np.asarray(mount.lever_arm, dtype=np.float64)
+    # level <- body (remove roll, pitch) @ body <- sensor FRD @ sensor FRD <- Velodyne FLU
+    r = rotation_matrix(roll, pitch, 0.0) @ mount.rotation @ _FLU_FRD
+    level = xyz @ r.T + rotation_matrix(roll, pitch, 0.0) @ lever
+    if motion is not None:
+        # p_stamp = Rz(-h) (pos_i - pos) + Rz(h_i - h) p_i, horizontal part (level frame at the
+        # stamp; dn, de are NED, rotated into it by the stamp heading h).
+        dn, de, dh, h = motion
+        c, s_ = np.cos(dh), np.sin(dh)
+        x = c * level[:, 0] - s_ * level[:, 1]
+        y = s_ * level[:, 0] + c * level[:, 1]
+        ch, sh = np.cos(h), np.sin(h)
+        level[:, 0] = x + ch * dn + sh * de
+        level[:, 1] = y - sh * dn + ch * de
+    out = points.copy()
+    out["x"] = level[:, 0] - lever[0]
+    out["y"] = -(level[:, 1] - lever[1])
+    out["z"] = -level[:, 2]
+    return out
+
+
+class _TimedDetector(LidarDetector):
+    """`LidarDetector.process`, stage by stage, with each stage timed (same results)."""
+
+    def __init__(self, config: LidarConfig, timer: StageTimer, los_backend: str = "rust") -> None:
+        super().__init__(config)
+        self.timer = timer
+        self.los_backend = los_backend
+
+    def process(self, frame: LidarFrame, pose: Any) -> FrameResult:
+        from usvfast.lidar.line_of_sight import line_of_sight_filter, line_of_sight_filter_numpy
+        from usvfast.lidar.lines import blur, detect_segments, extend_segments, rasterize
+
+        cfg, tm = self.config, self.timer
+        pose = np.asarray(pose, dtype=np.float64)
+        mount = {"lever_arm": cfg.lever_arm, "mount_yaw": cfg.mount_yaw}
+        line_radius = cfg.radius + cfg.line_margin
+        with tm("lidar.prefilter"):
+            xy, index = prefilter(
+                frame.points,
+                radius=line_radius,
+                mount_height=cfg.mount_height,
+                slice_min=cfg.slice_min,
+                slice_max=cfg.slice_max,
+                min_intensity=cfg.min_intensity,
+            )
+        with tm("lidar.lines"):
+            image = blur(rasterize(xy, radius=line_radius, pixel=cfg.pixel))
+            new = detect_segments(
+                image, radius=line_radius, pixel=cfg.pixel, min_length=cfg.min_segment_length
+            )
+        inside = (xy**2).sum(axis=1) <= cfg.radius**2
+        xy, index = xy[inside], index[inside]
+        with tm("lidar.line_memory"):
+            motion = (0.0, 0.0, 0.0)
+            if self._previous_pose is not None:
+                motion = sensor_motion(self._previous_pose, pose, **mount)
+            segments = self.memory.update(new, motion)
+            self._previous_pose = pose
+            los_segments = extend_segments(segments, cfg.segment_extension)
+        with tm("lidar.line_of_sight"):
+            if xy.shape[0]:
+                los = (
+                    line_of_sight_filter_numpy
+                    if self.los_backend == "numpy"
+                    else line_of_sight_filter
+                )
+                keep = np.asarray(
+                    los(xy, los_segments, sensor=(0.0, 0.0), tolerance=cfg.los_tolerance),
+                    dtype=bool,
+                )
+            else:
+                keep = np.zeros(0, dtype=bool)
+            world = sensor_to_world(xy[keep], pose, **mount)
+        self._buffer.append((world, frame.index, index[keep]))
+        self._frames += 1
+        result = FrameResult(
+            frame.stamp, pose, xy, index, image, new, segments, los_segments, keep, world
+        )
+        if len(self._buffer) >= cfg.buffer_frames:
+            with tm("lidar.mean_shift"):
+                result.cycle = self._cluster(frame.stamp)
+            self._buffer = []
+        return result
+
+
+class LidarChain:
+    """One LiDAR stream through the chain. `process(frame, pose)` returns the detections of a
+    closed clustering cycle (a list of `LidarDetection`, world NED metres with covariance) or
+    None between cycles.
+
+    settings: the config's [lidar] table (`los_backend` "rust" or "numpy": the line-of-sight
+    filter's implementation, the numpy one being the thesis-style reference; `covariance`
+    "spread": each detection's R is its cluster's sample covariance, as LidarDetector gives
+    it, or "centroid": that divided by the cluster size, the centroid's standard error; both
+    floored at min_position_std²); mount: the
+    stream's mount (None: at the reference point, level); timer: a StageTimer for the
+    per-stage times.
+    """
+
+    def __init__(self, settings: dict[str, Any], mount: Mount | None, timer: StageTimer) -> None:
+        self.mount = mount or Mount()
+        lever = np.asarray(self.mount.lever_arm, dtype=np.float64)
+        water = settings.get("waterline_height")
+        height = settings.get("mount_height")
+        # The detector's frame starts at the reference point's height: its mount_height is
+        # the reference point's height above the water.
+        if water is None and height is None:
+            raise ValueError(
+                "lidar.waterline_height: missing; give the vessel reference point's height "
+                "above the water (or lidar.mount_height, the sensor's)"
+            )
+        ref_height = float(water) if water is not None else float(height) + float(lever[2])
+        kw = {k: v for k, v in settings.items() if k in _DETECTOR_KEYS and v is not None}
+        kw["mount_height"] = ref_height
+        self.config = LidarConfig(
+            **kw, lever_arm=(float(lever[0]), float(lever[1])), mount_yaw=0.0, sensor_id="lidar"
+        )
+        self.timer = timer
+        self.covariance = settings.get("covariance", "spread")
+        self._reach2 = (self.config.radius + self.config.line_margin + 1.0) ** 2
+        self.detector = _TimedDetector(self.config, timer, settings.get("los_backend", "rust"))
+        self.frames = 0
+
+    def process(
+        self,
+        frame: LidarFrame,
+        pose: VesselPose,
+        pose_at: Callable[[float], VesselPose | None] | None = None,
+    ) -> list[LidarDetection] | None:
+        """Level the frame at `pose` (de-skewed with `pose_at(t)`, the vessel pose at any
+        time, when given), run one frame of the chain; detections when the buffer of
+        `buffer_frames` frames closes (their time: this frame's stamp)."""
+        with self.timer("lidar.level"):
+            # Only points that can reach the raster (radius + line margin, plus 1 m for the
+            # tilt) are levelled.
+            p = frame.points[frame.points["x"] ** 2 + frame.points["y"] ** 2 <= self._reach2]
+            motion = None
+            dt = p["time"].astype(np.float64)
+            t0 = float(dt.min()) if len(dt) else 0.0
+            start = pose_at(frame.stamp + t0) if pose_at is not None and t0 < 0 else None
+            if start is not None:
+                f = dt / t0  # 1 at the first firing, 0 at the stamp
+                dh = (start.heading - pose.heading + np.pi) % (2 * np.pi) - np.pi
+                motion = (
+                    f * (start.north - pose.north),
+                    f * (start.east - pose.east),
+                    f * dh,
+                    pose.heading,
+                )
+            points = level_points(p, self.mount, pose.roll, pose.pitch, motion)
+        levelled = LidarFrame(frame.stamp, points, frame.source, self.frames)
+        self.frames += 1
+        result = self.detector.process(levelled, pose.planar)
+        if result.cycle is None:
+            return None
+        dets = result.cycle.detections
+        if self.covariance == "centroid":
+            # The centroid's standard error (spread / n), floored at min_position_std².
+            floor = self.config.min_position_std**2
+            for d in dets:
+                w, v = np.linalg.eigh(d.covariance / max(d.n_points, 1))
+                d.covariance = (v * np.maximum(w, floor)) @ v.T
+        return dets

@@ -1,0 +1,381 @@
+"""The vessel pose at each sensor timestamp: GNSS position and heading (with the antenna's
+lever arm removed), roll and pitch from an IMU, in the local NED frame at the origin.
+
+Two sources share one result type, `VesselPose`:
+- `NavTrack.from_config` reads the navigation and attitude streams of a recording once (small
+  arrays: 10 Hz for an hour is 36,000 samples) and interpolates them at any time, as
+  `usvfast.nav.pose` does (linear in NED metres, shortest arc for angles, refusing gaps longer
+  than `recording.max_pose_gap`);
+- `LivePose` follows the navigation messages as they arrive (`pipeline.process`) and answers
+  from the newest samples (interpolated when bracketed, else extrapolated from the last two,
+  at most max_gap ahead).
+
+IMU orientation follows ROS REP-103 (body FLU relative to world ENU); it is turned into FRD/NED
+roll and pitch (the yaw is not used: heading comes from the GNSS).
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from collections import deque
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from usvfast import geodesy
+from usvfast.nav.pose import Channel, PoseGapError
+
+__all__ = [
+    "LivePose",
+    "NavTrack",
+    "NavigationError",
+    "VesselPose",
+    "imu_roll_pitch",
+    "parse_sentence",
+]
+
+# ENU -> NED (world) and FLU -> FRD (body) axis swaps.
+_ENU_NED = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+_FLU_FRD = np.diag([1.0, -1.0, -1.0])
+
+
+class NavigationError(ValueError):
+    """The recording has no usable navigation (GNSS position or heading); the message names
+    the stream and what is missing."""
+
+
+@dataclass(frozen=True)
+class VesselPose:
+    """The vessel reference point at `time` (UNIX s): north, east (m, NED at the origin),
+    heading (rad clockwise from north), roll, pitch (rad, FRD; 0 without attitude)."""
+
+    time: float
+    north: float
+    east: float
+    heading: float
+    roll: float = 0.0
+    pitch: float = 0.0
+
+    @property
+    def planar(self) -> np.ndarray:
+        """(north, east, heading) as the LiDAR detector takes it."""
+        return np.array([self.north, self.east, self.heading])
+
+
+def imu_roll_pitch(orientation_xyzw: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Roll and pitch (rad, FRD body in NED) from REP-103 quaternions (n, 4) x, y, z, w of
+    the body FLU in ENU. Returns two (n,) arrays."""
+    q = np.asarray(orientation_xyzw, dtype=np.float64).reshape(-1, 4)
+    q = q / np.linalg.norm(q, axis=1, keepdims=True)
+    x, y, z, w = q.T
+    # ENU <- FLU rotation of a unit quaternion (the tests check it against scipy's Rotation;
+    # importing scipy.spatial costs more than the whole navigation read).
+    r = np.empty((len(q), 3, 3))
+    r[:, 0, 0] = 1 - 2 * (y * y + z * z)
+    r[:, 0, 1] = 2 * (x * y - z * w)
+    r[:, 0, 2] = 2 * (x * z + y * w)
+    r[:, 1, 0] = 2 * (x * y + z * w)
+    r[:, 1, 1] = 1 - 2 * (x * x + z * z)
+    r[:, 1, 2] = 2 * (y * z - x * w)
+    r[:, 2, 0] = 2 * (x * z - y * w)
+    r[:, 2, 1] = 2 * (y * z + x * w)
+    r[:, 2, 2] = 1 - 2 * (x * x + y * y)
+    r_ned = _ENU_NED @ r @ _FLU_FRD  # NED <- FRD = Rz(yaw) Ry(pitch) Rx(roll), eq. 3.9
+    pitch = np.arcsin(np.clip(-r_ned[:, 2, 0], -1.0, 1.0))
+    roll = np.arctan2(r_ned[:, 2, 1], r_ned[:, 2, 2])
+    return roll, pitch
+
+
+def _lever_ne(lever: np.ndarray, heading: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    c, s = np.cos(heading), np.sin(heading)
+    return c * lever[0] - s * lever[1], s * lever[0] + c * lever[1]
+
+
+class NavTrack:
+    """Interpolated vessel pose from a recording's navigation and attitude streams.
+
+    position (NED m of the vessel reference point), heading and optional attitude channels;
+    `origin` (lat, lon, h) of the NED frame; `damaged` {stream id: skipped records}.
+    """
+
+    def __init__(
+        self,
+        origin: tuple[float, float, float],
+        position: Channel,
+        heading: Channel,
+        attitude: Channel | None,
+        damaged: dict[str, int],
+    ) -> None:
+        self.origin = origin
+        self.position = position
+        self.heading = heading
+        self.attitude = attitude
+        self.damaged = damaged
+        self._pos = (position.time.tolist(), position.values)
+        self._head = (heading.time.tolist(), heading.values)
+        self._att = None if attitude is None else (attitude.time.tolist(), attitude.values)
+        self.start = float(max(position.time[0], heading.time[0]))
+        self.end = float(min(position.time[-1], heading.time[-1]))
+
+    @classmethod
+    def from_config(cls, config: Any) -> NavTrack:
+        """Read the config's navigation streams (NMEA text `nmea`; bag topics of
+        nmea_msgs/Sentence or NavSatFix) and attitude stream (bag sensor_msgs/Imu). Raises
+        NavigationError naming the stream when no position fix or no heading is found."""
+        fixes: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        headings: list[tuple[np.ndarray, np.ndarray]] = []
+        damaged: dict[str, int] = {}
+        lever = np.zeros(3)
+        for sid in config.navigation:
+            spec = config.recording.stream(sid)
+            if spec.mount is not None:
+                lever = np.asarray(spec.mount.lever_arm, dtype=np.float64)
+            t_fix, lat, lon, t_head, head, bad = _read_nav(spec)
+            damaged[sid] = bad
+            if t_fix.size:
+                fixes.append((t_fix + spec.clock_offset, lat, lon))
+            if t_head.size:
+                headings.append((t_head + spec.clock_offset, head))
+        names = ", ".join(repr(s) for s in config.navigation)
+        if not fixes:
+            raise NavigationError(
+                f"recording {config.recording.name!r}: no GNSS position fix in the navigation "
+                f"stream(s) {names}"
+            )
+        if not headings:
+            raise NavigationError(
+                f"recording {config.recording.name!r}: no heading (NMEA HDT/THS) in the "
+                f"navigation stream(s) {names}"
+            )
+        t_fix, lat, lon = fixes[0]
+        origin = config.origin or (float(lat[0]), float(lon[0]), 0.0)
+        n, e, _ = geodesy.geodetic2ned(lat, lon, np.zeros_like(lat), *origin)
+        t_head, head = headings[0]
+        order = np.argsort(t_head, kind="stable")
+        t_head, head = t_head[order], head[order]
+        gap = config.recording.max_pose_gap
+        heading = Channel.build("heading", t_head, {"heading": head}, ("angle",), 0.0, gap)
+        # Antenna -> reference point: subtract the heading-rotated lever arm.
+        h_at_fix = np.full(t_fix.shape, np.nan)
+        ok = heading.covered(t_fix)
+        h_at_fix[ok] = heading.at(t_fix[ok])[:, 0]
+        if not np.any(ok):
+            raise NavigationError(
+                f"recording {config.recording.name!r}: headings of {names} do not overlap the "
+                "position fixes in time"
+            )
+        dn, de = _lever_ne(lever, h_at_fix)
+        position = Channel.build(
+            "position", t_fix, {"north": n - dn, "east": e - de}, ("linear", "linear"), 0.0, gap
+        )
+        attitude = None
+        if config.attitude is not None:
+            spec = config.recording.stream(config.attitude)
+            t_att, roll, pitch, bad = _read_attitude(spec)
+            damaged[spec.id] = bad
+            attitude = Channel.build(
+                "attitude",
+                t_att + spec.clock_offset,
+                {"roll": roll, "pitch": pitch},
+                ("angle", "angle"),
+                0.0,
+                gap,
+            )
+        return cls(origin, position, heading, attitude, damaged)
+
+    def pose_at(self, t: float) -> VesselPose | None:
+        """The pose at UNIX time t, or None when the GNSS does not cover t (a gap). Without
+        attitude samples around t, roll and pitch are 0."""
+        ne = _interp(self._pos, t, self.position.max_gap, False)
+        h = _interp(self._head, t, self.heading.max_gap, True)
+        if ne is None or h is None:
+            return None
+        roll = pitch = 0.0
+        if self._att is not None:
+            att = _interp(self._att, t, self.attitude.max_gap, True)  # type: ignore[union-attr]
+            if att is not None:
+                roll, pitch = float(att[0]), float(att[1])
+        return VesselPose(
+            float(t), float(ne[0]), float(ne[1]), float(h[0]) % (2 * math.pi), roll, pitch
+        )
+
+
+def _interp(
+    channel: tuple[list[float], np.ndarray], t: float, max_gap: float, angle: bool
+) -> np.ndarray | None:
+    """Channel.at for one time (same rule: exactly on a sample, or between two samples at
+    most max_gap apart), without the array overhead."""
+    times, values = channel
+    j = bisect.bisect_right(times, t)
+    if j == 0:
+        return None
+    i = j - 1
+    if times[i] == t:
+        return values[i]
+    if j == len(times) or times[j] - times[i] > max_gap:
+        return None
+    f = (t - times[i]) / (times[j] - times[i])
+    d = values[j] - values[i]
+    if angle:
+        d = (d + math.pi) % (2 * math.pi) - math.pi
+    return values[i] + f * d
+
+
+def _read_nav(spec: Any) -> tuple[np.ndarray, ...]:
+    """(fix times, lat, lon, heading times, headings rad, damaged) of one navigation stream."""
+    from usvfast.nav.nmea import read_nmea
+
+    empty = np.zeros(0)
+    try:
+        if spec.type == "nmea":
+            log, bad = read_nmea(spec.path), None
+        elif spec.type == "bag":
+            from usvfast.nav.bags import read_bag_navsatfix, read_bag_nmea
+            from usvfast.pipeline.streams import check_topic
+
+            msgtype = check_topic(
+                spec.path, spec.topic, ["nmea_msgs/msg/Sentence", "sensor_msgs/msg/NavSatFix"]
+            )
+            if msgtype == "sensor_msgs/msg/NavSatFix":
+                fix = read_bag_navsatfix(spec.path, spec.topic)
+                ok = fix.status >= 0
+                return fix.times[ok], fix.lat_deg[ok], fix.lon_deg[ok], empty, empty, fix.skipped
+            res = read_bag_nmea(spec.path, spec.topic)
+            log, bad = res.log, res.skipped_messages
+        else:
+            raise NavigationError(
+                f"stream {spec.id!r}: type {spec.type!r} cannot be a navigation stream "
+                "(use nmea, or bag with nmea_msgs/Sentence or NavSatFix)"
+            )
+    except NavigationError:
+        raise
+    except ValueError as exc:
+        raise NavigationError(
+            f"no GNSS position fix in the navigation stream {spec.id!r}: {exc}"
+        ) from exc
+    p = log.positions
+    ok = (p.fix_quality > 0) & np.isfinite(p.lat_deg) & np.isfinite(p.lon_deg)
+    h = log.headings
+    damaged = int(log.n_damaged) + int(bad or 0)
+    return p.time[ok], p.lat_deg[ok], p.lon_deg[ok], h.time, np.radians(h.heading_deg), damaged
+
+
+def _read_attitude(spec: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    from usvfast.nav.bags import read_bag_imu
+
+    if spec.type != "bag":
+        raise NavigationError(
+            f"stream {spec.id!r}: an attitude stream must be a bag topic of sensor_msgs/Imu"
+        )
+    try:
+        imu = read_bag_imu(spec.path, spec.topic)
+    except ValueError as exc:
+        raise NavigationError(f"attitude stream {spec.id!r}: {exc}") from exc
+    roll, pitch = imu_roll_pitch(imu.orientation_xyzw)
+    return imu.times, roll, pitch, imu.skipped
+
+
+def parse_sentence(sentence: str) -> tuple[str, tuple[float, ...]] | None:
+    """One NMEA sentence of a live stream -> ("fix", (lat, lon)) for GGA/RMC/GLL with a fix,
+    ("heading", (deg,)) for HDT/THS, None otherwise or when it does not parse (checksum
+    checked). The time is the message's (live streams carry it in the header)."""
+    import pynmea2
+
+    try:
+        msg = pynmea2.parse(sentence.strip(), check=True)
+    except (pynmea2.ParseError, ValueError, AttributeError):
+        return None
+    kind = type(msg).__name__
+    try:
+        if kind in ("GGA", "RMC", "GLL"):
+            if kind == "GGA" and int(msg.gps_qual or 0) == 0:
+                return None
+            if kind in ("RMC", "GLL") and getattr(msg, "status", "A") != "A":
+                return None
+            return "fix", (float(msg.latitude), float(msg.longitude))
+        if kind in ("HDT", "THS"):
+            return "heading", (float(msg.heading),)
+    except (TypeError, ValueError):
+        return None
+    return None
+
+
+def _append(samples: deque, sample: tuple[float, ...]) -> None:
+    """Keep the newest two samples; a sample at the time of the newest replaces it."""
+    if samples and sample[0] <= samples[-1][0]:
+        if sample[0] == samples[-1][0]:
+            samples[-1] = sample
+        return
+    samples.append(sample)
+
+
+class LivePose:
+    """Pose from navigation messages fed one at a time (`add_fix`, `add_heading`,
+    `add_attitude`, all with UNIX times), for `Pipeline.process`.
+
+    `at(t)` interpolates between the two samples around t or extrapolates the last two by at
+    most `max_gap` seconds; None before the first fix and heading. origin (lat, lon, h) or
+    None (the first fix); lever_arm (3,) of the GNSS antenna, body FRD m.
+    """
+
+    def __init__(
+        self,
+        origin: tuple[float, float, float] | None = None,
+        lever_arm: Any = (0.0, 0.0, 0.0),
+        max_gap: float = 2.0,
+    ) -> None:
+        self.origin = origin
+        self.lever = np.asarray(lever_arm, dtype=np.float64)
+        self.max_gap = float(max_gap)
+        self._fix: deque[tuple[float, float, float]] = deque(maxlen=2)
+        self._head: deque[tuple[float, float]] = deque(maxlen=2)
+        self._att: deque[tuple[float, float, float]] = deque(maxlen=2)
+
+    def add_fix(self, t: float, lat_deg: float, lon_deg: float) -> None:
+        """A GNSS antenna fix (WGS84 degrees) at UNIX time t."""
+        if self.origin is None:
+            self.origin = (float(lat_deg), float(lon_deg), 0.0)
+        n, e, _ = geodesy.geodetic2ned(lat_deg, lon_deg, 0.0, *self.origin)
+        _append(self._fix, (float(t), float(n), float(e)))
+
+    def add_heading(self, t: float, heading: float) -> None:
+        """A true heading (rad clockwise from north) at UNIX time t."""
+        _append(self._head, (float(t), float(heading)))
+
+    def add_attitude(self, t: float, roll: float, pitch: float) -> None:
+        """Roll and pitch (rad, FRD) at UNIX time t."""
+        _append(self._att, (float(t), float(roll), float(pitch)))
+
+    def _value(self, samples: deque, t: float, angle: tuple[bool, ...]) -> tuple[float, ...] | None:
+        if not samples:
+            return None
+        last = samples[-1]
+        if len(samples) == 1:
+            return last[1:] if abs(t - last[0]) <= self.max_gap else None
+        a, b = samples[0], samples[1]
+        if b[0] - a[0] <= 0 or t - b[0] > self.max_gap or t < a[0] - self.max_gap:
+            return last[1:] if abs(t - last[0]) <= self.max_gap else None
+        f = (t - a[0]) / (b[0] - a[0])
+        out = []
+        for k, is_angle in enumerate(angle):
+            d = b[k + 1] - a[k + 1]
+            if is_angle:
+                d = (d + math.pi) % (2 * math.pi) - math.pi
+            out.append(a[k + 1] + f * d)
+        return tuple(out)
+
+    def at(self, t: float) -> VesselPose | None:
+        """The vessel pose at t from the newest samples, or None (no fix/heading near t)."""
+        ne = self._value(self._fix, t, (False, False))
+        h = self._value(self._head, t, (True,))
+        if ne is None or h is None:
+            return None
+        heading = h[0] % (2 * math.pi)
+        dn, de = _lever_ne(self.lever, np.array(heading))
+        att = self._value(self._att, t, (True, True)) or (0.0, 0.0)
+        return VesselPose(float(t), ne[0] - float(dn), ne[1] - float(de), heading, att[0], att[1])
+
+
+__all__ += ["PoseGapError"]
