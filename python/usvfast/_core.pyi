@@ -28,6 +28,34 @@ def kalman_batch(
     smooth: bool = True,
 ) -> dict[str, npt.NDArray[np.float64]]: ...
 
+def kalman_batch_linear(
+    transition_matrices: npt.NDArray[np.float64],
+    process_noises: npt.NDArray[np.float64],
+    times: npt.NDArray[np.float64],
+    measurements: npt.NDArray[np.float64],
+    measurement_matrix: npt.NDArray[np.float64],
+    measurement_noise: npt.NDArray[np.float64],
+    prior_state: npt.NDArray[np.float64],
+    prior_covariance: npt.NDArray[np.float64],
+    *,
+    sensor_index: npt.NDArray[np.int64] | None = None,
+    prior_time: float | None = None,
+    smooth: bool = True,
+) -> dict[str, npt.NDArray[np.float64]]: ...
+def kalman_predict(
+    states: npt.NDArray[np.float64],
+    covariances: npt.NDArray[np.float64],
+    transition_matrix: npt.NDArray[np.float64],
+    process_noise: npt.NDArray[np.float64],
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
+def kalman_update(
+    states: npt.NDArray[np.float64],
+    covariances: npt.NDArray[np.float64],
+    measurements: npt.NDArray[np.float64],
+    measurement_matrix: npt.NDArray[np.float64],
+    measurement_noise: npt.NDArray[np.float64],
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
+
 # --- lidar (rust/src/py/lidar.rs) ---
 def line_of_sight_filter(
     points: npt.NDArray[np.float64],
