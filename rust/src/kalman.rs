@@ -685,7 +685,7 @@ mod tests {
             .iter()
             .zip(&b.smoothed_covariances)
             .all(|(u, v)| (u - v).abs() < 1e-12));
-        let wrong = LinearModel::new(2, vec![1.0, 0.0, 0.0, 1.0].repeat(2), vec![0.0; 8]).unwrap();
+        let wrong = LinearModel::new(2, [1.0, 0.0, 0.0, 1.0].repeat(2), vec![0.0; 8]).unwrap();
         assert!(run_batch_linear(&wrong, &input(&times, &z, &h, &r, &x0, &p0), false).is_err());
     }
 
