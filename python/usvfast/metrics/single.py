@@ -3,7 +3,7 @@
 Tracks are given flat, one row per confirmed track per scan: `scan_index` (N,), `track_ids`
 (N,), `track_positions` (N, 2) (north, east) metres; the truth is (n_scans, 2).
 
-`track_quality` follows the rule used for the Joyride anchors of issue 3: at each scan the
+`track_quality` follows the rule used for the Joyride anchors: at each scan the
 confirmed track nearest to the truth counts if it lies within `gate` metres. `clear_mot` gives
 the CLEAR MOT figures (MOTA, MOTP) for the same single target with py-motmetrics' matching rule
 (a matched track stays matched while it is within the gate), so they can be cross-checked.
