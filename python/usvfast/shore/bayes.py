@@ -1,7 +1,7 @@
 """The vessel detector of Kim, Chung and Lee (§III): the day/night class picks a binary
 threshold (23 for EO, 203 for IR, eq. 4), erosion then dilation with a 3×3 window, twice each
 (eqs. 5–8), keypoints on the cleaned image, and the vessel's box from the keypoints' extent
-(their pseudo-code steps 3–7).
+(their pseudo-code steps 3–7; a keypoint counts with its region, centre ± half its size).
 
 Keypoints: the paper uses STAR (OpenCV's CenSurE variant, scale-space extrema of box-filter
 Laplacians on integral images). STAR is in opencv-contrib, which opencv-python-headless does
@@ -98,7 +98,8 @@ class BayesDetector:
         self.last_binary = b
         kps = self.keypoint_detector.detect(b, None)
         h, w = b.shape
-        pts = np.array([k.pt for k in kps], dtype=float).reshape(-1, 2)
+        # each keypoint: centre (x, y) and radius (half its size, px)
+        pts = np.array([(*k.pt, k.size / 2) for k in kps], dtype=float).reshape(-1, 3)
         inside = (
             (pts[:, 0] >= cfg.border_px)
             & (pts[:, 0] < w - cfg.border_px)
@@ -111,7 +112,9 @@ class BayesDetector:
         if cfg.grouping == "extent":
             groups = [pts]
         else:
-            labels = fcluster(linkage(pts, method="single"), cfg.cluster_px, criterion="distance")
+            labels = fcluster(
+                linkage(pts[:, :2], method="single"), cfg.cluster_px, criterion="distance"
+            )
             groups = [pts[labels == k] for k in np.unique(labels)]
             groups = [g for g in groups if len(g) >= cfg.min_keypoints]
         if not groups:
@@ -119,8 +122,8 @@ class BayesDetector:
         boxes = []
         for g in groups:
             # steps 5–7: lowest and highest coordinates -> the box around the vessel
-            x0, y0 = g.min(axis=0)
-            x1, y1 = g.max(axis=0)
+            x0, y0 = (g[:, :2] - g[:, 2:]).min(axis=0)
+            x1, y1 = (g[:, :2] + g[:, 2:]).max(axis=0)
             boxes.append([x0, y0, max(x1 - x0, 1.0), max(y1 - y0, 1.0)])
         counts = np.array([len(g) for g in groups])
         return Detections(np.array(boxes), np.ones(len(groups)), counts)

@@ -76,11 +76,11 @@ class DayNightClassifier:
 
     @classmethod
     def default(cls) -> DayNightClassifier:
-        """The shipped classifier (EO fitted on MarDCT training frames, IR on grey copies of
-        them; see `usvfast.shore.evaluate --fit-daynight`), equal priors."""
+        """The shipped classifier: `fit` on the 192 MarDCT training frames (EO) and on grey
+        copies of them (IR), rounded to 0.1; equal priors."""
         return cls(
-            means=np.array([[126.0, 43.0, 28.0], [126.0, 43.0, 0.0]]),
-            sigmas=np.array([[20.0, 10.0, 8.0], [20.0, 10.0, MIN_SIGMA]]),
+            means=np.array([[151.8, 33.5, 17.8], [151.8, 33.5, 0.0]]),
+            sigmas=np.array([[9.0, 4.8, 6.6], [9.0, 4.8, MIN_SIGMA]]),
             priors=np.array([0.5, 0.5]),
         )
 

@@ -39,15 +39,15 @@ class HorizonConfig:
     canny_low: float = 50.0
     canny_high: float = 70.0
     median_kernel: int = 5
-    hough_votes: float = 0.35
+    hough_votes: float = 0.15
     max_tilt_deg: float = 15.0
     samples: int = 60
-    offset_px: int = 6
-    intensity_tolerance: float = 6.0
+    offset_px: int = 10
+    intensity_tolerance: float = 2.0
     valid_fraction: float = 0.9
     coast_edge_density: float = 0.04
     drop_margin: float = 0.05
-    max_candidates: int = 30
+    max_candidates: int = 40
 
     def __post_init__(self) -> None:
         if self.median_kernel < 1 or self.median_kernel % 2 == 0:
@@ -147,6 +147,9 @@ def detect_horizon(
     if lines is None:
         return None
     best: tuple[float, float, float] | None = None
+    # lines hugging the top or bottom border (black bars of the frame) are no horizon
+    mid_y = (lines[:, 0, 0] - (w / 2) * np.cos(lines[:, 0, 1])) / np.sin(lines[:, 0, 1])
+    lines = lines[(mid_y > cfg.offset_px + 2) & (mid_y < h - cfg.offset_px - 2)]
     for rho, theta in lines[: cfg.max_candidates, 0]:
         share, _ = _pairs_differ(smooth, float(rho), float(theta), cfg)
         if share > cfg.valid_fraction and (best is None or share > best[2]):
