@@ -6,8 +6,8 @@ threshold (23 for EO, 203 for IR, eq. 4), erosion then dilation with a 3×3 wind
 Keypoints: the paper uses STAR (OpenCV's CenSurE variant, scale-space extrema of box-filter
 Laplacians on integral images). STAR is in opencv-contrib, which opencv-python-headless does
 not ship; the closest available detector is SIFT (scale-space extrema of a difference of
-Gaussians, itself an approximation of the Laplacian), used by default; ORB and FAST are
-offered for speed.
+Gaussians, itself an approximation of the Laplacian), used by default; 'star' runs the paper's
+detector where an opencv-contrib build is installed; ORB and FAST are offered for speed.
 """
 
 from __future__ import annotations
@@ -22,19 +22,25 @@ from scipy.cluster.hierarchy import fcluster, linkage
 from usvfast.shore.boxes import Detections
 from usvfast.shore.daynight import DayNightClassifier, FrameClass
 
-KeypointDetector = Literal["sift", "orb", "fast"]
+KeypointDetector = Literal["sift", "star", "orb", "fast"]
 Grouping = Literal["extent", "clusters"]
 
 
 def make_keypoint_detector(kind: KeypointDetector, max_keypoints: int = 500) -> cv2.Feature2D:
-    """An OpenCV keypoint detector: 'sift' (closest to STAR/CenSurE), 'orb' or 'fast'."""
+    """An OpenCV keypoint detector: 'sift' (closest to STAR/CenSurE), 'star' (the paper's,
+    only with an opencv-contrib build: ValueError otherwise), 'orb' or 'fast'."""
+    if kind == "star":
+        xf = getattr(cv2, "xfeatures2d", None)
+        if xf is None or not hasattr(xf, "StarDetector_create"):
+            raise ValueError("keypoints: 'star' needs opencv-contrib (cv2.xfeatures2d); use 'sift'")
+        return xf.StarDetector_create()
     if kind == "sift":
         return cv2.SIFT_create(nfeatures=max_keypoints)
     if kind == "orb":
         return cv2.ORB_create(nfeatures=max_keypoints)
     if kind == "fast":
         return cv2.FastFeatureDetector_create()
-    raise ValueError(f"keypoints: expected 'sift', 'orb' or 'fast', got {kind!r}")
+    raise ValueError(f"keypoints: expected 'sift', 'star', 'orb' or 'fast', got {kind!r}")
 
 
 @dataclass(frozen=True)
