@@ -225,3 +225,36 @@ def jpda_marginals(
     likelihoods: npt.NDArray[np.float64], method: str = "ehm"
 ) -> npt.NDArray[np.float64]: ...
 def chi2_gate(prob_gate: float, dof: int) -> float: ...
+
+# --- cascade (rust/src/py/cascade.rs) ---
+class HaarCascade:
+    @staticmethod
+    def train(
+        positives: npt.NDArray[np.uint8],
+        negative_pool: npt.NDArray[np.uint8],
+        *,
+        min_hit_rate: float = 0.995,
+        max_false_alarm: float = 0.5,
+        max_weak: int = 50,
+        max_stages: int = 12,
+        negatives_per_stage: int = 1000,
+        feature_step: int = 4,
+        target_false_alarm: float = 1e-4,
+    ) -> HaarCascade: ...
+    def add_stage(
+        self,
+        positives: npt.NDArray[np.uint8],
+        negatives: npt.NDArray[np.uint8],
+        *,
+        max_false_alarm: float | None = None,
+        max_weak: int | None = None,
+    ) -> dict[str, float]: ...
+    @property
+    def stage_reports(self) -> list[dict[str, float]]: ...
+    @property
+    def num_stages(self) -> int: ...
+    @property
+    def window_size(self) -> tuple[int, int]: ...
+    def accepts(self, windows: npt.NDArray[np.uint8]) -> npt.NDArray[np.bool_]: ...
+    def scan(self, image: npt.NDArray[np.uint8], step: int = 2) -> npt.NDArray[np.int64]: ...
+    def to_opencv_xml(self) -> str: ...
