@@ -26,6 +26,7 @@ from usvfast.shore import (
     iou_matrix,
 )
 from usvfast.shore.bayes import BayesDetector
+from usvfast.shore.cascade import CascadeConfig
 from usvfast.shore.evaluate import derive_truth_ids, evaluate
 from usvfast.shore.horizon import horizon_keep
 from usvfast.shore.mardct import load_mardct
@@ -289,10 +290,14 @@ def test_leave_one_out_runs_on_the_small_videos(tmp_path):
         (sub / p.name).symlink_to(p)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        res = evaluate(sub, grid=(60.0, 140.0))
+        small = CascadeConfig(max_stages=4, pool_size=2000, negatives_per_stage=300, max_weak=15)
+        res = evaluate(sub, grid=(60.0, 140.0), cascade=small)
     assert set(res) == {"2", "3"}
     r = res["3"]
     s = r["paper_no_horizon"]
     assert s["tp"] + s["fn"] == r["boxes"] == 8
     assert r["tuned_threshold"] in (60.0, 140.0)
-    assert -10 < r["tracking"]["sort"]["mota"] <= 1.0
+    assert -10 < r["tracking"]["bayes"]["sort"]["mota"] <= 1.0
+    c = r["cascade_horizon"]
+    assert c["tp"] + c["fn"] == 8 and r["cascade_stages"] >= 1
+    assert set(r["tracking"]["cascade"]) == {"sort", "adaptive"}

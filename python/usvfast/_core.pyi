@@ -27,7 +27,6 @@ def kalman_batch(
     prior_time: float | None = None,
     smooth: bool = True,
 ) -> dict[str, npt.NDArray[np.float64]]: ...
-
 def kalman_batch_linear(
     transition_matrices: npt.NDArray[np.float64],
     process_noises: npt.NDArray[np.float64],
