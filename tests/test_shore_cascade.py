@@ -8,10 +8,13 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
+from typer.testing import CliRunner
 
 from usvfast._core import HaarCascade
+from usvfast.cli import app
 from usvfast.shore.cascade import CascadeConfig, group_boxes, train_detector
 from usvfast.shore.mardct import load_mardct
+from usvfast.shore.mot import read_mot
 from usvfast.shore.scores import DetectionCounts
 
 from conftest import SHARED_DATA
@@ -108,3 +111,33 @@ def test_cascade_trains_and_detects_on_mardct():
     for f in frames:
         c.add(f.boxes, det.detect(cv2.imread(str(f.path))).boxes)
     assert c.tpr > 0.5
+
+
+@pytest.mark.skipif(not MARDCT.is_dir(), reason="MarDCT frames not present")
+def test_shore_train_then_shore_with_the_cascade(tmp_path):
+    ann = tmp_path / "ann"
+    ann.mkdir()
+    for p in MARDCT.glob("3_*"):
+        (ann / p.name).symlink_to(p)
+    model = tmp_path / "boat.xml"
+    runner = CliRunner()
+    res = runner.invoke(app, ["shore-train", str(ann), "--out", str(model), "--max-stages", "5"])
+    assert res.exit_code == 0, res.output
+    cascade = HaarCascade.from_opencv_xml(model.read_text())
+    windows = np.concatenate(synthetic_windows(4))
+    again = HaarCascade.from_opencv_xml(cascade.to_opencv_xml())
+    np.testing.assert_array_equal(again.accepts(windows), cascade.accepts(windows))
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    for p in MARDCT.glob("3_*.png"):
+        (frames / p.name).symlink_to(p)
+    out = tmp_path / "out"
+    args = ["shore", str(frames), "--out", str(out), "--detector", "cascade", "--model", str(model)]
+    res = runner.invoke(app, [*args, "--no-progress", "--no-video"])
+    assert res.exit_code == 0, res.output
+    det = read_mot(out / "detections.txt")
+    assert len(det) >= 3 and set(det[:, 0].astype(int)) <= {1, 2, 3, 4, 5}
+    bad = runner.invoke(app, ["shore", str(frames), "--out", str(out), "--detector", "cascade"])
+    assert bad.exit_code != 0 and "cascade_model" in bad.output
+    with pytest.raises(ValueError, match="xml"):
+        HaarCascade.from_opencv_xml("<cascade/>")

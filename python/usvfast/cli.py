@@ -8,7 +8,7 @@ from usvfast import __version__
 from usvfast.bearing.command import bearing_command, demo_command
 from usvfast.lidar.command import lidar_command
 from usvfast.nav.inspect import inspect_command
-from usvfast.shore.command import shore_command
+from usvfast.shore.command import shore_command, shore_train_command
 
 app = typer.Typer(
     help="usvfast: fast maritime multi-sensor detection and tracking.",
@@ -28,6 +28,7 @@ app.command("demo")(demo_command)
 app.command("lidar")(lidar_command)
 app.command("inspect")(inspect_command)
 app.command("shore")(shore_command)
+app.command("shore-train")(shore_train_command)
 
 
 def main() -> None:

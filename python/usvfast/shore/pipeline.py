@@ -19,9 +19,11 @@ import cv2
 import numpy as np
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
+from usvfast._core import HaarCascade
 from usvfast.shore.annotate import draw_frame
 from usvfast.shore.bayes import BayesDetector, BayesDetectorConfig
 from usvfast.shore.boxes import Detections
+from usvfast.shore.cascade import CascadeConfig, CascadeDetector
 from usvfast.shore.daynight import DayNightClassifier
 from usvfast.shore.frames import FrameSource
 from usvfast.shore.horizon import HorizonConfig, HorizonLine, detect_horizon, horizon_keep
@@ -29,15 +31,17 @@ from usvfast.shore.mot import mot_rows, write_mot
 from usvfast.shore.pixel_kalman import AdaptiveConfig, AdaptiveTracker
 from usvfast.shore.sort import SortConfig, SortTracker
 
-DetectorName = Literal["bayes"]
+DetectorName = Literal["bayes", "cascade"]
 TrackerName = Literal["sort", "adaptive"]
-DETECTORS: tuple[str, ...] = ("bayes",)
+DETECTORS: tuple[str, ...] = ("bayes", "cascade")
 TRACKERS: tuple[str, ...] = ("sort", "adaptive")
 
 
 @dataclass
 class ShoreConfig:
-    """The chain: `detector` ('bayes': Kim, Chung and Lee's threshold + keypoints), `tracker`
+    """The chain: `detector` ('bayes': Kim, Chung and Lee's threshold + keypoints; 'cascade':
+    Bloisi et al.'s Haar cascade, from the OpenCV XML file `cascade_model` that
+    `usvfast shore-train` writes), `tracker`
     ('sort': Kalman + IoU assignment + colour re-identification; 'adaptive': the same paper's
     single-vessel adaptive Kalman tracker), `horizon_filter` (drop detections well above the
     horizon line) and the parameters of each part."""
@@ -45,16 +49,22 @@ class ShoreConfig:
     detector: DetectorName = "bayes"
     tracker: TrackerName = "sort"
     horizon_filter: bool = True
+    cascade_model: Path | None = None
     horizon: HorizonConfig = field(default_factory=HorizonConfig)
     bayes: BayesDetectorConfig = field(default_factory=BayesDetectorConfig)
     sort: SortConfig = field(default_factory=SortConfig)
     adaptive: AdaptiveConfig = field(default_factory=AdaptiveConfig)
+    cascade: CascadeConfig = field(default_factory=CascadeConfig)
 
     def __post_init__(self) -> None:
         if self.detector not in DETECTORS:
             raise ValueError(f"detector: expected one of {DETECTORS}, got {self.detector!r}")
         if self.tracker not in TRACKERS:
             raise ValueError(f"tracker: expected one of {TRACKERS}, got {self.tracker!r}")
+        if self.detector == "cascade" and self.cascade_model is None:
+            raise ValueError(
+                "cascade_model: the cascade detector needs a model (usvfast shore-train)"
+            )
 
 
 @dataclass
@@ -80,6 +90,13 @@ class ShoreChain:
         self.config = cfg = config or ShoreConfig()
         self.classifier = classifier or DayNightClassifier.default()
         self.detector = BayesDetector(cfg.bayes, self.classifier)
+        self.cascade: CascadeDetector | None = None
+        if cfg.detector == "cascade":
+            path = Path(cfg.cascade_model)
+            if not path.is_file():
+                raise ValueError(f"cascade_model: {path} is not a file")
+            text = path.read_text(encoding="utf-8")
+            self.cascade = CascadeDetector(HaarCascade.from_opencv_xml(text), cfg.cascade)
         self.tracker: SortTracker | AdaptiveTracker = (
             SortTracker(cfg.sort) if cfg.tracker == "sort" else AdaptiveTracker(cfg.adaptive)
         )
@@ -93,8 +110,12 @@ class ShoreChain:
             )
         cfg = self.config
         t0 = time.perf_counter()
-        raw = self.detector.detect(image)
-        frame_class = self.detector.last_class
+        if self.cascade is None:
+            raw = self.detector.detect(image)
+            frame_class = self.detector.last_class
+        else:
+            raw = self.cascade.detect(image)
+            frame_class = self.classifier.classify(image)
         t1 = time.perf_counter()
         horizon = detect_horizon(image, infrared=frame_class == "ir", config=cfg.horizon)
         kept = raw

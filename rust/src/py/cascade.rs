@@ -170,6 +170,26 @@ impl HaarCascade {
             .into_any())
     }
 
+    /// Reads a cascade from OpenCV cascade XML text (BOOST stumps on HAAR features, as
+    /// `to_opencv_xml` writes it); ValueError naming what is malformed.
+    #[staticmethod]
+    fn from_opencv_xml(text: &str) -> PyResult<Self> {
+        let inner = xml::from_opencv_xml(text).map_err(to_py_err)?;
+        Ok(Self {
+            inner,
+            params: TrainParams {
+                min_hit_rate: 0.995,
+                max_false_alarm: 0.5,
+                max_weak: 50,
+                max_stages: 12,
+                negatives_per_stage: 1000,
+                feature_step: 4,
+                target_false_alarm: 1e-4,
+            },
+            reports: Vec::new(),
+        })
+    }
+
     /// The cascade as OpenCV cascade XML (for `cv2.CascadeClassifier`).
     fn to_opencv_xml(&self) -> String {
         xml::to_opencv_xml(
