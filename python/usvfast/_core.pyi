@@ -27,6 +27,33 @@ def kalman_batch(
     prior_time: float | None = None,
     smooth: bool = True,
 ) -> dict[str, npt.NDArray[np.float64]]: ...
+def kalman_batch_linear(
+    transition_matrices: npt.NDArray[np.float64],
+    process_noises: npt.NDArray[np.float64],
+    times: npt.NDArray[np.float64],
+    measurements: npt.NDArray[np.float64],
+    measurement_matrix: npt.NDArray[np.float64],
+    measurement_noise: npt.NDArray[np.float64],
+    prior_state: npt.NDArray[np.float64],
+    prior_covariance: npt.NDArray[np.float64],
+    *,
+    sensor_index: npt.NDArray[np.int64] | None = None,
+    prior_time: float | None = None,
+    smooth: bool = True,
+) -> dict[str, npt.NDArray[np.float64]]: ...
+def kalman_predict(
+    states: npt.NDArray[np.float64],
+    covariances: npt.NDArray[np.float64],
+    transition_matrix: npt.NDArray[np.float64],
+    process_noise: npt.NDArray[np.float64],
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
+def kalman_update(
+    states: npt.NDArray[np.float64],
+    covariances: npt.NDArray[np.float64],
+    measurements: npt.NDArray[np.float64],
+    measurement_matrix: npt.NDArray[np.float64],
+    measurement_noise: npt.NDArray[np.float64],
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
 
 # --- lidar (rust/src/py/lidar.rs) ---
 def line_of_sight_filter(
@@ -206,3 +233,38 @@ def jpda_marginals(
     likelihoods: npt.NDArray[np.float64], method: str = "ehm"
 ) -> npt.NDArray[np.float64]: ...
 def chi2_gate(prob_gate: float, dof: int) -> float: ...
+
+# --- cascade (rust/src/py/cascade.rs) ---
+class HaarCascade:
+    @staticmethod
+    def train(
+        positives: npt.NDArray[np.uint8],
+        negative_pool: npt.NDArray[np.uint8],
+        *,
+        min_hit_rate: float = 0.995,
+        max_false_alarm: float = 0.5,
+        max_weak: int = 50,
+        max_stages: int = 12,
+        negatives_per_stage: int = 1000,
+        feature_step: int = 4,
+        target_false_alarm: float = 1e-4,
+    ) -> HaarCascade: ...
+    def add_stage(
+        self,
+        positives: npt.NDArray[np.uint8],
+        negatives: npt.NDArray[np.uint8],
+        *,
+        max_false_alarm: float | None = None,
+        max_weak: int | None = None,
+    ) -> dict[str, float]: ...
+    @property
+    def stage_reports(self) -> list[dict[str, float]]: ...
+    @property
+    def num_stages(self) -> int: ...
+    @property
+    def window_size(self) -> tuple[int, int]: ...
+    def accepts(self, windows: npt.NDArray[np.uint8]) -> npt.NDArray[np.bool_]: ...
+    def scan(self, image: npt.NDArray[np.uint8], step: int = 2) -> npt.NDArray[np.int64]: ...
+    @staticmethod
+    def from_opencv_xml(text: str) -> HaarCascade: ...
+    def to_opencv_xml(self) -> str: ...

@@ -14,6 +14,7 @@ from usvfast.pipeline.command import demo_command as pipeline_demo_command
 from usvfast.pipeline.command import run_command
 from usvfast.report.command import report_command
 from usvfast.sim.command import simulate_command
+from usvfast.shore.command import shore_command, shore_train_command
 
 app = typer.Typer(
     help="usvfast: fast maritime multi-sensor detection and tracking.",
@@ -53,6 +54,8 @@ app.command("inspect")(inspect_command)
 app.command("track")(track_command)
 app.command("report")(report_command)
 app.command("simulate")(simulate_command)
+app.command("shore")(shore_command)
+app.command("shore-train")(shore_train_command)
 
 
 def main() -> None:

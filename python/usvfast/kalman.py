@@ -22,7 +22,7 @@ Example::
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -57,8 +57,68 @@ class ConstantAcceleration:
     kind = "constant_acceleration"
 
 
+@dataclass(frozen=True)
+class LinearModel:
+    """A general linear-Gaussian transition, filterpy's `F` and `Q` given by the user.
+
+    Either fixed matrices, used at every prediction whatever the time step (a discrete-time
+    model such as a pixel tracker's `dt = 1` per frame), or a function `of_dt(dt) -> (F, Q)`
+    evaluated at each prediction's time step `dt` (seconds). F and Q are (ndim, ndim); Q must
+    be symmetric positive semi-definite (checked in Rust).
+
+    Example: the constant-velocity pixel model of Kim, Chung and Lee (eq. 11), state
+    [x, y, v_x, v_y] in pixels and pixels per frame::
+
+        F = np.eye(4); F[0, 2] = F[1, 3] = 1.0
+        LinearModel(F, np.eye(4))
+    """
+
+    transition_matrix: Any = None
+    process_noise: Any = None
+    of_dt: Callable[[float], tuple[Any, Any]] | None = None
+
+    def __post_init__(self) -> None:
+        fixed = self.transition_matrix is not None or self.process_noise is not None
+        if fixed == (self.of_dt is not None):
+            raise TypeError(
+                "LinearModel: give transition_matrix and process_noise, or of_dt, not both"
+            )
+        if fixed and (self.transition_matrix is None or self.process_noise is None):
+            raise TypeError("LinearModel: give both transition_matrix and process_noise")
+        if self.of_dt is not None and not callable(self.of_dt):
+            raise TypeError(f"of_dt: expected a callable dt -> (F, Q), got {self.of_dt!r}")
+
+    def matrices(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """F and Q, each (ndim, ndim), of a prediction over `dt` seconds."""
+        if self.of_dt is None:
+            f, q = self.transition_matrix, self.process_noise
+        else:
+            f, q = self.of_dt(float(dt))
+        return (
+            as_float_array("transition_matrix", f, ndim=2),
+            as_float_array("process_noise", q, ndim=2),
+        )
+
+    def stacks(self, steps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(k, ndim, ndim) stacks of F and Q for the Rust core: one pair when fixed, else one
+        pair per time step in `steps` (seconds)."""
+        if self.of_dt is None:
+            f, q = self.matrices(1.0)
+            return np.ascontiguousarray(f[np.newaxis]), np.ascontiguousarray(q[np.newaxis])
+        pairs = [self.matrices(dt) for dt in steps]
+        if not pairs:
+            raise ValueError("times: at least one measurement is needed with of_dt")
+        shapes = {(f.shape, q.shape) for f, q in pairs}
+        if len(shapes) != 1:
+            raise _core.DimensionError(f"of_dt: returned matrices of several shapes {shapes}")
+        return (
+            np.ascontiguousarray(np.stack([f for f, _ in pairs])),
+            np.ascontiguousarray(np.stack([q for _, q in pairs])),
+        )
+
+
 Component = RandomWalk | ConstantVelocity | ConstantAcceleration
-MotionModel = Component | Sequence[Component]
+MotionModel = Component | Sequence[Component] | LinearModel
 
 
 def constant_velocity_2d(noise_diff_coeff: float) -> tuple[ConstantVelocity, ConstantVelocity]:
@@ -68,6 +128,8 @@ def constant_velocity_2d(noise_diff_coeff: float) -> tuple[ConstantVelocity, Con
 
 def model_spec(motion_model: MotionModel) -> list[tuple[str, float]]:
     """The `[(kind, q), ...]` list the Rust core takes for a model or list of components."""
+    if isinstance(motion_model, LinearModel):
+        raise TypeError("motion_model: a LinearModel has no component spec")
     components = (
         [motion_model]
         if isinstance(motion_model, RandomWalk | ConstantVelocity | ConstantAcceleration)
@@ -83,6 +145,8 @@ def model_spec(motion_model: MotionModel) -> list[tuple[str, float]]:
 
 def transition_matrices(motion_model: MotionModel, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """Transition matrix F(dt) and process noise Q(dt), each (ndim, ndim); dt in seconds."""
+    if isinstance(motion_model, LinearModel):
+        return motion_model.matrices(dt)
     return _core.motion_matrices(model_spec(motion_model), float(dt))
 
 
@@ -124,6 +188,10 @@ def kalman_filter(
     measurement_matrix: (m, ndim). measurement_noise: (m, m), or a stack (k, m, m) chosen per
     measurement by `sensor_index` ((n,) integers in [0, k)). prior_state (ndim,) and
     prior_covariance (ndim, ndim) hold at `prior_time` (default: times[0]).
+    motion_model: components (discretised at each dt) or a `LinearModel`; a fixed
+    LinearModel predicts with its F, Q before every measurement, the first included (put the
+    prior one step before times[0] for a per-frame model), while an `of_dt` one is evaluated at
+    each dt (dt = 0 before the first measurement when prior_time is not given).
     Raises ValueError subclasses naming the argument on bad shapes, non-finite values,
     non-positive-definite noise, or times going backwards.
     """
@@ -141,16 +209,67 @@ def kalman_filter(
             f"measurement_noise: expected (m, m) or (k, m, m), got shape {r.shape}"
         )
     idx = None if sensor_index is None else as_index_array("sensor_index", sensor_index, len(t))
-    out = _core.kalman_batch(
-        model_spec(motion_model),
+    args = (
         t,
         z,
         as_float_array("measurement_matrix", measurement_matrix, ndim=2),
         r,
         as_float_array("prior_state", prior_state, ndim=1),
         as_float_array("prior_covariance", prior_covariance, ndim=2),
-        sensor_index=idx,
-        prior_time=None if prior_time is None else float(prior_time),
-        smooth=smooth,
     )
+    kwargs = {
+        "sensor_index": idx,
+        "prior_time": None if prior_time is None else float(prior_time),
+        "smooth": smooth,
+    }
+    if isinstance(motion_model, LinearModel):
+        start = t[0] if prior_time is None or len(t) == 0 else float(prior_time)
+        f, q = motion_model.stacks(np.diff(t, prepend=start))
+        out = _core.kalman_batch_linear(f, q, *args, **kwargs)
+    else:
+        out = _core.kalman_batch(model_spec(motion_model), *args, **kwargs)
     return KalmanResult(**out)
+
+
+def predict_states(
+    states: Any, covariances: Any, *, transition_matrix: Any, process_noise: Any
+) -> tuple[np.ndarray, np.ndarray]:
+    """Predict k independent states with one F and Q in one Rust call (a tracker's step).
+
+    states: (k, ndim); covariances: (k, ndim, ndim); transition_matrix and process_noise:
+    (ndim, ndim). Returns the predicted (states, covariances), same shapes: x = F x,
+    P = F P Fᵀ + Q. Raises ValueError subclasses naming the argument on bad input.
+    """
+    x = as_float_array("states", states, ndim=2)
+    p = as_float_array("covariances", covariances, ndim=3)
+    return _core.kalman_predict(
+        x,
+        p,
+        as_float_array("transition_matrix", transition_matrix, ndim=2),
+        as_float_array("process_noise", process_noise, ndim=2),
+    )
+
+
+def update_states(
+    states: Any,
+    covariances: Any,
+    measurements: Any,
+    *,
+    measurement_matrix: Any,
+    measurement_noise: Any,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Update state i of a stack with measurement row i in one Rust call (Joseph form).
+
+    states: (k, ndim); covariances: (k, ndim, ndim); measurements: (k, m);
+    measurement_matrix: (m, ndim); measurement_noise: (m, m) positive definite.
+    Returns (states, covariances, nis) with nis (k,) the normalised innovation squared.
+    """
+    x = as_float_array("states", states, ndim=2)
+    p = as_float_array("covariances", covariances, ndim=3)
+    return _core.kalman_update(
+        x,
+        p,
+        as_float_array("measurements", measurements, ndim=2),
+        as_float_array("measurement_matrix", measurement_matrix, ndim=2),
+        as_float_array("measurement_noise", measurement_noise, ndim=2),
+    )

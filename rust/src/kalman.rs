@@ -6,7 +6,7 @@
 //! heap-allocated dynamic ones for any other size.
 
 use crate::error::{check_finite, check_non_decreasing, Error, Result};
-use crate::models::MotionModel;
+use crate::models::{LinearModel, MotionModel, Transition};
 use nalgebra::allocator::Allocator;
 use nalgebra::{Cholesky, DefaultAllocator, Dim, Dyn, OMatrix, OVector, U1, U2, U3, U4, U6};
 
@@ -281,11 +281,162 @@ pub fn run_batch(model: &MotionModel, input: &BatchInput, smooth: bool) -> Resul
     let ndim = model.ndim();
     input.validate(ndim)?;
     match (ndim, input.measurement_dim) {
-        (2, 1) => run_generic::<U2, U1>(model, input, smooth),
-        (4, 2) => run_generic::<U4, U2>(model, input, smooth),
-        (6, 3) => run_generic::<U6, U3>(model, input, smooth),
-        _ => run_generic::<Dyn, Dyn>(model, input, smooth),
+        (2, 1) => run_generic::<U2, U1, _>(model, input, smooth),
+        (4, 2) => run_generic::<U4, U2, _>(model, input, smooth),
+        (6, 3) => run_generic::<U6, U3, _>(model, input, smooth),
+        _ => run_generic::<Dyn, Dyn, _>(model, input, smooth),
     }
+}
+
+/// [`run_batch`] with a general [`LinearModel`]: its fixed `F`, `Q` at every step, or its
+/// pair `i` before measurement `i` (then the model needs exactly one pair per measurement).
+pub fn run_batch_linear(
+    model: &LinearModel,
+    input: &BatchInput,
+    smooth: bool,
+) -> Result<BatchOutput> {
+    let ndim = model.ndim();
+    input.validate(ndim)?;
+    let n = input.times.len();
+    if model.steps() != 1 && model.steps() != n {
+        return Err(Error::dim(
+            "transition_matrix",
+            format!("1 or {n} matrices (one per measurement)"),
+            model.steps(),
+        ));
+    }
+    match (ndim, input.measurement_dim) {
+        (2, 1) => run_generic::<U2, U1, _>(model, input, smooth),
+        (4, 2) => run_generic::<U4, U2, _>(model, input, smooth),
+        (6, 3) => run_generic::<U6, U3, _>(model, input, smooth),
+        _ => run_generic::<Dyn, Dyn, _>(model, input, smooth),
+    }
+}
+
+/// Predicts `k` independent states at once with one `F`, `Q`: `states` `(k, n)` and
+/// `covariances` `(k, n, n)` flat row-major, `f` and `q` `(n, n)`. Returns the predicted
+/// states and covariances in the same layout. Fails on mismatched sizes or non-finite values.
+pub fn predict_many(
+    states: &[f64],
+    covariances: &[f64],
+    ndim: usize,
+    f: &[f64],
+    q: &[f64],
+) -> Result<(Vec<f64>, Vec<f64>)> {
+    let k = check_many(states, covariances, ndim)?;
+    let nn = ndim * ndim;
+    if f.len() != nn {
+        return Err(Error::dim(
+            "transition_matrix",
+            format!("shape ({ndim}, {ndim})"),
+            f.len(),
+        ));
+    }
+    if q.len() != nn {
+        return Err(Error::dim(
+            "process_noise",
+            format!("shape ({ndim}, {ndim})"),
+            q.len(),
+        ));
+    }
+    check_finite("transition_matrix", f)?;
+    check_covariance("process_noise", q, ndim, false)?;
+    let fm = nalgebra::DMatrix::from_row_slice(ndim, ndim, f);
+    let qm = nalgebra::DMatrix::from_row_slice(ndim, ndim, q);
+    let mut xs = Vec::with_capacity(k * ndim);
+    let mut ps = Vec::with_capacity(k * nn);
+    for i in 0..k {
+        let x = nalgebra::DVector::from_row_slice(&states[i * ndim..(i + 1) * ndim]);
+        let p = nalgebra::DMatrix::from_row_slice(ndim, ndim, &covariances[i * nn..(i + 1) * nn]);
+        let (xp, pp) = predict(&x, &p, &fm, &qm);
+        push_matrix(&mut xs, &xp);
+        push_matrix(&mut ps, &pp);
+    }
+    Ok((xs, ps))
+}
+
+/// Updates `k` independent states at once, state `i` with measurement row `i`: `states`
+/// `(k, n)`, `covariances` `(k, n, n)`, `measurements` `(k, m)`, `h` `(m, n)`, `r` `(m, m)`, all
+/// flat row-major. Returns posterior states, covariances (Joseph form) and the NIS `(k,)`.
+/// Fails on mismatched sizes, non-finite values or a non-positive-definite `r`.
+pub fn update_many(
+    states: &[f64],
+    covariances: &[f64],
+    ndim: usize,
+    measurements: &[f64],
+    h: &[f64],
+    r: &[f64],
+) -> Result<(Vec<f64>, Vec<f64>, Vec<f64>)> {
+    let k = check_many(states, covariances, ndim)?;
+    if ndim == 0 || h.is_empty() || h.len() % ndim != 0 {
+        return Err(Error::dim(
+            "measurement_matrix",
+            format!("shape (m, {ndim})"),
+            h.len(),
+        ));
+    }
+    let m = h.len() / ndim;
+    if measurements.len() != k * m {
+        return Err(Error::dim(
+            "measurements",
+            format!("shape ({k}, {m})"),
+            measurements.len(),
+        ));
+    }
+    if r.len() != m * m {
+        return Err(Error::dim(
+            "measurement_noise",
+            format!("shape ({m}, {m})"),
+            r.len(),
+        ));
+    }
+    check_finite("measurements", measurements)?;
+    check_finite("measurement_matrix", h)?;
+    check_covariance("measurement_noise", r, m, true)?;
+    let nn = ndim * ndim;
+    let hm = nalgebra::DMatrix::from_row_slice(m, ndim, h);
+    let rm = nalgebra::DMatrix::from_row_slice(m, m, r);
+    let mut xs = Vec::with_capacity(k * ndim);
+    let mut ps = Vec::with_capacity(k * nn);
+    let mut nis = Vec::with_capacity(k);
+    for i in 0..k {
+        let x = nalgebra::DVector::from_row_slice(&states[i * ndim..(i + 1) * ndim]);
+        let p = nalgebra::DMatrix::from_row_slice(ndim, ndim, &covariances[i * nn..(i + 1) * nn]);
+        let z = nalgebra::DVector::from_row_slice(&measurements[i * m..(i + 1) * m]);
+        let u = update(&x, &p, &z, &hm, &rm).map_err(|e| match e {
+            Error::NotPositiveDefinite { reason, .. } => Error::NotPositiveDefinite {
+                arg: format!("innovation covariance of state {i}"),
+                reason,
+            },
+            other => other,
+        })?;
+        push_matrix(&mut xs, &u.x);
+        push_matrix(&mut ps, &u.p);
+        nis.push(u.nis);
+    }
+    Ok((xs, ps, nis))
+}
+
+/// Checks a stack of `k` states `(k, n)` and covariances `(k, n, n)`; returns `k`.
+fn check_many(states: &[f64], covariances: &[f64], ndim: usize) -> Result<usize> {
+    if ndim == 0 || states.len() % ndim != 0 {
+        return Err(Error::dim(
+            "states",
+            format!("shape (k, {ndim})"),
+            states.len(),
+        ));
+    }
+    let k = states.len() / ndim;
+    if covariances.len() != k * ndim * ndim {
+        return Err(Error::dim(
+            "covariances",
+            format!("shape ({k}, {ndim}, {ndim})"),
+            covariances.len(),
+        ));
+    }
+    check_finite("states", states)?;
+    check_finite("covariances", covariances)?;
+    Ok(k)
 }
 
 /// Appends a matrix or vector to a flat row-major output.
@@ -300,8 +451,8 @@ where
     }
 }
 
-fn run_generic<N: Dim, M: Dim>(
-    model: &MotionModel,
+fn run_generic<N: Dim, M: Dim, T: Transition>(
+    model: &T,
     input: &BatchInput,
     smooth: bool,
 ) -> Result<BatchOutput>
@@ -339,7 +490,7 @@ where
     };
     let mut t_prev = input.prior_time;
     for (i, &t) in input.times.iter().enumerate() {
-        model.fill_blocks(t - t_prev, &mut f, &mut q);
+        model.fill_step(i, t - t_prev, &mut f, &mut q);
         t_prev = t;
         let (xp, pp) = predict(&x, &p, &f, &q);
         let z = OVector::<f64, M>::from_row_slice_generic(
@@ -365,7 +516,7 @@ where
         p = u.p;
     }
     if smooth {
-        rts_smooth_flat::<N>(model, input.times, &mut out)?;
+        rts_smooth_flat::<N, T>(model, input.times, &mut out)?;
     }
     Ok(out)
 }
@@ -373,7 +524,11 @@ where
 /// Rauch–Tung–Striebel smoother over flat batch outputs (fills the smoothed fields):
 /// `C_k = P_k Fᵀ (P⁻_{k+1})⁻¹`, `x̂_k = x_k + C_k (x̂_{k+1} − x⁻_{k+1})`,
 /// `P̂_k = P_k + C_k (P̂_{k+1} − P⁻_{k+1}) C_kᵀ`.
-fn rts_smooth_flat<N: Dim>(model: &MotionModel, times: &[f64], out: &mut BatchOutput) -> Result<()>
+fn rts_smooth_flat<N: Dim, T: Transition>(
+    model: &T,
+    times: &[f64],
+    out: &mut BatchOutput,
+) -> Result<()>
 where
     DefaultAllocator: Allocator<N, N> + Allocator<N>,
 {
@@ -397,7 +552,7 @@ where
     let mut xs_next = vec_at(&out.smoothed_states, n - 1);
     let mut ps_next = mat_at(&out.smoothed_covariances, n - 1);
     for k in (0..n - 1).rev() {
-        model.fill_blocks(times[k + 1] - times[k], &mut f, &mut q);
+        model.fill_step(k + 1, times[k + 1] - times[k], &mut f, &mut q);
         let xf = vec_at(&out.filtered_states, k);
         let pf = mat_at(&out.filtered_covariances, k);
         let xp = vec_at(&out.predicted_states, k + 1);
@@ -466,7 +621,7 @@ mod tests {
         let (h, r, x0, p0) = ([1.0, 0.0], [0.5], [0.0, 1.0], [1.0, 0.0, 0.0, 1.0]);
         let fast = run_batch(&model, &input(&times, &z, &h, &r, &x0, &p0), true).unwrap();
         let slow =
-            run_generic::<Dyn, Dyn>(&model, &input(&times, &z, &h, &r, &x0, &p0), true).unwrap();
+            run_generic::<Dyn, Dyn, _>(&model, &input(&times, &z, &h, &r, &x0, &p0), true).unwrap();
         for (a, b) in fast
             .smoothed_covariances
             .iter()
@@ -490,6 +645,81 @@ mod tests {
         let p_simple = &p - &k * s * k.transpose();
         assert!((&u.p - p_simple).abs().max() < 1e-14);
         assert!((u.nis - 0.49 / s).abs() < 1e-14);
+    }
+
+    #[test]
+    fn linear_model_equals_motion_model() {
+        // A fixed F, Q equal to the Wiener model at dt = 1 gives the same run on unit steps;
+        // per-step matrices built at each dt give the same run on irregular steps.
+        let motion = MotionModel::new(vec![Component::ConstantVelocity { q: 0.3 }]).unwrap();
+        let (h, r, x0, p0) = ([1.0, 0.0], [0.5], [0.0, 1.0], [1.0, 0.0, 0.0, 1.0]);
+        let times = [0.0, 1.0, 2.0, 3.0];
+        let z = [0.1, 1.2, 1.9, 3.2];
+        let (f, q) = motion.matrices(1.0);
+        let row = |m: DMatrix<f64>| m.transpose().as_slice().to_vec();
+        let fixed = LinearModel::new(2, row(f), row(q)).unwrap();
+        // The fixed model also predicts before the first measurement: a prior one step before.
+        let mut unit = input(&times, &z, &h, &r, &x0, &p0);
+        unit.prior_time = -1.0;
+        let a = run_batch(&motion, &unit, true).unwrap();
+        let b = run_batch_linear(&fixed, &unit, true).unwrap();
+        assert!(a
+            .smoothed_states
+            .iter()
+            .zip(&b.smoothed_states)
+            .all(|(u, v)| (u - v).abs() < 1e-12));
+        let times = [0.0, 0.4, 1.1, 2.0];
+        let (mut fs, mut qs) = (Vec::new(), Vec::new());
+        let mut prev = times[0];
+        for &t in &times {
+            let (f, q) = motion.matrices(t - prev);
+            fs.extend(row(f));
+            qs.extend(row(q));
+            prev = t;
+        }
+        let per_step = LinearModel::new(2, fs, qs).unwrap();
+        let a = run_batch(&motion, &input(&times, &z, &h, &r, &x0, &p0), true).unwrap();
+        let b = run_batch_linear(&per_step, &input(&times, &z, &h, &r, &x0, &p0), true).unwrap();
+        assert!(a
+            .smoothed_covariances
+            .iter()
+            .zip(&b.smoothed_covariances)
+            .all(|(u, v)| (u - v).abs() < 1e-12));
+        let wrong = LinearModel::new(2, [1.0, 0.0, 0.0, 1.0].repeat(2), vec![0.0; 8]).unwrap();
+        assert!(run_batch_linear(&wrong, &input(&times, &z, &h, &r, &x0, &p0), false).is_err());
+    }
+
+    #[test]
+    fn many_equals_one_by_one() {
+        let f = [1.0, 1.0, 0.0, 1.0];
+        let q = [0.1, 0.0, 0.0, 0.1];
+        let xs = [0.0, 1.0, 5.0, -1.0];
+        let ps = [1.0, 0.2, 0.2, 2.0, 3.0, 0.0, 0.0, 1.0];
+        let (xp, pp) = predict_many(&xs, &ps, 2, &f, &q).unwrap();
+        let (h, r, z) = ([1.0, 0.0], [0.5], [1.2, 3.9]);
+        let (xu, pu, nis) = update_many(&xp, &pp, 2, &z, &h, &r).unwrap();
+        let fm = DMatrix::from_row_slice(2, 2, &f);
+        let qm = DMatrix::from_row_slice(2, 2, &q);
+        for i in 0..2 {
+            let x = DVector::from_row_slice(&xs[2 * i..2 * i + 2]);
+            let p = DMatrix::from_row_slice(2, 2, &ps[4 * i..4 * i + 4]);
+            let (x1, p1) = predict(&x, &p, &fm, &qm);
+            let u = update(
+                &x1,
+                &p1,
+                &DVector::from_row_slice(&z[i..i + 1]),
+                &DMatrix::from_row_slice(1, 2, &h),
+                &DMatrix::from_row_slice(1, 1, &r),
+            )
+            .unwrap();
+            assert!(
+                (u.x[0] - xu[2 * i]).abs() < 1e-14 && (u.p[(1, 1)] - pu[4 * i + 3]).abs() < 1e-14
+            );
+            assert!((u.nis - nis[i]).abs() < 1e-14);
+        }
+        assert!(predict_many(&xs, &ps[..4], 2, &f, &q).is_err());
+        assert!(update_many(&xs, &ps, 2, &z[..1], &h, &r).is_err());
+        assert!(update_many(&xs, &ps, 2, &z, &h, &[-1.0]).is_err());
     }
 
     #[test]

@@ -6,6 +6,7 @@
 //! state `[n, v_n, e, v_e]`.
 
 pub mod assign;
+pub mod cascade;
 pub mod error;
 pub mod fastmath;
 pub mod frames;

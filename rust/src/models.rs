@@ -151,6 +151,119 @@ impl MotionModel {
     }
 }
 
+/// A source of the transition matrix `F` and process noise `Q` of each prediction step of a
+/// batch run: step `i` predicts from the previous time to measurement `i`, over `dt` seconds.
+pub trait Transition {
+    /// State dimension.
+    fn ndim(&self) -> usize;
+
+    /// Writes `F` and `Q` of step `step` (over `dt` seconds) into `f` and `q`, which must be
+    /// `ndim × ndim` and zeroed once before the first call; every entry this source ever sets
+    /// is overwritten at each call.
+    fn fill_step<N: Dim>(
+        &self,
+        step: usize,
+        dt: f64,
+        f: &mut OMatrix<f64, N, N>,
+        q: &mut OMatrix<f64, N, N>,
+    ) where
+        nalgebra::DefaultAllocator: nalgebra::allocator::Allocator<N, N>;
+}
+
+impl Transition for MotionModel {
+    fn ndim(&self) -> usize {
+        self.ndim
+    }
+
+    #[inline]
+    fn fill_step<N: Dim>(
+        &self,
+        _step: usize,
+        dt: f64,
+        f: &mut OMatrix<f64, N, N>,
+        q: &mut OMatrix<f64, N, N>,
+    ) where
+        nalgebra::DefaultAllocator: nalgebra::allocator::Allocator<N, N>,
+    {
+        self.fill_blocks(dt, f, q);
+    }
+}
+
+/// A general linear-Gaussian transition given by its matrices (filterpy's `F` and `Q`):
+/// either one fixed pair used at every step whatever `dt`, or one pair per prediction step
+/// (for a model that is a function of `dt`, evaluated by the caller at each step's `dt`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LinearModel {
+    ndim: usize,
+    steps: usize,
+    f: Vec<f64>,
+    q: Vec<f64>,
+}
+
+impl LinearModel {
+    /// Builds a model from `steps` row-major `ndim × ndim` transition matrices `f` and process
+    /// noises `q` (`steps` = `f.len() / ndim²`, 1 for a fixed model). Fails unless the sizes
+    /// agree, every value is finite and each `Q` is symmetric positive semi-definite.
+    pub fn new(ndim: usize, f: Vec<f64>, q: Vec<f64>) -> Result<Self> {
+        let nn = ndim * ndim;
+        if ndim == 0 || f.is_empty() || f.len() % nn != 0 {
+            return Err(Error::dim(
+                "transition_matrix",
+                format!("shape (k, {ndim}, {ndim}) with k >= 1"),
+                format!("{} values", f.len()),
+            ));
+        }
+        if q.len() != f.len() {
+            return Err(Error::dim(
+                "process_noise",
+                format!("{} values (as many as transition_matrix)", f.len()),
+                q.len(),
+            ));
+        }
+        crate::error::check_finite("transition_matrix", &f)?;
+        for (i, qi) in q.chunks(nn).enumerate() {
+            crate::kalman::check_covariance(&format!("process_noise[{i}]"), qi, ndim, false)?;
+        }
+        Ok(Self {
+            ndim,
+            steps: f.len() / nn,
+            f,
+            q,
+        })
+    }
+
+    /// Number of matrix pairs: 1 for a fixed model, else one per prediction step.
+    pub fn steps(&self) -> usize {
+        self.steps
+    }
+}
+
+impl Transition for LinearModel {
+    fn ndim(&self) -> usize {
+        self.ndim
+    }
+
+    fn fill_step<N: Dim>(
+        &self,
+        step: usize,
+        _dt: f64,
+        f: &mut OMatrix<f64, N, N>,
+        q: &mut OMatrix<f64, N, N>,
+    ) where
+        nalgebra::DefaultAllocator: nalgebra::allocator::Allocator<N, N>,
+    {
+        let n = self.ndim;
+        let k = if self.steps == 1 { 0 } else { step };
+        let (fs, qs) = (&self.f[k * n * n..], &self.q[k * n * n..]);
+        for i in 0..n {
+            for j in 0..n {
+                f[(i, j)] = fs[i * n + j];
+                q[(i, j)] = qs[i * n + j];
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -178,6 +291,22 @@ mod tests {
         assert_eq!(f[(2, 2)], 1.0);
         assert_eq!(q[(2, 2)], 6.0);
         assert_eq!(q[(0, 2)], 0.0);
+    }
+
+    #[test]
+    fn linear_model_checks_and_fills() {
+        let f = vec![1.0, 1.0, 0.0, 1.0];
+        let q = vec![1.0, 0.0, 0.0, 1.0];
+        let m = LinearModel::new(2, f.clone(), q.clone()).unwrap();
+        assert_eq!(m.steps(), 1);
+        let mut fm = nalgebra::DMatrix::zeros(2, 2);
+        let mut qm = nalgebra::DMatrix::zeros(2, 2);
+        m.fill_step(7, 0.3, &mut fm, &mut qm);
+        assert_eq!(fm[(0, 1)], 1.0);
+        assert_eq!(qm[(1, 1)], 1.0);
+        assert!(LinearModel::new(2, f.clone(), vec![-1.0, 0.0, 0.0, 1.0]).is_err());
+        assert!(LinearModel::new(2, vec![1.0; 3], q.clone()).is_err());
+        assert!(LinearModel::new(2, vec![f64::NAN; 4], q).is_err());
     }
 
     #[test]

@@ -4,6 +4,7 @@
 use pyo3::prelude::*;
 
 mod camera;
+mod cascade;
 mod errors;
 mod frames;
 mod geodesy;
@@ -37,6 +38,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     kalman::register(m)?;
     lidar::register(m)?;
     camera::register(m)?;
+    cascade::register(m)?;
     tracker::register(m)?;
     Ok(())
 }

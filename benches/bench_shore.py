@@ -1,0 +1,118 @@
+"""Shore-camera chain speed, in the layout of Bloisi et al.'s Table V (frame size, FPS on
+2 cores; their 15.5 FPS at 319×261 on 2 cores is printed as the reference).
+
+* Detection + tracking FPS (the whole `ShoreChain.step`: day/night class, threshold +
+  morphology + keypoints, horizon line, tracker) at 320×240 and 704×576, for the SIFT
+  keypoints (closest to the paper's STAR) and FAST, with the SORT-like tracker.
+* The SORT step's Kalman part for 20 tracks: usvfast's stacked Rust predict/update vs
+  filterpy's KalmanFilter per track, same numbers (ratio printed).
+
+Frames: MarDCT's regDTV9 frames resized to each size when ../shared/data is present
+(USVFAST_SHARED_DATA), else synthetic sea-and-sky frames with moving dark hulls.
+
+Run: python benches/bench_shore.py [--frames N] [--repeat R]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import cv2
+import numpy as np
+from filterpy.kalman import KalmanFilter
+
+from usvfast.kalman import predict_states, update_states
+from usvfast.shore import ShoreChain, ShoreConfig
+from usvfast.shore.bayes import BayesDetectorConfig
+
+from timing import best_of
+
+PAPER_FPS = 15.5  # Table V, 319×261, 2 cores
+
+
+def frames_at(size: tuple[int, int], n: int) -> list[np.ndarray]:
+    """n BGR frames of size (w, h): MarDCT regDTV9 frames if present, else synthetic."""
+    root = Path(os.environ.get("USVFAST_SHARED_DATA", "../shared/data"))
+    files = sorted((root / "mardct" / "training" / "annotations").glob("regDTV9_*.png"))
+    if files:
+        return [cv2.resize(cv2.imread(str(files[i % len(files)])), size) for i in range(n)]
+    w, h = size
+    out = []
+    for k in range(n):
+        img = np.full((h, w, 3), (190, 170, 150), np.uint8)
+        img[h // 2 :] = (110, 80, 50)
+        x = (20 + 3 * k) % (w - 60)
+        cv2.rectangle(img, (x, h // 2 - 12), (x + 50, h // 2 + 6), (10, 10, 10), -1)
+        out.append(img)
+    return out
+
+
+def chain_fps(frames: list[np.ndarray], keypoints: str) -> float:
+    cfg = ShoreConfig(tracker="sort", bayes=replace(BayesDetectorConfig(), keypoints=keypoints))
+    chain = ShoreChain(cfg)
+    chain.step(frames[0])  # warm-up
+    t0 = time.perf_counter()
+    for f in frames:
+        chain.step(f)
+    return len(frames) / (time.perf_counter() - t0)
+
+
+def kalman_step_compare(k: int, repeat: int) -> None:
+    rng = np.random.default_rng(0)
+    f = np.eye(7)
+    f[0, 4] = f[1, 5] = f[2, 6] = 1.0
+    q = np.diag([1, 1, 1, 1, 1e-2, 1e-2, 1e-4])
+    h, r = np.eye(4, 7), np.diag([1.0, 1.0, 10.0, 10.0])
+    x = rng.normal(100, 10, (k, 7))
+    p = np.repeat(np.diag([10, 10, 10, 10, 1e4, 1e4, 1e4])[None], k, axis=0)
+    z = rng.normal(100, 10, (k, 4))
+
+    def ours():
+        xp, pp = predict_states(x, p, transition_matrix=f, process_noise=q)
+        return update_states(xp, pp, z, measurement_matrix=h, measurement_noise=r)[0]
+
+    filters = []
+    for _ in range(k):
+        kf = KalmanFilter(dim_x=7, dim_z=4)
+        kf.F, kf.Q, kf.H, kf.R = f, q, h, r
+        filters.append(kf)
+
+    def peer():
+        out = []
+        for i, kf in enumerate(filters):
+            kf.x, kf.P = x[i].copy(), p[i].copy()
+            kf.predict()
+            kf.update(z[i])
+            out.append(kf.x)
+        return np.array(out)
+
+    t_ours, a = best_of(ours, repeat)
+    t_peer, b = best_of(peer, repeat)
+    assert np.allclose(a, b, atol=1e-9)
+    print(
+        f"SORT Kalman step, {k} tracks: usvfast {t_ours * 1e6:.0f} µs, filterpy "
+        f"{t_peer * 1e6:.0f} µs, ratio {t_peer / t_ours:.1f}x"
+    )
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--frames", type=int, default=40)
+    ap.add_argument("--repeat", type=int, default=20)
+    a = ap.parse_args()
+    print(f"{'frame size':>12} {'keypoints':>9} {'FPS (2 cores)':>14} {'vs paper':>9}")
+    print(f"{'319x261':>12} {'STAR':>9} {PAPER_FPS:>14.1f} {'(paper)':>9}")
+    for size in ((320, 240), (704, 576)):
+        frames = frames_at(size, a.frames)
+        for kp in ("sift", "fast"):
+            fps = chain_fps(frames, kp)
+            print(f"{size[0]}x{size[1]:<8} {kp:>9} {fps:>14.1f} {fps / PAPER_FPS:>8.2f}x")
+    kalman_step_compare(20, a.repeat)
+
+
+if __name__ == "__main__":
+    main()

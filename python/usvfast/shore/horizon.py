@@ -1,0 +1,174 @@
+"""The horizon line from the image, after Bloisi et al. (VTS camera surveillance, §IV):
+edges -> Hough line candidates -> validation by paired sample points above and under each
+candidate (valid when more than 90 % of the pairs differ in intensity) -> water–sky or
+water–coast. IR frames are min–max normalised first (their Fig. 8). Detections lying well
+above a water–coast (or water–sky) line are dropped.
+
+Pixels, origin top-left, y down. A line is kept as Hough's (rho, theta):
+x·cos θ + y·sin θ = rho, θ near π/2 for a near-horizontal line.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import cv2
+import numpy as np
+
+from usvfast.shore.boxes import Detections
+
+HorizonKind = Literal["water-sky", "water-coast"]
+
+
+@dataclass(frozen=True)
+class HorizonConfig:
+    """Parameters of the horizon detector (pixels and 8-bit grey levels).
+
+    canny_low, canny_high: Canny thresholds (the paper's 50 and 70). median_kernel: median
+    filter size before the edges (odd). hough_votes: minimum Hough accumulator votes as a
+    fraction of the image width. max_tilt_deg: candidates steeper than this are ignored.
+    samples: sample-point pairs along a candidate. offset_px: distance of each sample point
+    above/under the line. intensity_tolerance: two grey levels "differ" when they are more than
+    this apart. valid_fraction: the share of differing pairs that validates a line (the paper's
+    90 %). coast_edge_density: edge-pixel share in the band above the line from which the line
+    is water–coast. drop_margin: a detection is dropped when its bottom lies more than this
+    fraction of the image height above the line. max_candidates: Hough lines examined.
+    """
+
+    canny_low: float = 50.0
+    canny_high: float = 70.0
+    median_kernel: int = 5
+    hough_votes: float = 0.15
+    max_tilt_deg: float = 15.0
+    samples: int = 60
+    offset_px: int = 10
+    intensity_tolerance: float = 2.0
+    valid_fraction: float = 0.9
+    coast_edge_density: float = 0.04
+    drop_margin: float = 0.05
+    max_candidates: int = 40
+
+    def __post_init__(self) -> None:
+        if self.median_kernel < 1 or self.median_kernel % 2 == 0:
+            raise ValueError(f"median_kernel: must be odd and >= 1, got {self.median_kernel}")
+        if not 0.0 < self.valid_fraction <= 1.0:
+            raise ValueError(f"valid_fraction: must be in (0, 1], got {self.valid_fraction}")
+        if self.samples < 2 or self.offset_px < 1:
+            raise ValueError("samples: must be >= 2 and offset_px >= 1")
+
+
+@dataclass(frozen=True)
+class HorizonLine:
+    """A validated horizon: Hough (rho px, theta rad), `kind` water–sky or water–coast,
+    `differing` the share of sample pairs that differ, `edge_density` above the line."""
+
+    rho: float
+    theta: float
+    kind: HorizonKind
+    differing: float
+    edge_density: float
+
+    def y_at(self, x: np.ndarray | float) -> np.ndarray:
+        """Row (px) of the line at column(s) x (px)."""
+        return (self.rho - np.asarray(x, dtype=float) * np.cos(self.theta)) / np.sin(self.theta)
+
+    def endpoints(self, width: int) -> tuple[tuple[int, int], tuple[int, int]]:
+        """The line's points at x = 0 and x = width − 1 (px, rounded), for drawing."""
+        y0, y1 = self.y_at(np.array([0.0, width - 1.0]))
+        return (0, int(np.rint(y0))), (width - 1, int(np.rint(y1)))
+
+
+def normalise_ir(gray: np.ndarray) -> np.ndarray:
+    """Scale and shift an IR frame to the full 0–255 range (min–max normalisation)."""
+    return cv2.normalize(gray, None, 0, 255, cv2.NORM_MINMAX)
+
+
+def _pairs_differ(
+    gray: np.ndarray, rho: float, theta: float, cfg: HorizonConfig
+) -> tuple[float, int]:
+    """Share of sample pairs (above, under the line, along its normal) whose grey levels
+    differ by more than the tolerance, and the number of pairs inside the image."""
+    h, w = gray.shape
+    xs = np.linspace(0.02 * w, 0.98 * w, cfg.samples)
+    ys = (rho - xs * np.cos(theta)) / np.sin(theta)
+    nx, ny = np.cos(theta), np.sin(theta)  # unit normal, pointing down for theta ≈ π/2
+    ax, ay = xs - cfg.offset_px * nx, ys - cfg.offset_px * ny
+    bx, by = xs + cfg.offset_px * nx, ys + cfg.offset_px * ny
+    inside = (ay >= 0) & (by < h - 1) & (ax >= 0) & (bx < w - 1) & (ax < w) & (bx >= 0)
+    if inside.sum() < cfg.samples // 2:
+        return 0.0, int(inside.sum())
+    a = gray[np.round(ay[inside]).astype(int), np.round(ax[inside]).astype(int)].astype(float)
+    b = gray[np.round(by[inside]).astype(int), np.round(bx[inside]).astype(int)].astype(float)
+    return float(np.mean(np.abs(a - b) > cfg.intensity_tolerance)), int(inside.sum())
+
+
+def _edge_density_above(edges: np.ndarray, line: tuple[float, float], band: int) -> float:
+    h, w = edges.shape
+    rho, theta = line
+    ys = (rho - np.arange(w) * np.cos(theta)) / np.sin(theta)
+    rows = np.arange(h)[:, None]
+    mask = (rows < ys[None] - 2) & (rows >= ys[None] - band)
+    n = int(mask.sum())
+    return float(edges[mask].astype(bool).sum() / n) if n else 0.0
+
+
+def detect_horizon(
+    image: np.ndarray, *, infrared: bool = False, config: HorizonConfig | None = None
+) -> HorizonLine | None:
+    """The horizon of a BGR or grey uint8 frame, or None when no candidate validates.
+
+    infrared: normalise first (IR frames). Among the validated candidates the one with the
+    largest share of differing pairs wins (ties: the strongest Hough line). The band above it
+    is examined for texture: water–coast when its edge density exceeds `coast_edge_density`.
+    """
+    cfg = config or HorizonConfig()
+    if image.ndim == 3:
+        gray = cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
+    elif image.ndim == 2:
+        gray = image
+    else:
+        raise ValueError(f"image: expected (h, w) or (h, w, 3), got shape {image.shape}")
+    if gray.dtype != np.uint8:
+        raise TypeError(f"image: expected uint8, got {gray.dtype}")
+    if infrared:
+        gray = normalise_ir(gray)
+    smooth = cv2.medianBlur(gray, cfg.median_kernel) if cfg.median_kernel > 1 else gray
+    edges = cv2.Canny(smooth, cfg.canny_low, cfg.canny_high)
+    h, w = gray.shape
+    lines = cv2.HoughLines(
+        edges,
+        1,
+        np.pi / 360,
+        max(10, int(cfg.hough_votes * w)),
+        min_theta=np.pi / 2 - np.radians(cfg.max_tilt_deg),
+        max_theta=np.pi / 2 + np.radians(cfg.max_tilt_deg),
+    )
+    if lines is None:
+        return None
+    best: tuple[float, float, float] | None = None
+    # lines hugging the top or bottom border (black bars of the frame) are no horizon
+    mid_y = (lines[:, 0, 0] - (w / 2) * np.cos(lines[:, 0, 1])) / np.sin(lines[:, 0, 1])
+    lines = lines[(mid_y > cfg.offset_px + 2) & (mid_y < h - cfg.offset_px - 2)]
+    for rho, theta in lines[: cfg.max_candidates, 0]:
+        share, _ = _pairs_differ(smooth, float(rho), float(theta), cfg)
+        if share > cfg.valid_fraction and (best is None or share > best[2]):
+            best = (float(rho), float(theta), share)
+    if best is None:
+        return None
+    rho, theta, share = best
+    density = _edge_density_above(edges, (rho, theta), band=max(8, h // 6))
+    kind: HorizonKind = "water-coast" if density > cfg.coast_edge_density else "water-sky"
+    return HorizonLine(rho, theta, kind, share, density)
+
+
+def horizon_keep(
+    detections: Detections, horizon: HorizonLine | None, height: int, config: HorizonConfig
+) -> np.ndarray:
+    """Boolean mask (k,) of the detections to keep: those whose bottom edge is not more than
+    `drop_margin` × height above the line at the box centre (all kept without a line)."""
+    if horizon is None or len(detections) == 0:
+        return np.ones(len(detections), dtype=bool)
+    b = detections.boxes
+    line_y = horizon.y_at(b[:, 0] + b[:, 2] / 2)
+    return b[:, 1] + b[:, 3] >= line_y - config.drop_margin * height

@@ -1,0 +1,187 @@
+"""A SORT-like multi-target image tracker (Bewley et al., 2016): one Kalman filter per track
+on the box [u, v, s, r] (centre px, area px², aspect w/h) with constant velocity of u, v, s,
+and optimal assignment on IoU; colour histograms re-identify tracks lost for a few frames.
+
+Every frame: predict all tracks in one Rust call (`usvfast.kalman.predict_states`, a fixed
+`LinearModel`), assign detections to tracks by `usvfast._core.linear_sum_assignment` on the
+cost 1 − IoU (+ a share of the histogram distance), update the matched tracks in one Rust
+call, then match the leftovers by appearance alone near the predicted box (re-identification),
+start tracks on unmatched detections and delete tracks unseen for `max_age` frames.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from usvfast import _core
+from usvfast.kalman import LinearModel, predict_states, update_states
+from usvfast.shore.appearance import box_histogram, histogram_distance
+from usvfast.shore.boxes import Detections, iou_matrix
+
+#: Cost of a forbidden pair (the assignment then drops it).
+FORBIDDEN = 1e6
+
+
+@dataclass(frozen=True)
+class SortConfig:
+    """iou_threshold: least IoU of an assigned pair. max_age: frames a track survives
+    unseen. min_hits: updates before a track is reported (reported at once in the first
+    min_hits frames). appearance_weight: share of the histogram distance in the assignment
+    cost. reid_distance: largest histogram distance of a re-identification. reid_radius: a
+    re-identified detection's centre lies within this many predicted-box diagonals.
+    measurement_noise, process_noise, initial_covariance: diagonals of R (4,), Q (7,), P₀ (7,)
+    (SORT's published values)."""
+
+    iou_threshold: float = 0.3
+    max_age: int = 3
+    min_hits: int = 2
+    appearance_weight: float = 0.3
+    reid_distance: float = 0.35
+    reid_radius: float = 1.5
+    measurement_noise: tuple[float, ...] = (1.0, 1.0, 10.0, 10.0)
+    process_noise: tuple[float, ...] = (1.0, 1.0, 1.0, 1.0, 1e-2, 1e-2, 1e-4)
+    initial_covariance: tuple[float, ...] = (10.0, 10.0, 10.0, 10.0, 1e4, 1e4, 1e4)
+
+
+def box_to_z(box: np.ndarray) -> np.ndarray:
+    """(k, 4) x, y, w, h -> (k, 4) u, v, s, r."""
+    b = np.asarray(box, dtype=float).reshape(-1, 4)
+    w, h = b[:, 2], b[:, 3]
+    return np.column_stack([b[:, 0] + w / 2, b[:, 1] + h / 2, w * h, w / np.maximum(h, 1e-9)])
+
+
+def state_to_box(x: np.ndarray) -> np.ndarray:
+    """(k, ≥4) states u, v, s, r, ... -> (k, 4) x, y, w, h (w = sqrt(s r), h = s / w)."""
+    x = np.asarray(x, dtype=float).reshape(len(x), -1)
+    s = np.maximum(x[:, 2], 1e-9)
+    r = np.maximum(x[:, 3], 1e-9)
+    w = np.sqrt(s * r)
+    h = s / w
+    return np.column_stack([x[:, 0] - w / 2, x[:, 1] - h / 2, w, h])
+
+
+@dataclass
+class _Track:
+    track_id: int
+    hist: np.ndarray | None
+    hits: int = 1
+    time_since_update: int = 0
+    score: float = 1.0
+    history: list[int] = field(default_factory=list)
+
+
+class SortTracker:
+    """Frame-by-frame multi-target tracker; `step(image, detections)` returns the reported
+    tracks of this frame as (ids (k,), boxes (k, 4) x, y, w, h px, scores (k,))."""
+
+    def __init__(self, config: SortConfig | None = None) -> None:
+        self.config = c = config or SortConfig()
+        f = np.eye(7)
+        f[0, 4] = f[1, 5] = f[2, 6] = 1.0  # u += u̇, v += v̇, s += ṡ per frame
+        self.model = LinearModel(f, np.diag(c.process_noise))
+        self.f, self.q = self.model.matrices(1.0)
+        self.h = np.eye(4, 7)
+        self.r = np.diag(c.measurement_noise)
+        self.x = np.zeros((0, 7))
+        self.p = np.zeros((0, 7, 7))
+        self.tracks: list[_Track] = []
+        self.next_id = 1
+        self.frame = 0
+
+    def _predict(self) -> None:
+        if not self.tracks:
+            return
+        grow = self.x[:, 2] + self.x[:, 6] <= 0
+        self.x[grow, 6] = 0.0  # an area never predicted below zero
+        self.x, self.p = predict_states(
+            self.x, self.p, transition_matrix=self.f, process_noise=self.q
+        )
+        for t in self.tracks:
+            t.time_since_update += 1
+
+    def _assign(self, cost: np.ndarray) -> list[tuple[int, int]]:
+        """Optimal (row, col) pairs of a cost matrix, forbidden pairs dropped."""
+        if cost.size == 0:
+            return []
+        if cost.shape[0] <= cost.shape[1]:
+            cols = _core.linear_sum_assignment(np.ascontiguousarray(cost))
+            pairs = [(i, int(j)) for i, j in enumerate(cols)]
+        else:
+            rows = _core.linear_sum_assignment(np.ascontiguousarray(cost.T))
+            pairs = [(int(i), j) for j, i in enumerate(rows)]
+        return [(i, j) for i, j in pairs if cost[i, j] < FORBIDDEN]
+
+    def step(self, image: np.ndarray, detections: Detections) -> tuple[np.ndarray, ...]:
+        """Advance one frame (BGR image for the histograms, this frame's detections)."""
+        c = self.config
+        self.frame += 1
+        self._predict()
+        boxes = np.asarray(detections.boxes, dtype=float).reshape(-1, 4)
+        hists = [box_histogram(image, b) for b in boxes]
+        pred = state_to_box(self.x) if self.tracks else np.zeros((0, 4))
+        iou = iou_matrix(pred, boxes)
+        app = np.array(
+            [[histogram_distance(t.hist, h) for h in hists] for t in self.tracks]
+        ).reshape(len(self.tracks), len(boxes))
+        cost = (1 - c.appearance_weight) * (1 - iou) + c.appearance_weight * app
+        cost[iou < c.iou_threshold] = FORBIDDEN
+        matches = self._assign(cost)
+        # re-identification of the leftovers: appearance alone, near the predicted box
+        used_t = {i for i, _ in matches}
+        used_d = {j for _, j in matches}
+        left_t = [i for i in range(len(self.tracks)) if i not in used_t]
+        left_d = [j for j in range(len(boxes)) if j not in used_d]
+        if left_t and left_d:
+            pc = pred[left_t, :2] + pred[left_t, 2:] / 2
+            dc = boxes[left_d, :2] + boxes[left_d, 2:] / 2
+            diag = np.hypot(pred[left_t, 2], pred[left_t, 3])
+            dist = np.linalg.norm(pc[:, None] - dc[None], axis=2)
+            sub = app[np.ix_(left_t, left_d)].copy()
+            sub[(sub > c.reid_distance) | (dist > c.reid_radius * diag[:, None])] = FORBIDDEN
+            matches += [(left_t[i], left_d[j]) for i, j in self._assign(sub)]
+        if matches:
+            ti = np.array([i for i, _ in matches])
+            dj = np.array([j for _, j in matches])
+            xs, ps, _ = update_states(
+                self.x[ti],
+                self.p[ti],
+                box_to_z(boxes[dj]),
+                measurement_matrix=self.h,
+                measurement_noise=self.r,
+            )
+            self.x[ti], self.p[ti] = xs, ps
+            for i, j in matches:
+                t = self.tracks[i]
+                t.hits += 1
+                t.time_since_update = 0
+                t.score = float(detections.scores[j])
+                if hists[j] is not None:
+                    t.hist = hists[j] if t.hist is None else 0.7 * t.hist + 0.3 * hists[j]
+        matched_d = {j for _, j in matches}
+        new = [j for j in range(len(boxes)) if j not in matched_d]
+        if new:
+            z = box_to_z(boxes[new])
+            x0 = np.zeros((len(new), 7))
+            x0[:, :4] = z
+            self.x = np.vstack([self.x, x0])
+            p0 = np.repeat(np.diag(c.initial_covariance)[None], len(new), axis=0)
+            self.p = np.concatenate([self.p, p0])
+            for j in new:
+                self.tracks.append(
+                    _Track(self.next_id, hists[j], score=float(detections.scores[j]))
+                )
+                self.next_id += 1
+        keep = np.array([t.time_since_update <= c.max_age for t in self.tracks], dtype=bool)
+        self.tracks = [t for t, k in zip(self.tracks, keep, strict=True) if k]
+        self.x, self.p = self.x[keep], self.p[keep]
+        report = [
+            i
+            for i, t in enumerate(self.tracks)
+            if t.time_since_update == 0 and (t.hits >= c.min_hits or self.frame <= c.min_hits)
+        ]
+        ids = np.array([self.tracks[i].track_id for i in report], dtype=np.int64)
+        out_boxes = state_to_box(self.x[report]) if report else np.zeros((0, 4))
+        scores = np.array([self.tracks[i].score for i in report])
+        return ids, out_boxes, scores
