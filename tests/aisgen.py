@@ -148,7 +148,7 @@ def ais_lines(
             "lon": float(lon[k]) if position else 181.0,
             "lat": float(lat[k]) if position else 91.0,
             "course": round(course, 1) % 360.0,
-            "heading": int(round(course)) % 360,
+            "heading": round(course) % 360,
             "second": int(t_fix) % 60,
         }
         for part in encode_dict(msg, talker_id="AI", sentence_type="VDM"):

@@ -196,8 +196,8 @@ def run_vts(
     own: OwnShip | None,
     *,
     origin: tuple[float, float],
-    tracker: TrackerConfig = TrackerConfig(),
-    method: JCost | Chi2Test = JCost(),
+    tracker: TrackerConfig | None = None,
+    method: JCost | Chi2Test | None = None,
     window: int = 8,
     t_d: float = 30.0,
     radius: float = 60.0,
@@ -209,14 +209,15 @@ def run_vts(
     t_d (s), radius (m): §1.2 identity — a new radar track starting within `radius` of where a
     track lost at most `t_d` seconds before would be is the same object and keeps its id (and
     its AIS identity). fresh (s): AIS targets whose report is older are not compared (their
-    pairs are kept, see `WindowAssociator.update`). progress(done, total) is called after each scan. Raises ValueError when
-    plots are polar without an own ship, TimeOrderError never (plots are in time order)."""
+    pairs are kept, see `WindowAssociator.update`). tracker: default `TrackerConfig()`;
+    method: default `JCost()`. progress(done, total) is called after each scan. Raises
+    ValueError when plots are polar without an own ship."""
     t_start = _time.perf_counter()
     timings: dict[str, float] = {}
     xy = _plots_ned(plots, own, origin)
     scan_times, scan_index = plots.scans()
-    trk = radar_tracker(tracker)
-    assoc = WindowAssociator(method, window=window)
+    trk = radar_tracker(tracker or TrackerConfig())
+    assoc = WindowAssociator(method or JCost(), window=window)
     t0 = float(scan_times[0]) if len(scan_times) else 0.0
     names = dict(ais.names) if ais is not None else {}
     rows: list[FusedRow] = []
