@@ -18,6 +18,7 @@ import math
 from dataclasses import dataclass
 from functools import reduce
 from operator import xor
+from pathlib import Path
 
 import numpy as np
 from pyais import encode_dict
@@ -175,3 +176,33 @@ def straight(mmsi: int, name: str, t0: float, t1: float, p0, v) -> Vessel:
         axis=1,
     )
     return Vessel(mmsi, name, ts, st)
+
+
+def joyride_scene(rec, seed: int = 1) -> tuple[list[str], dict[str, Vessel]]:
+    """The Joyride target's AIS (MMSI 257000001, random 15 % losses plus two VHF outages of
+    45 s and 60 s) and two decoys: DECOY (257000002) crossing the target's path at 4 m/s,
+    passing through where the target is 300 s into the recording, and FARAWAY (257000003)
+    ~3.6 km off. Returns (log lines in receive order, vessels by name)."""
+    rng = np.random.default_rng(seed)
+    t0 = float(rec.times[0])
+    target = Vessel(257000001, "JOYRIDE", rec.times, rec.target)
+    mid = target.at(np.array([t0 + 300.0]))[0]
+    decoy = straight(257000002, "DECOY", t0, t0 + 640, (mid[0] - 1200.0, mid[2]), (4.0, 0.0))
+    far = straight(257000003, "FARAWAY", t0, t0 + 640, (mid[0] + 3000, mid[2] - 2000), (0, -5.0))
+    outages = ((t0 + 200.0, t0 + 245.0), (t0 + 420.0, t0 + 480.0))
+    lines = feed(
+        ais_lines(target, JOYRIDE_ORIGIN, rng, outages=outages),
+        ais_lines(decoy, JOYRIDE_ORIGIN, rng),
+        ais_lines(far, JOYRIDE_ORIGIN, rng),
+    )
+    return lines, {"target": target, "decoy": decoy, "far": far}
+
+
+if __name__ == "__main__":
+    import sys
+
+    from usvfast.datasets import load_joyride
+
+    # python tests/aisgen.py JOYRIDE.mat OUT.nmea: the Joyride AIS feed for `usvfast vts`.
+    lines, _ = joyride_scene(load_joyride(sys.argv[1]))
+    Path(sys.argv[2]).write_text("\n".join(lines) + "\n")

@@ -6,6 +6,7 @@ import typer
 
 from usvfast import __version__
 from usvfast.bearing.command import bearing_command, demo_command
+from usvfast.fusion.command import vts_command
 from usvfast.lidar.command import lidar_command
 from usvfast.nav.inspect import inspect_command
 
@@ -26,6 +27,7 @@ app.command("bearing")(bearing_command)
 app.command("demo")(demo_command)
 app.command("lidar")(lidar_command)
 app.command("inspect")(inspect_command)
+app.command("vts")(vts_command)
 
 
 def main() -> None:

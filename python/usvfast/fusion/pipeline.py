@@ -234,6 +234,7 @@ def run_vts(
     for s, t in enumerate(scan_times.tolist()):
         a = _time.perf_counter()
         z = xy[order[bounds[s] : bounds[s + 1]]]
+        z = z[np.all(np.isfinite(z), axis=1)]  # empty scans (AIS-only schedules)
         tracks = trk.step(t - t0, z)
         b = _time.perf_counter()
         t_track += b - a
@@ -293,7 +294,7 @@ def run_vts(
         radar_rows,
         ais_rows,
         events,
-        np.column_stack([plots.time, xy]),
+        np.column_stack([plots.time, xy])[np.all(np.isfinite(xy), axis=1)],
         own_arr,
         names,
         timings,
