@@ -207,14 +207,17 @@ def _camera_stage(
                 res.rows[idx[ti]] = _with_source(row, row.source + "+camera")
             n_matched += 1
         labels = [
-            f"{res.rows[k].mmsi if res.rows[k].mmsi >= 0 else 'T%d' % res.rows[k].track_id} "
-            f"{proj.range_m[i]:.0f} m {proj.bearing_deg[i]:.0f} deg"
+            f"{_label(res.rows[k])} {proj.range_m[i]:.0f} m {proj.bearing_deg[i]:.0f} deg"
             for i, k in enumerate(idx)
         ]
         img = draw_overlay(frame.image, proj.pixels, labels, boxes)
         cv2.imwrite(str(out / "overlay" / f"{frame.index:06d}.jpg"), img)
         n_frames += 1
     return {"frames": n_frames, "camera_matches": n_matched}
+
+
+def _label(r: FusedRow) -> str:
+    return str(r.mmsi) if r.mmsi >= 0 else f"T{r.track_id}"
 
 
 def _with_source(r: FusedRow, source: str) -> FusedRow:
@@ -266,7 +269,7 @@ def vts_command(
     own_ship = None
     if own is not None:
         own_ship, org = load_own_nmea(own, org)
-    plots, radar_own, extra = _load_radar(radar, org) if radar is not None else (None, None, {})
+    plots, radar_own, _ = _load_radar(radar, org) if radar is not None else (None, None, {})
     own_ship = own_ship or radar_own
     feed = read_ais_feed(ais) if ais is not None else None
     if org is None:

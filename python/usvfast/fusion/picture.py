@@ -124,7 +124,7 @@ def draw_overlay(
     for (u, v), text in zip(np.asarray(pixels, float).reshape(-1, 2), labels, strict=True):
         if not (np.isfinite(u) and np.isfinite(v)):
             continue
-        p = (int(round(u)), int(round(v)))
+        p = (round(float(u)), round(float(v)))
         cv2.drawMarker(out, p, (0, 0, 255), cv2.MARKER_CROSS, 18, 2)
         cv2.putText(out, text, (p[0] + 8, p[1] - 8), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 0, 255), 1)
     return out
