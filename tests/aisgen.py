@@ -119,6 +119,7 @@ def ais_lines(
                 static = encode_dict(
                     {
                         "type": 5,
+                        "msg_type": 5,
                         "mmsi": vessel.mmsi,
                         "shipname": vessel.name,
                         "callsign": "LH" + str(vessel.mmsi)[-4:],
@@ -139,8 +140,10 @@ def ais_lines(
         s = states[k]
         speed = math.hypot(s[1], s[3]) / KNOT
         course = math.degrees(math.atan2(s[3], s[1])) % 360.0
+        kind = 3 if k % 5 == 4 else 1
         msg = {
-            "type": 3 if k % 5 == 4 else 1,
+            "type": kind,
+            "msg_type": kind,  # pyais takes the payload's type field from here
             "mmsi": vessel.mmsi,
             "status": 0,
             "turn": 0,
