@@ -9,6 +9,7 @@ confirmation and keeps it to the end; no other track and no decoy is ever paired
 
 from __future__ import annotations
 
+import aisgen as G
 import numpy as np
 import pytest
 
@@ -16,7 +17,6 @@ from usvfast.datasets import load_joyride
 from usvfast.fusion import AisTargets, Chi2Test, JCost, OwnShip, read_ais_feed, run_vts
 from usvfast.radar import plots_from_ned
 
-import aisgen as G
 from conftest import SHARED_DATA
 
 JOYRIDE = SHARED_DATA / "joyride" / "joyride.mat"
@@ -26,7 +26,7 @@ TARGET = 257000001
 @pytest.fixture(scope="module")
 def scene():
     rec = load_joyride(JOYRIDE)
-    lines, vessels = G.joyride_scene(rec, seed=1)
+    lines, _ = G.joyride_scene(rec, seed=1)
     targets = AisTargets(read_ais_feed(lines), G.JOYRIDE_ORIGIN)
     own = OwnShip(
         rec.times,
@@ -39,7 +39,7 @@ def scene():
 
 @pytest.fixture(scope="module", params=["j", "chi2"])
 def run(request, scene):
-    rec, plots, targets, own = scene
+    _, plots, targets, own = scene
     method = JCost() if request.param == "j" else Chi2Test()
     return request.param, run_vts(plots, targets, own, origin=G.JOYRIDE_ORIGIN, method=method)
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 import time as _time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -173,8 +173,9 @@ def _plots_ned(plots: RadarPlots, own: OwnShip | None, origin: tuple[float, floa
     return np.stack([n, e], axis=1)
 
 
-def _row(t, tid, mmsi, x, p, origin, source) -> FusedRow:
-    lat, lon, _ = geodesy.ned2geodetic(x[0], x[2], 0.0, origin[0], origin[1], 0.0)
+def _row(t, tid, mmsi, x, p, source) -> FusedRow:
+    """A row without its WGS84 position (filled in bulk by `_with_geodetic`)."""
+    lat = lon = math.nan
     return FusedRow(
         float(t),
         int(tid),
@@ -188,6 +189,15 @@ def _row(t, tid, mmsi, x, p, origin, source) -> FusedRow:
         source,
         float(math.sqrt(max((p[0, 0] + p[2, 2]) / 2.0, 0.0))),
     )
+
+
+def _with_geodetic(rows: list[FusedRow], origin: tuple[float, float]) -> list[FusedRow]:
+    if not rows:
+        return rows
+    n = np.array([r.north for r in rows])
+    e = np.array([r.east for r in rows])
+    lat, lon, _ = geodesy.ned2geodetic(n, e, 0.0, origin[0], origin[1], 0.0)
+    return [replace(r, lat=float(a), lon=float(b)) for r, a, b in zip(rows, lat, lon, strict=True)]
 
 
 def run_vts(
@@ -267,23 +277,26 @@ def run_vts(
         ais_index = {int(m): j for j, m in enumerate(st.mmsi)} if st is not None else {}
         for k, ident in enumerate(ids):
             x, p = tracks.states[k], tracks.covariances[k]
-            radar_rows.append(_row(t, ident, -1, x, p, origin, "radar"))
+            radar_rows.append(_row(t, ident, -1, x, p, "radar"))
             m = pairs.get(ident, -1)
             if m >= 0 and m in ais_index:
                 j = ais_index[m]
                 xf, pf, _ = covariance_intersection(x, p, st.state[j], st.cov[j])
-                rows.append(_row(t, ident, m, xf, pf, origin, "radar+ais"))
+                rows.append(_row(t, ident, m, xf, pf, "radar+ais"))
             else:
-                rows.append(_row(t, ident, -1, x, p, origin, "radar"))
+                rows.append(_row(t, ident, -1, x, p, "radar"))
         if st is not None:
             for j, m in enumerate(st.mmsi.tolist()):
-                r = _row(t, -1, m, st.state[j], st.cov[j], origin, "ais")
+                r = _row(t, -1, m, st.state[j], st.cov[j], "ais")
                 ais_rows.append(r)
                 if m not in paired_mmsi:
                     rows.append(r)
         t_assoc += _time.perf_counter() - c
         if progress is not None:
             progress(s + 1, len(scan_times))
+    a = _time.perf_counter()
+    rows, radar_rows, ais_rows = (_with_geodetic(x, origin) for x in (rows, radar_rows, ais_rows))
+    t_assoc += _time.perf_counter() - a
     timings |= {"track": t_track, "ais": t_ais, "associate+fuse": t_assoc}
     own_arr = np.zeros((0, 3))
     if own is not None and len(scan_times):
