@@ -27,9 +27,20 @@ import pynmea2
 
 from usvfast.nav.ais_stream import receive_time
 
-__all__ = ["LogClock", "tag_block_ok"]
+__all__ = ["LogClock", "line_time", "tag_block_ok"]
 
 _TAG = re.compile(rb"^\\([^\\*]*)\*([0-9A-Fa-f]{2})\\")
+_LEADING = re.compile(rb"^\s*(\d+(?:\.\d+)?)[\s,;]+(?=[!$\\])")
+
+
+def line_time(line: bytes) -> float:
+    """The line's own receive time, UNIX s: tag block `c:` or a leading time column before a
+    `!`, `$` or tag block; NaN when it has none."""
+    t = receive_time(line)
+    if math.isfinite(t):
+        return t
+    m = _LEADING.match(line)
+    return float(m.group(1)) if m else math.nan
 
 
 def tag_block_ok(line: bytes) -> bool:
@@ -54,7 +65,7 @@ class LogClock:
 
     def time_of(self, line: bytes) -> float:
         """Receive time of `line` (bytes, stripped), UNIX s; NaN when unknown."""
-        t = receive_time(line)
+        t = line_time(line)
         if math.isfinite(t):
             return t
         if line[:1] == b"$" and line[3:6] in (b"ZDA", b"RMC"):

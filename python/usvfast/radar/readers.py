@@ -31,9 +31,8 @@ import pynmea2
 
 from usvfast._damage import DamageCounter
 from usvfast.nav._damage import iter_lines
-from usvfast.nav.ais_stream import receive_time
 from usvfast.nav.nmea import KNOT
-from usvfast.radar.clock import LogClock, tag_block_ok
+from usvfast.radar.clock import LogClock, line_time, tag_block_ok
 
 __all__ = [
     "RadarPlots",
@@ -187,7 +186,7 @@ def read_radar_nmea(
         if not line or line.startswith(b"#"):
             continue
         clock.time_of(line)  # advances the log's ZDA/RMC clock
-        t_line = receive_time(line)  # the line's own tag block or leading time, else NaN
+        t_line = line_time(line)  # the line's own tag block or leading time, else NaN
         start = line.find(b"$")
         kind = line[start + 3 : start + 6] if start >= 0 else b""
         talker = line[start + 1 : start + 3] if start >= 0 else b""
