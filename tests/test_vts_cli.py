@@ -20,7 +20,7 @@ from typer.testing import CliRunner
 
 from usvfast import geodesy
 from usvfast._damage import DamagedRecordsWarning
-from usvfast.camera import CameraModel
+from usvfast.camera import CameraModel, mount_rotation
 from usvfast.cli import app
 from usvfast.datasets import load_joyride
 from usvfast.fusion.visual import project_targets
@@ -78,6 +78,7 @@ def test_gpsd_saab_log_through_the_same_command(tmp_path):
 
 T0 = 1_700_000_000.0  # 2023-11-14 22:13:20 UTC
 ORIGIN = (59.9, 10.7)
+MOUNT = mount_rotation((-20.0, 0.0, 0.0))
 CAM = CameraModel(np.array([[500.0, 0, 320], [0, 500.0, 240], [0, 0, 1]]), np.zeros(5), (640, 480))
 
 
@@ -108,7 +109,7 @@ def _polar_scene(tmp_path: Path):
                 _nmea(f"GPRMC,{hh:02d}{mm:02d}{ss:02d}.00,A,{lat_s},N,{lon_s},E,0.0,0.0,141123,,,A")
                 + "\n"
             )
-            fh.write(_nmea("HEHDT,0.0,T") + "\n")
+            fh.write(_nmea("HEHDT,20.0,T") + "\n")
     v = G.straight(259000001, "CROSSER", T0 - 30.0, T0 + 150.0, _target(T0 - 30.0), (0.0, 4.0))
     ais = tmp_path / "ais.nmea"
     ais.write_text("\n".join(G.feed(G.ais_lines(v, ORIGIN, rng, loss=0.0))) + "\n")
@@ -120,18 +121,19 @@ def test_polar_csv_own_nmea_and_camera_overlays(tmp_path):
     calib = tmp_path / "camera.yaml"
     CAM.save(calib)
     video = tmp_path / "cam.avi"
-    fps, start = 2.0, T0 + 60.0
+    fps, start = 2.0, T0 + 50.0
     writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), fps, (640, 480))
     det = tmp_path / "det.csv"
     with det.open("w") as fh:
         fh.write("time,x1,y1,x2,y2\n")
-        for k in range(8):
+        for k in range(16):
             t = start + k / fps
             writer.write(np.full((480, 640, 3), 90, np.uint8))
-            u, v = project_targets(
-                _target(t)[None], CAM, own_ne=(0, 0), heading=0.0, height=8.0
-            ).pixels[0]
-            fh.write(f"{t:.3f},{u - 15:.1f},{v - 8:.1f},{u + 15:.1f},{v + 8:.1f}\n")
+            # Own heading 20 deg, camera turned 20 deg to port: it looks north. The box
+            # stands on the waterline point.
+            pose = dict(own_ne=(0, 0), heading=math.radians(20.0), height=8.0, mount_rotation=MOUNT)
+            u, v = project_targets(_target(t)[None], CAM, **pose).pixels[0]
+            fh.write(f"{t:.3f},{u - 15:.1f},{v - 16:.1f},{u + 15:.1f},{v:.1f}\n")
     writer.release()
     out = tmp_path / "out"
     args = ["vts", "--radar", str(radar), "--ais", str(ais), "--own", str(own), "--out", str(out)]
@@ -144,6 +146,7 @@ def test_polar_csv_own_nmea_and_camera_overlays(tmp_path):
         str(calib),
     ]
     args += ["--detections", str(det), "--camera-height", "8", "--video-start", str(start)]
+    args += ["--mount-ypr=-20,0,0"]
     r = runner.invoke(app, args)
     assert r.exit_code == 0, r.output
     with (out / "fused.csv").open() as fh:
@@ -152,9 +155,14 @@ def test_polar_csv_own_nmea_and_camera_overlays(tmp_path):
     assert "radar+ais+camera" in sources, sources
     matched = [r for r in rows if r["source"].endswith("+camera")]
     assert {r["mmsi"] for r in matched} == {"259000001"}
-    assert len(list((out / "overlay").glob("*.jpg"))) == 8
+    assert len(list((out / "overlay").glob("*.jpg"))) == 16
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["frames"] == 8 and summary["camera_matches"] >= 6
+    assert summary["frames"] == 16 and summary["camera_matches"] >= 14
+    # Camera tracks in the camera's level frame against the fused velocities: theta is the
+    # own heading (the camera frame turns with the ship).
+    rot = summary["camera_vts_rotation"]
+    assert rot["matches"] == 1 and rot["samples"] >= 5
+    assert abs(rot["theta_deg"] - 20.0) < 3.0 and rot["spread_deg"] < 3.0
 
 
 def test_bad_input_is_a_clear_error(tmp_path):

@@ -16,7 +16,7 @@ import json
 import math
 import time as _time
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import numpy as np
 import typer
@@ -153,11 +153,15 @@ def _camera_stage(
     max_frames: int,
 ) -> dict:
     """Project the fused targets into every frame, match detections, draw overlays; appends
-    "+camera" to the sources of matched rows. Returns counts."""
+    "+camera" to the sources of matched rows. The detections are also georeferenced in the
+    camera's own level frame and tracked there (GNN), and their velocities against the fused
+    targets' give the camera ↔ VTS rotation θ (`RotationCalibrator`; θ − own heading is the
+    camera's yaw misalignment). Returns counts and θ."""
     import cv2
 
-    from usvfast.camera import CameraModel, mount_rotation
+    from usvfast.camera import CameraModel, box_contact_points, georeference, mount_rotation
     from usvfast.fusion.picture import draw_overlay
+    from usvfast.fusion.rotation import RotationCalibrator
     from usvfast.fusion.visual import match_detections, project_targets
     from usvfast.nav.video import VideoReader
 
@@ -178,6 +182,9 @@ def _camera_stage(
     (out / "overlay").mkdir(exist_ok=True)
     start = video_start if video_start is not None else float(scan_times[0])
     n_frames = n_matched = 0
+    cam_tracker = _camera_tracker()
+    calib = RotationCalibrator()
+    heading_offsets: list[float] = []
     for frame in VideoReader(video, start_time=start):
         if max_frames and n_frames >= max_frames:
             break
@@ -201,6 +208,17 @@ def _camera_stage(
             if abs(det_times[j] - frame.time) < 0.5:
                 boxes = boxes_by_time[float(det_times[j])]
         pairs, _ = match_detections(proj, cam, boxes, gamma_max_deg=gamma_max)
+        if len(boxes):
+            geo = georeference(box_contact_points(boxes), cam, height=height, mount_rotation=r_bc)
+            z = geo.positions[geo.valid]
+        else:
+            z = np.zeros((0, 2))
+        ct = cam_tracker.step(frame.time - start, z)
+        ids = [res.rows[k].track_id * 10**9 + max(res.rows[k].mmsi, 0) for k in idx]
+        vts_v = np.array([[res.rows[k].v_north, res.rows[k].v_east] for k in idx]).reshape(-1, 2)
+        calib.add(ct.ids, ct.states[:, [1, 3]], ids, vts_v)
+        if np.isfinite(head):
+            heading_offsets.append(float(head))
         for ti, _bi in pairs:
             row = res.rows[idx[ti]]
             if not row.source.endswith("+camera"):
@@ -213,7 +231,35 @@ def _camera_stage(
         img = draw_overlay(frame.image, proj.pixels, labels, boxes)
         cv2.imwrite(str(out / "overlay" / f"{frame.index:06d}.jpg"), img)
         n_frames += 1
-    return {"frames": n_frames, "camera_matches": n_matched}
+    theta, spread, n = calib.estimate()
+    out_d: dict = {"frames": n_frames, "camera_matches": n_matched}
+    out_d["camera_vts_rotation"] = {
+        "theta_deg": math.degrees(theta) if n else None,
+        "spread_deg": math.degrees(spread) if n else None,
+        "samples": n,
+        "matches": len(calib.matches()),
+        "own_heading_deg": float(np.mean(heading_offsets)) if heading_offsets else None,
+    }
+    return out_d
+
+
+def _camera_tracker() -> Any:
+    """GNN tracker of camera detections in the camera's level frame (forward, starboard m)."""
+    from usvfast import tracking as tk
+    from usvfast.kalman import constant_velocity_2d
+
+    return tk.Tracker(
+        motion_model=constant_velocity_2d(0.5),
+        sensors=[tk.Sensor.position(noise_std=5.0)],
+        association=tk.GNN(missed_distance=5.0),
+        deleter=tk.StepsSinceUpdate(4),
+        initiator=tk.MultiMeasurementInitiator(
+            prior_state=np.zeros(4),
+            prior_covariance=np.diag([0.0, 25.0, 0.0, 25.0]),
+            min_points=3,
+            missed_distance=5.0,
+        ),
+    )
 
 
 def _label(r: FusedRow) -> str:

@@ -61,12 +61,13 @@ class RotationCalibrator:
     """Camera ↔ VTS track matching by velocity, and θ from the matches (module docstring).
 
     Each `add` is one time step: camera tracks (ids, velocities (n, 2)) and VTS tracks (ids,
-    velocities (m, 2)) in their own frames. A pair (camera i, VTS j) is a candidate while
-    every step with both moving faster than `min_speed` (m/s) has speeds within `speed_tol`
-    (m/s) and the angles from camera to VTS vector stay within `angle_tol_deg` of their
-    circular mean; once some camera tracks have a unique candidate (with `min_samples`
-    samples), the others' candidates must also agree with the θ of those within
-    `angle_tol_deg`."""
+    velocities (m, 2)) in their own frames. Steps with both moving faster than `min_speed`
+    (m/s) are samples of the pair (camera i, VTS j) when their speeds agree within
+    `speed_tol` (m/s), else mismatches (a young track's velocity is still converging). The
+    pair is a candidate while its samples outnumber its mismatches and the angles from camera
+    to VTS vector stay within `angle_tol_deg` of their circular mean; once some camera tracks
+    have a unique candidate (with `min_samples` samples), the others' candidates must also
+    agree with the θ of those within `angle_tol_deg`."""
 
     def __init__(
         self,
@@ -90,7 +91,7 @@ class RotationCalibrator:
         self._samples: dict[tuple[int, int], list[tuple[np.ndarray, np.ndarray]]] = defaultdict(
             list
         )
-        self._rejected: set[tuple[int, int]] = set()
+        self._mismatch: dict[tuple[int, int], int] = defaultdict(int)
 
     def add(self, camera_ids: Any, v_camera: Any, vts_ids: Any, v_vts: Any) -> None:
         """One time step of both trackers' velocities (see the class)."""
@@ -103,13 +104,12 @@ class RotationCalibrator:
             if sa[p] <= self.min_speed:
                 continue
             for q, j in enumerate(vi):
-                if (i, j) in self._rejected or sb[q] <= self.min_speed:
+                if sb[q] <= self.min_speed:
                     continue
                 if abs(sa[p] - sb[q]) > self.speed_tol:
-                    self._rejected.add((i, j))
-                    self._samples.pop((i, j), None)
-                    continue
-                self._samples[(i, j)].append((a[p], b[q]))
+                    self._mismatch[(i, j)] += 1
+                else:
+                    self._samples[(i, j)].append((a[p], b[q]))
 
     def _pair_angles(self, key: tuple[int, int]) -> np.ndarray:
         s = self._samples[key]
@@ -118,6 +118,8 @@ class RotationCalibrator:
         return np.arctan2(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0], np.sum(a * b, axis=1))
 
     def _consistent(self, key: tuple[int, int], theta: float | None) -> bool:
+        if len(self._samples[key]) <= self._mismatch.get(key, 0):
+            return False
         ang = self._pair_angles(key)
         mean = math.atan2(np.sin(ang).mean(), np.cos(ang).mean())
         if np.max(np.abs(_wrap(ang - mean))) > self.angle_tol:
