@@ -12,6 +12,8 @@ from usvfast.fusion.associate import (
     same_object,
 )
 from usvfast.fusion.pipeline import FusedRow, OwnShip, TrackerConfig, VtsResult, run_vts
+from usvfast.fusion.rotation import RotationCalibrator, rotation_from_velocities
+from usvfast.fusion.visual import Projection, match_detections, project_targets
 
 __all__ = [
     "AisFeed",
@@ -21,11 +23,16 @@ __all__ = [
     "FusedRow",
     "JCost",
     "OwnShip",
+    "Projection",
+    "RotationCalibrator",
     "TrackerConfig",
     "VtsResult",
     "WindowAssociator",
     "covariance_intersection",
+    "match_detections",
+    "project_targets",
     "read_ais_feed",
+    "rotation_from_velocities",
     "run_vts",
     "same_object",
 ]

@@ -93,7 +93,7 @@ def load_own_nmea(path: Path, origin: tuple[float, float] | None) -> tuple[OwnSh
     return OwnShip(t, n, e, head % 360.0), origin
 
 
-def _load_radar(path: Path, origin) -> tuple[RadarPlots, OwnShip | None, dict]:
+def _load_radar(path: Path, origin) -> tuple[RadarPlots, OwnShip | None]:
     """Radar plots (and the own ship when the file carries it) by file type."""
     if path.suffix.lower() == ".mat":
         from usvfast.datasets import load_joyride
@@ -107,10 +107,10 @@ def _load_radar(path: Path, origin) -> tuple[RadarPlots, OwnShip | None, dict]:
             rec.ownship[:, 2],
             np.degrees(np.arctan2(rec.ownship[:, 3], rec.ownship[:, 1])) % 360.0,
         )
-        return plots_from_ned(rec.times, rec.measurements), own, {"truth": rec}
+        return plots_from_ned(rec.times, rec.measurements), own
     if path.suffix.lower() == ".csv":
-        return read_radar_csv(path), None, {}
-    return read_radar_nmea(path), None, {}
+        return read_radar_csv(path), None
+    return read_radar_nmea(path), None
 
 
 def write_fused_csv(rows: list[FusedRow], names: dict[int, str], path: Path) -> None:
@@ -315,7 +315,7 @@ def vts_command(
     own_ship = None
     if own is not None:
         own_ship, org = load_own_nmea(own, org)
-    plots, radar_own, _ = _load_radar(radar, org) if radar is not None else (None, None, {})
+    plots, radar_own = _load_radar(radar, org) if radar is not None else (None, None)
     own_ship = own_ship or radar_own
     feed = read_ais_feed(ais) if ais is not None else None
     if org is None:
