@@ -33,7 +33,7 @@ fn config() -> TrackerConfig {
     let r = DMatrix::identity(2, 2) * 0.0625;
     TrackerConfig {
         motion_model: MotionModel::constant_velocity_2d(0.001).unwrap(),
-        sensors: vec![Sensor::new(h, r, None, 4, "sensors[0]").unwrap()],
+        sensors: vec![Sensor::new(h, r, None, None, 4, "sensors[0]").unwrap()],
         association: Association::Jpda(JpdaParams {
             prob_detect: 0.85,
             prob_gate: 0.95,

@@ -295,9 +295,10 @@ def test_readme_example_runs():
 
 
 def test_streaming_keeps_only_recent_scans_and_no_replay():
-    # Two sensors: the camera's model first shows up mid-run and is registered with
-    # add_sensor (the core is not rebuilt); detections of scans no tentative track refers to
-    # are freed, and the tracks are still Stone Soup's.
+    # Two sensors: the camera's model first shows up mid-run; it shares the LiDAR's H, so its
+    # detections reach the same core sensor with their own R (the core is not rebuilt);
+    # detections of scans no tentative track refers to are freed, and the tracks are still
+    # Stone Soup's.
     scenario = H.two_sensors(0)
     scans = H.stonesoup_scans(scenario)
     ref_tracker, _ = H.build_stonesoup(H.Code57(**SHORT), detector=scans)
@@ -313,6 +314,7 @@ def test_streaming_keeps_only_recent_scans_and_no_replay():
 
     ours = H.run_tracker(spy())
     assert H.compare_runs(ours, ref) == []
-    assert len(cores) == 1 and len(dropin._core.sensors) == 2
+    assert len(cores) == 1 and len(dropin._core.sensors) == 1
+    assert sum(own is not None for _, own in dropin._sensor_of_model.values()) == 1
     kept = sum(d is not None for d in dropin._scan_dets)
     assert len(dropin._scan_dets) > 40 and kept <= 8

@@ -165,7 +165,11 @@ class TrackerCore:
         symmetric_covariance: bool = False,
     ) -> None: ...
     def step(
-        self, t: float, measurements: npt.NDArray[np.float64], sensor_ids: npt.NDArray[np.int64]
+        self,
+        t: float,
+        measurements: npt.NDArray[np.float64],
+        sensor_ids: npt.NDArray[np.int64],
+        covariances: npt.NDArray[np.float64] | None = None,
     ) -> bool: ...
     def run(
         self,
@@ -173,6 +177,7 @@ class TrackerCore:
         measurements: npt.NDArray[np.float64],
         sensor_ids: npt.NDArray[np.int64],
         scan_index: npt.NDArray[np.int64],
+        covariances: npt.NDArray[np.float64] | None = None,
     ) -> dict[str, npt.NDArray[np.generic]]: ...
     def add_sensor(
         self,

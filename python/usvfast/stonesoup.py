@@ -21,7 +21,8 @@ what it can reproduce exactly: any other component or setting raises
   `RandomWalk`, `ConstantAcceleration` or a `CombinedLinearGaussianTransitionModel` of them;
 - updater: `KalmanUpdater` (`use_joseph_cov`, `force_symmetric_covariance` either way; not
   `force_positive_definite_covariance`);
-- measurement models: `LinearGaussian` (on the detections, or the updater's/initiator's);
+- measurement models: `LinearGaussian` (on the detections — each its own if you like,
+  its own `noise_covar` included — or the updater's/initiator's);
 - JPDA: `PDAHypothesiser` + `JPDA`, `JPDAwithEHM`, `JPDAwithEHM2` (or pyehm's plugins);
 - GNN: `DistanceHypothesiser` (`Mahalanobis` / `SquaredMahalanobis` without mapping) +
   `GNNWith2DAssignment`;
@@ -584,7 +585,8 @@ class _DropInTracker:
         self._states = _StateFactory()
         self._core: Any = None
         self._sensor_specs: list[tuple] = []  # (H, R, H_init, R_init) per core sensor
-        self._sensor_of_model: dict[int, int] = {}  # id(model) -> core sensor index
+        # id(model) -> (core sensor index, the model's R if it differs from the sensor's)
+        self._sensor_of_model: dict[int, tuple[int, np.ndarray | None]] = {}
         self._models: list[Any] = []  # keeps the models alive while their id() is used
         # Empty scans seen before the core exists (it is built at the first detection).
         self._replay: list[tuple[float, np.ndarray, np.ndarray]] = []
@@ -627,11 +629,14 @@ class _DropInTracker:
 
     # -- internals ---------------------------------------------------------------------------
 
-    def _sensor_index(self, model: Any) -> int:
+    def _sensor_index(self, model: Any) -> tuple[int, np.ndarray | None]:
+        """The core sensor of a detection's measurement model, and the model's noise R when it
+        differs from that sensor's (None otherwise). Models with the same H share one core
+        sensor; their own R goes to the core as a per-detection covariance."""
         key = id(model)
-        idx = self._sensor_of_model.get(key)
-        if idx is not None:
-            return idx
+        hit = self._sensor_of_model.get(key)
+        if hit is not None:
+            return hit
         cfg = self.config
         if model is None:
             main, init = cfg.fallback_sensor, cfg.init_fallback_sensor
@@ -659,21 +664,25 @@ class _DropInTracker:
                     f"the transition model's {len(cfg.prior_state)}"
                 )
             spec = (s.matrix, s.noise, None, None)
+
+        def same(a: Any, b: Any) -> bool:
+            return (a is None and b is None) or (
+                a is not None and b is not None and np.array_equal(a, b)
+            )
+
         for i, old in enumerate(self._sensor_specs):
-            if all(
-                (a is None and b is None)
-                or (a is not None and b is not None and np.array_equal(a, b))
-                for a, b in zip(old, spec, strict=True)
-            ):
+            # Same H and initiation model; R may differ (a detection's own covariance).
+            if same(old[0], spec[0]) and same(old[2], spec[2]) and same(old[3], spec[3]):
                 idx = i
                 break
         else:
             idx = len(self._sensor_specs)
             self._sensor_specs.append(spec)
             self._add_core_sensor(spec)
-        self._sensor_of_model[key] = idx
+        own = None if np.array_equal(self._sensor_specs[idx][1], spec[1]) else spec[1]
+        self._sensor_of_model[key] = (idx, own)
         self._models.append(model)
-        return idx
+        return idx, own
 
     def _add_core_sensor(self, spec: tuple) -> None:
         if self._core is None:
@@ -696,10 +705,14 @@ class _DropInTracker:
                     f"detections: a detection at {d.timestamp} in the scan at {time}; usvfast "
                     "needs every detection of a scan to carry the scan time"
                 )
-        sids = np.fromiter(
-            (self._sensor_index(d.measurement_model) for d in dets), dtype=np.int64, count=len(dets)
-        )
+        found = [self._sensor_index(d.measurement_model) for d in dets]
+        sids = np.fromiter((f[0] for f in found), dtype=np.int64, count=len(dets))
         m = self._sensor_specs[0][0].shape[0] if self._sensor_specs else 2
+        covs = None
+        if any(f[1] is not None for f in found):
+            covs = np.array(
+                [self._sensor_specs[i][1] if r is None else r for i, r in found], dtype=np.float64
+            ).reshape(len(dets), m, m)
         z = np.empty((len(dets), m))
         for i, d in enumerate(dets):
             sv = np.asarray(d.state_vector, dtype=np.float64).ravel()
@@ -720,7 +733,7 @@ class _DropInTracker:
                 self._core.step(*args)
             self._replay.clear()
         if self._core is not None:
-            self._core.step(t, z, sids)
+            self._core.step(t, z, sids, covs)
         else:
             self._replay.append((t, z, sids))
         self._scan_time.append(time)
@@ -872,7 +885,11 @@ class MultiTargetMixtureTracker(_DropInTracker):
 
     Memory: a scan's detections are kept while a tentative track's history refers to them (a
     track confirmed later brings its tentative states). A detection with a new measurement
-    model registers one more core sensor (`Tracker.add_sensor`); no scan is replayed.
+    matrix H registers one more core sensor (`Tracker.add_sensor`); no scan is replayed.
+    Detections whose models share H but not the noise covariance (each detection with its own
+    `LinearGaussian`, e.g. range-dependent noise) share that sensor and reach the core with
+    their own covariance (`Tracker.step(..., covariances=...)`), exactly as Stone Soup uses
+    each detection's model for gating, hypotheses, updates and initiation.
     """
 
     _mixture = True

@@ -38,9 +38,16 @@ Native API (stable; the Stone Soup drop-in builds on it)::
             min_points=2, deleter=StepsSinceUpdate(3), missed_distance=0.3),
     )
     tracks = tracker.step(t, measurements, sensor_ids)   # (k, 2) metres, (k,) ints
+    tracks = tracker.step(t, measurements, sensor_ids, covariances=r_k)  # (k, 2, 2) m² each
     tracks.ids, tracks.states, tracks.covariances
     tracker.history(tracks.ids[0]).states               # every state, incl. tentative phase
     result = tracker.run(times, measurements, sensor_ids, scan_index)   # whole recording
+
+Per-detection noise: ``covariances`` (k, m, m) in ``step`` (and (d, m, m) in ``run``) gives each
+detection its own measurement noise covariance in place of its sensor's R — used for gating,
+the PDA/distance hypotheses, the Kalman updates of confirmed and tentative tracks and the
+start of a tentative track (unless the sensor has its own ``initiation_noise``), as Stone Soup
+does for a ``Detection`` that carries its own ``LinearGaussian`` measurement model.
 
 Also: ``tracker.add_track(state, covariance, time)`` seeds a confirmed track (first state a
 prior, not an update); ``tracker.add_sensor(Sensor(...))`` registers a sensor between steps
@@ -352,7 +359,14 @@ class Tracks:
     update, n_updates (k,), first_scan (k,) the scan of the first state. The newest history
     entry's association data (as in TrackHistory): scan (k,), detection (k,),
     missed_probability (k,), and the hypothesised detections of track i,
-    assoc_detection/assoc_probability[assoc_offsets[i]:assoc_offsets[i+1]]."""
+    assoc_detection/assoc_probability[assoc_offsets[i]:assoc_offsets[i+1]].
+
+    nis (k,) and nis_dof (k,): the normalised innovation squared yᵀ S⁻¹ y of the last update and
+    its degrees of freedom (the measurement dimension) where the last state is an update with a
+    detection's innovation (GNN: the assigned detection; JPDA: the most probable detection, the
+    one `detection` names — the mixture itself has no single innovation); elsewhere (a
+    prediction, or a tentative track's first state) nis is 0 with nis_dof 0, so `nis_dof > 0` is
+    the mask of valid entries (no NaN)."""
 
     ids: np.ndarray
     times: np.ndarray
@@ -367,6 +381,8 @@ class Tracks:
     assoc_offsets: np.ndarray
     assoc_detection: np.ndarray
     assoc_probability: np.ndarray
+    nis: np.ndarray
+    nis_dof: np.ndarray
 
     def __len__(self) -> int:
         return len(self.ids)
@@ -535,21 +551,50 @@ class Tracker:
                 )
         return z, ids
 
-    def step(self, t: float, measurements: Any = (), sensor_ids: Any = None) -> Tracks:
+    def _covariances(self, covariances: Any, k: int) -> np.ndarray | None:
+        if covariances is None:
+            return None
+        c = as_float_array("covariances", covariances)
+        if c.size == 0 and k == 0:
+            c = c.reshape(0, self._m, self._m)
+        if c.shape != (k, self._m, self._m):
+            raise _core.DimensionError(
+                f"covariances: expected shape ({k}, {self._m}, {self._m}), got {c.shape}"
+            )
+        return c
+
+    def step(
+        self,
+        t: float,
+        measurements: Any = (),
+        sensor_ids: Any = None,
+        covariances: Any = None,
+    ) -> Tracks:
         """Process the scan at time `t` (seconds): measurements (k, m), sensor_ids (k,) ints
-        (default: all sensor 0; a scalar applies to all). Returns the confirmed tracks."""
+        (default: all sensor 0; a scalar applies to all), covariances (k, m, m) each detection's
+        own measurement noise (measurement units squared, symmetric positive definite; default:
+        its sensor's R). Returns the confirmed tracks. A bad covariance raises
+        NotPositiveDefiniteError naming `covariances[i]`."""
         z, ids = self._detections(measurements, sensor_ids)
-        self._core.step(float(t), z, ids)
+        c = self._covariances(covariances, len(z))
+        self._core.step(float(t), z, ids, c)
         return self.tracks
 
     def run(
-        self, times: Any, measurements: Any, sensor_ids: Any = None, scan_index: Any = None
+        self,
+        times: Any,
+        measurements: Any,
+        sensor_ids: Any = None,
+        scan_index: Any = None,
+        covariances: Any = None,
     ) -> RunResult:
         """Run a whole recording in one Rust call: scan i at times[i] (s,) holds the rows of
-        measurements (d, m) whose scan_index (d,) is i; sensor_ids (d,). Returns the confirmed
-        tracks after every scan."""
+        measurements (d, m) whose scan_index (d,) is i; sensor_ids (d,); covariances (d, m, m)
+        per row as in `step` (NotPositiveDefiniteError names the row of the whole run).
+        Returns the confirmed tracks after every scan."""
         t = as_float_array("times", times, ndim=1)
         z, ids = self._detections(measurements, sensor_ids)
+        c = self._covariances(covariances, len(z))
         if scan_index is None:
             raise TypeError("scan_index: required, one scan number per measurement row")
         si = np.asarray(scan_index)
@@ -560,7 +605,7 @@ class Tracker:
         si = np.ascontiguousarray(si, dtype=np.int64)
         if si.shape != (len(z),):
             raise _core.DimensionError(f"scan_index: expected shape ({len(z)},), got {si.shape}")
-        out = self._core.run(t, z, ids, si)
+        out = self._core.run(t, z, ids, si, c)
         return RunResult(**out)
 
     def add_sensor(self, sensor: Sensor) -> int:

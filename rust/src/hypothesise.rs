@@ -62,17 +62,63 @@ where
 /// A predicted state `(x⁻, P⁻)`.
 pub(crate) type Pred<N> = (OVector<f64, N>, OMatrix<f64, N, N>);
 
-/// Per (track, sensor) quantities of a prediction.
+/// Per (track, sensor) quantities of a prediction, or per (track, detection) when the
+/// detection carries its own noise covariance.
 pub(crate) struct Innovation<N: Dim, M: Dim>
 where
     DefaultAllocator: Alloc<N, M>,
 {
     pub zhat: OVector<f64, M>,
+    /// `H P⁻ Hᵀ` (the innovation covariance without the measurement noise).
+    pub hph: OMatrix<f64, M, M>,
+    /// `P⁻ Hᵀ`.
+    pub pht: OMatrix<f64, N, M>,
     pub s: OMatrix<f64, M, M>,
     pub chol: Cholesky<f64, M>,
     pub ln_det: f64,
     /// Kalman gain `P⁻ Hᵀ S⁻¹`.
     pub k: OMatrix<f64, N, M>,
+    /// The detection's own noise covariance (`None`: the sensor's `R`).
+    pub r: Option<OMatrix<f64, M, M>>,
+}
+
+fn not_pd() -> Error {
+    Error::NotPositiveDefinite {
+        arg: "innovation covariance".into(),
+        reason: "H P Hᵀ + R of a track is not positive definite: the track covariance P has \
+                 lost positive definiteness (rounding asymmetry of P − K S Kᵀ grows through \
+                 long predictions, fastest with constant-acceleration models); set \
+                 symmetric_covariance (Stone Soup: force_symmetric_covariance) or \
+                 use_joseph_cov"
+            .into(),
+    }
+}
+
+/// `S = hph + R`, its Cholesky factor, `ln det S` and the gain `pht S⁻¹`.
+fn finish<N: Dim, M: Dim>(
+    zhat: OVector<f64, M>,
+    hph: OMatrix<f64, M, M>,
+    pht: OMatrix<f64, N, M>,
+    r: &OMatrix<f64, M, M>,
+    own: Option<OMatrix<f64, M, M>>,
+) -> Result<Innovation<N, M>>
+where
+    DefaultAllocator: Alloc<N, M>,
+{
+    let s = &hph + r;
+    let chol = Cholesky::new(s.clone()).ok_or_else(not_pd)?;
+    let ln_det = chol.l_dirty().diagonal().iter().map(|d| 2.0 * d.ln()).sum();
+    let k = chol.solve(&pht.transpose()).transpose();
+    Ok(Innovation {
+        zhat,
+        hph,
+        pht,
+        s,
+        chol,
+        ln_det,
+        k,
+        r: own,
+    })
 }
 
 pub(crate) fn innovation<N: Dim, M: Dim>(
@@ -85,26 +131,76 @@ where
 {
     let h = &sensor.h;
     let pht = p * h.transpose();
-    let s = h * &pht + &sensor.r;
-    let chol = Cholesky::new(s.clone()).ok_or_else(|| Error::NotPositiveDefinite {
-        arg: "innovation covariance".into(),
-        reason: "H P Hᵀ + R of a track is not positive definite: the track covariance P has \
-                 lost positive definiteness (rounding asymmetry of P − K S Kᵀ grows through \
-                 long predictions, fastest with constant-acceleration models); set \
-                 symmetric_covariance (Stone Soup: force_symmetric_covariance) or \
-                 use_joseph_cov"
-            .into(),
-    })?;
-    let ln_det = chol.l_dirty().diagonal().iter().map(|d| 2.0 * d.ln()).sum();
-    let k = chol.solve(&pht.transpose()).transpose();
-    Ok(Innovation {
-        zhat: h * x,
-        s,
-        chol,
-        ln_det,
-        k,
-    })
+    let hph = h * &pht;
+    finish(h * x, hph, pht, &sensor.r, None)
 }
+
+/// The innovation of one detection with its own noise covariance `r`, from the track's
+/// per-sensor innovation `base` (same `H P⁻ Hᵀ`, `P⁻ Hᵀ`; `S = H P⁻ Hᵀ + r`).
+pub(crate) fn own_innovation<N: Dim, M: Dim>(
+    base: &Innovation<N, M>,
+    r: &OMatrix<f64, M, M>,
+) -> Result<Innovation<N, M>>
+where
+    DefaultAllocator: Alloc<N, M>,
+{
+    finish(
+        base.zhat.clone(),
+        base.hph.clone(),
+        base.pht.clone(),
+        r,
+        Some(r.clone()),
+    )
+}
+
+/// The innovations of one scan's gated pairs: per (track, sensor) with the sensor's `R`, and
+/// per (track, detection) for detections with their own covariance.
+pub(crate) struct Innovations<N: Dim, M: Dim>
+where
+    DefaultAllocator: Alloc<N, M>,
+{
+    ns: usize,
+    shared: Vec<Option<Innovation<N, M>>>,
+    own: Vec<Innovation<N, M>>,
+}
+
+impl<N: Dim, M: Dim> Innovations<N, M>
+where
+    DefaultAllocator: Alloc<N, M>,
+{
+    /// Room for `n_tracks` tracks seen by `ns` sensors.
+    pub fn new(n_tracks: usize, ns: usize) -> Self {
+        Self {
+            ns,
+            shared: (0..n_tracks * ns).map(|_| None).collect(),
+            own: Vec::new(),
+        }
+    }
+
+    /// The innovation of a gated pair.
+    pub fn of(&self, pair: &Pair, sensor: usize) -> &Innovation<N, M> {
+        if pair.own == NO_OWN {
+            self.shared[pair.t * self.ns + sensor]
+                .as_ref()
+                .expect("a gated pair's track innovation is computed by gate_pairs")
+        } else {
+            &self.own[pair.own as usize]
+        }
+    }
+}
+
+/// A gated (track, detection) pair: indices, squared Mahalanobis distance `d2`, and the index
+/// of its own innovation ([`NO_OWN`] when the detection uses its sensor's `R`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Pair {
+    pub t: usize,
+    pub d: usize,
+    pub d2: f64,
+    pub own: u32,
+}
+
+/// [`Pair::own`] of a detection without its own covariance.
+pub(crate) const NO_OWN: u32 = u32::MAX;
 
 /// How an updater forms the posterior covariance (Stone Soup `KalmanUpdater` flags).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -115,7 +211,8 @@ pub(crate) struct CovForm {
     pub symmetric: bool,
 }
 
-/// Posterior covariance of a Kalman update (same for every detection of a sensor).
+/// Posterior covariance of a Kalman update (same for every detection of a sensor unless the
+/// detection has its own covariance).
 pub(crate) fn posterior_cov<N: Dim, M: Dim>(
     p: &OMatrix<f64, N, N>,
     inn: &Innovation<N, M>,
@@ -128,7 +225,8 @@ where
     let out = if form.joseph {
         let (n, _) = p.shape_generic();
         let ikh = OMatrix::<f64, N, N>::identity_generic(n, n) - &inn.k * &sensor.h;
-        &ikh * p * ikh.transpose() + &inn.k * &sensor.r * inn.k.transpose()
+        let r = inn.r.as_ref().unwrap_or(&sensor.r);
+        &ikh * p * ikh.transpose() + &inn.k * r * inn.k.transpose()
     } else {
         p - &inn.k * &inn.s * inn.k.transpose()
     };
@@ -192,9 +290,10 @@ where
         .collect()
 }
 
+/// Candidate pairs within `gate` (squared Mahalanobis) for predictions `preds[t] = (x⁻, P⁻)`,
+/// sorted by (track, detection). The per-(track, sensor) innovations of `innov` are filled
+/// lazily; a detection with its own noise covariance `covs[d]` gets its own innovation.
 #[allow(clippy::too_many_arguments)]
-/// Candidate `(track, detection, squared Mahalanobis)` pairs within `gate` (squared), for
-/// predictions `preds[t] = (x⁻, P⁻)`; `innov[t * n_sensors + s]` is filled lazily per sensor.
 pub(crate) fn gate_pairs<N: Dim, M: Dim>(
     preds: &[Pred<N>],
     sensors: &[SensorT<N, M>],
@@ -202,9 +301,10 @@ pub(crate) fn gate_pairs<N: Dim, M: Dim>(
     m: M,
     det_sensor: &[usize],
     dets: &[usize],
+    covs: Option<&[OMatrix<f64, M, M>]>,
     gate: f64,
-    innov: &mut [Option<Innovation<N, M>>],
-) -> Result<Vec<(usize, usize, f64)>>
+    innov: &mut Innovations<N, M>,
+) -> Result<Vec<Pair>>
 where
     DefaultAllocator: Alloc<N, M>,
 {
@@ -224,10 +324,21 @@ where
             continue;
         }
         for (t, (x, p)) in preds.iter().enumerate() {
-            if innov[t * ns + s].is_none() {
-                innov[t * ns + s] = Some(innovation(x, p, sensor)?);
+            if innov.shared[t * ns + s].is_none() {
+                innov.shared[t * ns + s] = Some(innovation(x, p, sensor)?);
             }
         }
+        // With per-detection covariances the gate boxes use the largest noise variance of
+        // this sensor's detections on each axis (a superset of every detection's gate).
+        let rmax: Option<Vec<f64>> = covs.map(|c| {
+            (0..md)
+                .map(|i| ids.iter().map(|&d| c[d][(i, i)]).fold(0.0, f64::max))
+                .collect()
+        });
+        let var = |inn: &Innovation<N, M>, i: usize| match &rmax {
+            Some(r) => inn.hph[(i, i)] + r[i],
+            None => inn.s[(i, i)],
+        };
         let pts: Vec<f64> = ids
             .iter()
             .flat_map(|&d| z[d * md..(d + 1) * md].iter().copied())
@@ -235,8 +346,8 @@ where
         // Cell side: median gate box width over tracks.
         let mut widths: Vec<f64> = (0..preds.len())
             .map(|t| {
-                let inn = innov[t * ns + s].as_ref().expect("filled above");
-                let w = (0..md.min(2)).map(|i| inn.s[(i, i)]).fold(0.0, f64::max);
+                let inn = innov.shared[t * ns + s].as_ref().expect("filled above");
+                let w = (0..md.min(2)).map(|i| var(inn, i)).fold(0.0, f64::max);
                 2.0 * (gate * w).sqrt()
             })
             .collect();
@@ -249,27 +360,59 @@ where
         let local: Vec<usize> = (0..ids.len()).collect();
         let grid = CandidateGrid::new(&pts, md, &local, cell);
         let mut half = vec![0.0; md];
+        let mut err: Option<Error> = None;
+        let Innovations { shared, own, .. } = innov;
         for t in 0..preds.len() {
-            let inn = innov[t * ns + s].as_ref().expect("filled above");
+            let inn = shared[t * ns + s].as_ref().expect("filled above");
             for (i, h) in half.iter_mut().enumerate() {
-                *h = (gate * inn.s[(i, i)]).sqrt();
+                *h = (gate * var(inn, i)).sqrt();
                 if h.is_nan() {
                     *h = f64::INFINITY;
                 }
             }
             grid.query(inn.zhat.as_slice(), &half, |k| {
+                if err.is_some() {
+                    return;
+                }
                 let d = ids[k];
                 let y =
                     OVector::<f64, M>::from_column_slice_generic(m, U1, &z[d * md..(d + 1) * md])
                         - &inn.zhat;
-                let d2 = y.dot(&inn.chol.solve(&y));
-                if d2 <= gate {
-                    pairs.push((t, d, d2));
+                match covs {
+                    None => {
+                        let d2 = y.dot(&inn.chol.solve(&y));
+                        if d2 <= gate {
+                            pairs.push(Pair {
+                                t,
+                                d,
+                                d2,
+                                own: NO_OWN,
+                            });
+                        }
+                    }
+                    Some(c) => match own_innovation(inn, &c[d]) {
+                        Ok(o) => {
+                            let d2 = y.dot(&o.chol.solve(&y));
+                            if d2 <= gate {
+                                pairs.push(Pair {
+                                    t,
+                                    d,
+                                    d2,
+                                    own: own.len() as u32,
+                                });
+                                own.push(o);
+                            }
+                        }
+                        Err(e) => err = Some(e),
+                    },
                 }
             });
+            if let Some(e) = err.take() {
+                return Err(e);
+            }
         }
     }
-    pairs.sort_unstable_by_key(|&(t, d, _)| (t, d));
+    pairs.sort_unstable_by_key(|p| (p.t, p.d));
     Ok(pairs)
 }
 
@@ -311,8 +454,9 @@ where
     out
 }
 
-/// Distance hypotheses + GNN + update/predict on `tracks` (confirmed or tentative). Returns
-/// the detection assigned to each track.
+/// Distance hypotheses + GNN + update/predict on `tracks` (confirmed or tentative), with the
+/// detections' own noise covariances `covs` when given. Returns the detection assigned to each
+/// track.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn gnn_step<N: Dim, M: Dim>(
     tracks: &mut [Track],
@@ -325,6 +469,7 @@ pub(crate) fn gnn_step<N: Dim, M: Dim>(
     (n, m): (N, M),
     det_sensor: &[usize],
     dets: &[usize],
+    covs: Option<&[OMatrix<f64, M, M>]>,
     scan: i64,
 ) -> Result<Vec<Option<usize>>>
 where
@@ -332,7 +477,7 @@ where
 {
     let preds = predict_all(model, tracks, t, n);
     let ns = sensors.len();
-    let mut innov: Vec<Option<Innovation<N, M>>> = (0..preds.len() * ns).map(|_| None).collect();
+    let mut innov = Innovations::new(preds.len(), ns);
     let gate = if g.include_all {
         f64::INFINITY
     } else {
@@ -341,17 +486,19 @@ where
             Measure::SquaredMahalanobis => g.missed_distance,
         }
     };
-    let pairs = gate_pairs(&preds, sensors, z, m, det_sensor, dets, gate, &mut innov)?;
+    let pairs = gate_pairs(
+        &preds, sensors, z, m, det_sensor, dets, covs, gate, &mut innov,
+    )?;
     let mut hyps: Vec<Vec<(usize, f64)>> = vec![Vec::new(); tracks.len()];
-    let mut d2s: Vec<Vec<f64>> = vec![Vec::new(); tracks.len()];
-    for (ti, d, d2) in pairs {
+    let mut kept: Vec<Vec<Pair>> = vec![Vec::new(); tracks.len()];
+    for p in pairs {
         let dist = match g.measure {
-            Measure::Mahalanobis => d2.sqrt(),
-            Measure::SquaredMahalanobis => d2,
+            Measure::Mahalanobis => p.d2.sqrt(),
+            Measure::SquaredMahalanobis => p.d2,
         };
         if g.include_all || dist < g.missed_distance {
-            hyps[ti].push((d, dist));
-            d2s[ti].push(d2);
+            hyps[p.t].push((p.d, dist));
+            kept[p.t].push(p);
         }
     }
     let assign = gnn_assign(&hyps, det_sensor.len(), g.missed_distance)?;
@@ -373,20 +520,21 @@ where
                 .iter()
                 .map(|&(d, _)| (d as i64, if assign[ti] == Some(d) { 1.0 } else { 0.0 })),
         );
-        match assign[ti] {
-            Some(d) => {
+        let pair = assign[ti].and_then(|d| kept[ti].iter().find(|p| p.d == d));
+        match pair {
+            Some(p) => {
+                let d = p.d;
                 let s = det_sensor[d];
-                let inn = innov[ti * ns + s].as_ref().expect("gated");
+                let inn = innov.of(p, s);
                 let y =
                     OVector::<f64, M>::from_column_slice_generic(m, U1, &z[d * md..(d + 1) * md])
                         - &inn.zhat;
-                let nis = d2s[ti][hyps[ti].iter().position(|h| h.0 == d).expect("hyp")];
                 let xu = &xp + &inn.k * y;
                 let pu = posterior_cov(&pp, inn, &sensors[s], form);
                 entry.is_update = true;
                 entry.sensor = s as i64;
                 entry.detection = d as i64;
-                entry.nis = nis;
+                entry.nis = p.d2;
                 entry.missed_probability = 0.0;
                 tr.append_slices(xu.as_slice(), pu.as_slice(), &entry);
             }

@@ -26,7 +26,7 @@ use crate::error::{check_finite, Error, Result};
 use crate::gating::{chi2_quantile, validation_volume};
 use crate::hypothesise::{
     axis_orders, gate_pairs, gnn_step, order_cluster, posterior_cov, predict_all, sensors_t, Alloc,
-    CovForm, Innovation, Pred, SensorT,
+    CovForm, Innovations, Pred, SensorT, NO_OWN,
 };
 use crate::jpda::{clusters, ehm_size_estimate, marginals, Method, TrackHypotheses};
 use crate::kalman::check_covariance;
@@ -179,8 +179,25 @@ impl Tracker {
     }
 
     /// Processes one scan: detections `z` (`(k, m)` row-major) from sensors `sensor_ids`
-    /// (`(k,)`) at time `t` seconds. An empty scan only predicts.
+    /// (`(k,)`) at time `t` seconds, each with its sensor's noise `R`. An empty scan only
+    /// predicts.
     pub fn step(&mut self, t: f64, z: &[f64], sensor_ids: &[usize]) -> Result<StepOutcome> {
+        self.step_with_covariances(t, z, sensor_ids, None)
+    }
+
+    /// [`Tracker::step`] with a measurement noise covariance per detection: `covariances`
+    /// `(k, m, m)` row-major (measurement units squared), symmetric positive definite, in place
+    /// of the sensor's `R` for gating, the PDA/distance hypotheses, the Kalman updates of
+    /// confirmed and tentative tracks, and the start of a tentative track (unless the sensor has
+    /// its own initiation noise; Stone Soup: a detection's own `measurement_model` is used by
+    /// every component, `SimpleMeasurementInitiator` included). `None`: the sensors' `R`.
+    pub fn step_with_covariances(
+        &mut self,
+        t: f64,
+        z: &[f64],
+        sensor_ids: &[usize],
+        covariances: Option<&[f64]>,
+    ) -> Result<StepOutcome> {
         let m = self.m;
         check_finite("t", &[t])?;
         if z.len() != sensor_ids.len() * m {
@@ -191,6 +208,19 @@ impl Tracker {
             ));
         }
         check_finite("measurements", z)?;
+        if let Some(c) = covariances {
+            let k = sensor_ids.len();
+            if c.len() != k * m * m {
+                return Err(Error::dim(
+                    "covariances",
+                    format!("({k}, {m}, {m}) values (one matrix per measurement row)"),
+                    c.len(),
+                ));
+            }
+            for (i, ci) in c.chunks(m * m).enumerate() {
+                check_covariance(&format!("covariances[{i}]"), ci, m, true)?;
+            }
+        }
         if let Some(pos) = sensor_ids.iter().position(|&s| s >= self.cfg.sensors.len()) {
             return Err(Error::param(
                 "sensor_ids",
@@ -217,9 +247,9 @@ impl Tracker {
         }
         let nd = self.cfg.motion_model.ndim();
         match (nd, m) {
-            (4, 2) => self.step_dims((U4, U2), t, z, sensor_ids)?,
-            (6, 2) => self.step_dims((U6, U2), t, z, sensor_ids)?,
-            _ => self.step_dims((Dyn(nd), Dyn(m)), t, z, sensor_ids)?,
+            (4, 2) => self.step_dims((U4, U2), t, z, sensor_ids, covariances)?,
+            (6, 2) => self.step_dims((U6, U2), t, z, sensor_ids, covariances)?,
+            _ => self.step_dims((Dyn(nd), Dyn(m)), t, z, sensor_ids, covariances)?,
         }
         self.last_time = Some(t);
         self.scan += 1;
@@ -233,6 +263,7 @@ impl Tracker {
         t: f64,
         z: &[f64],
         sensor_ids: &[usize],
+        covariances: Option<&[f64]>,
     ) -> Result<()>
     where
         DefaultAllocator: Alloc<N, M>,
@@ -240,8 +271,17 @@ impl Tracker {
         let k = sensor_ids.len();
         let all: Vec<usize> = (0..k).collect();
         let sensors = sensors_t(&self.cfg.sensors, dims.0, dims.1);
+        let md = dims.1;
+        let covs: Option<Vec<OMatrix<f64, M, M>>> = covariances.map(|c| {
+            c.chunks(self.m * self.m)
+                .map(|ci| OMatrix::<f64, M, M>::from_row_slice_generic(md, md, ci))
+                .collect()
+        });
+        let covs = covs.as_deref();
         let associated = match self.cfg.association {
-            Association::Jpda(j) => self.step_jpda(t, z, sensor_ids, &all, &j, &sensors, dims)?,
+            Association::Jpda(j) => {
+                self.step_jpda(t, z, sensor_ids, &all, covs, &j, &sensors, dims)?
+            }
             Association::Gnn(g) => {
                 let model = self.cfg.motion_model.clone();
                 let assoc = gnn_step(
@@ -258,6 +298,7 @@ impl Tracker {
                     dims,
                     sensor_ids,
                     &all,
+                    covs,
                     self.scan,
                 )?;
                 let mut associated = vec![false; k];
@@ -283,7 +324,7 @@ impl Tracker {
             }
         }
         let free: Vec<usize> = (0..k).filter(|&d| !associated[d]).collect();
-        self.initiate(t, z, sensor_ids, &free, &sensors, dims)
+        self.initiate(t, z, sensor_ids, &free, covs, &sensors, dims)
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -293,6 +334,7 @@ impl Tracker {
         z: &[f64],
         det_sensor: &[usize],
         dets: &[usize],
+        covs: Option<&[OMatrix<f64, M, M>]>,
         j: &JpdaParams,
         sensors: &[SensorT<N, M>],
         (n, md): (N, M),
@@ -304,31 +346,34 @@ impl Tracker {
         let k = det_sensor.len();
         let ns = sensors.len();
         let preds = predict_all(&self.cfg.motion_model, &self.tracks, t, n);
-        let mut innov: Vec<Option<Innovation<N, M>>> =
-            (0..preds.len() * ns).map(|_| None).collect();
+        let mut innov = Innovations::new(preds.len(), ns);
         let gate = if j.include_all {
             f64::INFINITY
         } else {
             self.gate
         };
-        let pairs = gate_pairs(&preds, sensors, z, md, det_sensor, dets, gate, &mut innov)?;
+        let pairs = gate_pairs(
+            &preds, sensors, z, md, det_sensor, dets, covs, gate, &mut innov,
+        )?;
         // Log weights per track: missed, then gated detections.
         let ln_missed = (1.0 - j.prob_detect * j.prob_gate).ln();
-        let mut hyps: Vec<Vec<(usize, f64, f64)>> = vec![Vec::new(); preds.len()]; // (det, ln w, d2)
-        for &(ti, d, d2) in &pairs {
-            let inn = innov[ti * ns + det_sensor[d]].as_ref().expect("gated");
-            let logpdf = -0.5 * (d2 + inn.ln_det + m as f64 * LN_2PI);
+        // (det, ln w, d2, index into pairs)
+        let mut hyps: Vec<Vec<(usize, f64, f64, usize)>> = vec![Vec::new(); preds.len()];
+        for (pi, p) in pairs.iter().enumerate() {
+            let inn = innov.of(p, det_sensor[p.d]);
+            let logpdf = -0.5 * (p.d2 + inn.ln_det + m as f64 * LN_2PI);
             let mut lw = logpdf + j.prob_detect.ln();
             if let Some(l) = j.clutter_density {
                 lw -= l.ln();
             }
-            hyps[ti].push((d, lw, d2));
+            hyps[p.t].push((p.d, lw, p.d2, pi));
         }
         if j.clutter_density.is_none() {
-            for (ti, h) in hyps.iter_mut().enumerate() {
+            for h in hyps.iter_mut() {
                 let n_valid = h.iter().filter(|x| x.2 <= self.gate).count() as f64;
                 for e in h.iter_mut() {
-                    let inn = innov[ti * ns + det_sensor[e.0]].as_ref().expect("gated");
+                    let p = &pairs[e.3];
+                    let inn = innov.of(p, det_sensor[p.d]);
                     let vol = validation_volume(m, self.gate, inn.ln_det.exp());
                     e.1 += vol.ln() - n_valid.ln();
                 }
@@ -390,7 +435,8 @@ impl Tracker {
             missed_probability: f64::NAN,
             assoc: Vec::new(),
         };
-        // Scratch reused across tracks: mixture components, posterior covariance per sensor.
+        // Scratch reused across tracks: mixture components (weight, state, pair), posterior
+        // covariance per sensor (detections without their own covariance).
         let mut comps: Vec<(f64, OVector<f64, N>, usize)> = Vec::new();
         let mut post_by_sensor: Vec<Option<OMatrix<f64, N, N>>> = (0..ns).map(|_| None).collect();
         for (ti, ((xp, pp), tr)) in preds.into_iter().zip(self.tracks.iter_mut()).enumerate() {
@@ -402,8 +448,7 @@ impl Tracker {
             let mut mean = &xp * (b0 / tot);
             comps.clear();
             for (e, &b) in h.iter().zip(&mg.detections) {
-                let s = det_sensor[e.0];
-                let inn = innov[ti * ns + s].as_ref().expect("gated");
+                let inn = innov.of(&pairs[e.3], det_sensor[e.0]);
                 let y = OVector::<f64, M>::from_column_slice_generic(
                     md,
                     U1,
@@ -411,23 +456,26 @@ impl Tracker {
                 ) - &inn.zhat;
                 let xu = &xp + &inn.k * y;
                 mean += &xu * (b / tot);
-                comps.push((b / tot, xu, s));
+                comps.push((b / tot, xu, e.3));
                 in_gate[e.0] = true;
             }
             let dx = &xp - &mean;
             let mut cov = &pp * (b0 / tot) + (&dx * dx.transpose()) * (b0 / tot);
             post_by_sensor.iter_mut().for_each(|p| *p = None);
-            for (w, xu, s) in &comps {
-                let pu = post_by_sensor[*s].get_or_insert_with(|| {
-                    posterior_cov(
-                        &pp,
-                        innov[ti * ns + *s].as_ref().expect("gated"),
-                        &sensors[*s],
-                        form,
-                    )
-                });
+            for (w, xu, pi) in &comps {
+                let p = &pairs[*pi];
+                let s = det_sensor[p.d];
+                let inn = innov.of(p, s);
+                let own;
+                let pu = if p.own == NO_OWN {
+                    &*post_by_sensor[s]
+                        .get_or_insert_with(|| posterior_cov(&pp, inn, &sensors[s], form))
+                } else {
+                    own = posterior_cov(&pp, inn, &sensors[s], form);
+                    &own
+                };
                 let dx = xu - &mean;
-                cov += &*pu * *w + (&dx * dx.transpose()) * *w;
+                cov += pu * *w + (&dx * dx.transpose()) * *w;
             }
             let mut best: Option<usize> = None;
             for (i, &b) in mg.detections.iter().enumerate() {
@@ -459,12 +507,14 @@ impl Tracker {
         Ok(associated)
     }
 
+    #[allow(clippy::too_many_arguments)]
     fn initiate<N: Dim, M: Dim>(
         &mut self,
         t: f64,
         z: &[f64],
         det_sensor: &[usize],
         free: &[usize],
+        covs: Option<&[OMatrix<f64, M, M>]>,
         sensors: &[SensorT<N, M>],
         dims: (N, M),
     ) -> Result<()>
@@ -493,6 +543,7 @@ impl Tracker {
                 dims,
                 det_sensor,
                 free,
+                covs,
                 self.scan,
             )?;
             for d in assoc.into_iter().flatten() {
@@ -539,7 +590,8 @@ impl Tracker {
             self.tentative = keep;
         }
         // New tentative tracks from every detection left. Per sensor (computed once):
-        // H⁺, H⁺ R H⁺ᵀ and the mapped state axes.
+        // H⁺, H⁺ R H⁺ᵀ and the mapped state axes; H⁺ R_d H⁺ᵀ per detection with its own
+        // covariance R_d (unless the sensor has its own initiation noise).
         type InitModel = (DMatrix<f64>, DMatrix<f64>, Vec<bool>);
         let mut init_of: Vec<Option<InitModel>> = vec![None; self.cfg.sensors.len()];
         for &d in free {
@@ -574,7 +626,13 @@ impl Tracker {
                 }
             }
             x += pinv * zd;
-            p += pcov;
+            match covs {
+                Some(c) if !self.cfg.sensors[s].init_noise_given => {
+                    let rd = DMatrix::from_iterator(m, m, c[d].iter().copied());
+                    p += pinv * rd * pinv.transpose();
+                }
+                _ => p += pcov,
+            }
             for i in 0..n {
                 p[(i, i)] += init.diag_load;
             }
@@ -654,19 +712,19 @@ impl Tracker {
             .iter()
             .map(|t| (t.x.clone(), t.p.clone()))
             .collect();
-        let mut innov: Vec<Option<Innovation<Dyn, Dyn>>> =
-            (0..existing.len() * ns).map(|_| None).collect();
+        let mut innov = Innovations::new(existing.len(), ns);
         let mut reject = vec![false; cands.len()];
-        for (_, d, _) in gate_pairs(&existing, &sensors, &z, md, &sens, &all, gate, &mut innov)? {
-            reject[d] = true;
+        for p in gate_pairs(
+            &existing, &sensors, &z, md, &sens, &all, None, gate, &mut innov,
+        )? {
+            reject[p.d] = true;
         }
         let own: Vec<Pred<Dyn>> = cands.iter().map(|t| (t.x.clone(), t.p.clone())).collect();
-        let mut innov: Vec<Option<Innovation<Dyn, Dyn>>> =
-            (0..own.len() * ns).map(|_| None).collect();
+        let mut innov = Innovations::new(own.len(), ns);
         let mut gated_by: Vec<Vec<usize>> = vec![Vec::new(); cands.len()];
-        for (i, d, _) in gate_pairs(&own, &sensors, &z, md, &sens, &all, gate, &mut innov)? {
-            if i != d {
-                gated_by[d].push(i);
+        for p in gate_pairs(&own, &sensors, &z, md, &sens, &all, None, gate, &mut innov)? {
+            if p.t != p.d {
+                gated_by[p.d].push(p.t);
             }
         }
         let mut accepted = vec![false; cands.len()];
@@ -694,7 +752,7 @@ mod tests {
         let r = DMatrix::identity(2, 2) * 0.25;
         TrackerConfig {
             motion_model: MotionModel::constant_velocity_2d(0.01).unwrap(),
-            sensors: vec![Sensor::new(h, r, None, 4, "sensors[0]").unwrap()],
+            sensors: vec![Sensor::new(h, r, None, None, 4, "sensors[0]").unwrap()],
             association: assoc,
             use_joseph_cov: false,
             symmetric_covariance: false,

@@ -18,14 +18,19 @@ pub struct Sensor {
     /// The model the initiator uses to start tentative tracks from this sensor's detections
     /// (`H`, `R`); defaults to `(h, r)`.
     pub init: (DMatrix<f64>, DMatrix<f64>),
+    /// Whether the initiation noise was given (then it starts tracks even from detections with
+    /// their own covariance).
+    pub init_noise_given: bool,
 }
 
 impl Sensor {
-    /// Builds and checks a sensor for an `ndim`-state model.
+    /// Builds and checks a sensor for an `ndim`-state model; the initiation model's `H` and
+    /// `R` default to `h` and `r`.
     pub fn new(
         h: DMatrix<f64>,
         r: DMatrix<f64>,
-        init: Option<(DMatrix<f64>, DMatrix<f64>)>,
+        init_h: Option<DMatrix<f64>>,
+        init_r: Option<DMatrix<f64>>,
         ndim: usize,
         arg: &str,
     ) -> Result<Self> {
@@ -50,7 +55,11 @@ impl Sensor {
             check_covariance(&format!("{arg}.{what}measurement_noise"), &rm, m, true)
         };
         check(&h, &r, "")?;
-        let init = init.unwrap_or_else(|| (h.clone(), r.clone()));
+        let init_noise_given = init_r.is_some();
+        let init = (
+            init_h.unwrap_or_else(|| h.clone()),
+            init_r.unwrap_or_else(|| r.clone()),
+        );
         check(&init.0, &init.1, "initiation_")?;
         if init.0.nrows() != h.nrows() {
             return Err(Error::dim(
@@ -59,7 +68,12 @@ impl Sensor {
                 init.0.nrows(),
             ));
         }
-        Ok(Self { h, r, init })
+        Ok(Self {
+            h,
+            r,
+            init,
+            init_noise_given,
+        })
     }
 
     /// Measurement dimension `m`.

@@ -13,7 +13,10 @@ use crate::tracker::{
     Tracker, TrackerConfig,
 };
 use nalgebra::{DMatrix, DVector};
-use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
+use numpy::{
+    PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3,
+    PyUntypedArrayMethods,
+};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
@@ -174,14 +177,9 @@ fn sensor_from_arrays(
 ) -> PyResult<Sensor> {
     let h = matrix("measurement_matrix", h)?;
     let r = matrix("measurement_noise", r)?;
-    let init = match (hi, ri) {
-        (None, None) => None,
-        (hi, ri) => Some((
-            hi.map_or(Ok(h.clone()), |a| matrix("initiation_matrix", a))?,
-            ri.map_or(Ok(r.clone()), |a| matrix("initiation_noise", a))?,
-        )),
-    };
-    Sensor::new(h, r, init, n, &format!("sensors[{i}]")).map_err(to_py_err)
+    let hi = hi.map(|a| matrix("initiation_matrix", a)).transpose()?;
+    let ri = ri.map(|a| matrix("initiation_noise", a)).transpose()?;
+    Sensor::new(h, r, hi, ri, n, &format!("sensors[{i}]")).map_err(to_py_err)
 }
 
 /// The multi-target tracker core; build it through `usvfast.tracking.Tracker`.
@@ -291,23 +289,34 @@ impl TrackerCore {
         })
     }
 
-    /// Processes one scan; returns False when it was dropped as out of order.
+    /// Processes one scan (detections with their own noise covariances `(k, m, m)` when
+    /// given); returns False when it was dropped as out of order.
+    #[pyo3(signature = (t, measurements, sensor_ids, covariances=None))]
     fn step(
         &mut self,
         py: Python<'_>,
         t: f64,
         measurements: PyReadonlyArray2<'_, f64>,
         sensor_ids: PyReadonlyArray1<'_, i64>,
+        covariances: Option<PyReadonlyArray3<'_, f64>>,
     ) -> PyResult<bool> {
         let z = slice("measurements", &measurements)?;
         let ids = to_usize("sensor_ids", slice("sensor_ids", &sensor_ids)?)?;
+        let covs = covariances
+            .as_ref()
+            .map(|c| slice("covariances", c))
+            .transpose()?;
         let inner = &mut self.inner;
-        let out = py.detach(|| inner.step(t, z, &ids)).map_err(to_py_err)?;
+        let out = py
+            .detach(|| inner.step_with_covariances(t, z, &ids, covs))
+            .map_err(to_py_err)?;
         Ok(out == crate::tracker::StepOutcome::Processed)
     }
 
     /// Runs a whole recording: scan `i` at `times[i]` holds the detections with
-    /// `scan_index == i`. Returns, per scan, the confirmed tracks after it.
+    /// `scan_index == i` (with their own noise covariances `(d, m, m)` when given). Returns,
+    /// per scan, the confirmed tracks after it.
+    #[pyo3(signature = (times, measurements, sensor_ids, scan_index, covariances=None))]
     fn run<'py>(
         &mut self,
         py: Python<'py>,
@@ -315,9 +324,14 @@ impl TrackerCore {
         measurements: PyReadonlyArray2<'py, f64>,
         sensor_ids: PyReadonlyArray1<'py, i64>,
         scan_index: PyReadonlyArray1<'py, i64>,
+        covariances: Option<PyReadonlyArray3<'py, f64>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let t = slice("times", &times)?;
         let z = slice("measurements", &measurements)?;
+        let covs = covariances
+            .as_ref()
+            .map(|c| slice("covariances", c))
+            .transpose()?;
         let m = self.inner.measurement_dim();
         let ids = to_usize("sensor_ids", slice("sensor_ids", &sensor_ids)?)?;
         let scans = to_usize("scan_index", slice("scan_index", &scan_index)?)?;
@@ -335,6 +349,15 @@ impl TrackerCore {
                 format!("{nd} entries, one per measurement row"),
                 scans.len(),
             )));
+        }
+        if let Some(c) = covs {
+            if c.len() != nd * m * m {
+                return Err(to_py_err(Error::dim(
+                    "covariances",
+                    format!("({nd}, {m}, {m}) values, one matrix per measurement row"),
+                    c.len(),
+                )));
+            }
         }
         if let Some(p) = scans.iter().position(|&s| s >= t.len()) {
             return Err(to_py_err(Error::param(
@@ -366,17 +389,47 @@ impl TrackerCore {
                 let mut p = 0;
                 let mut zs = Vec::<f64>::new();
                 let mut ss = Vec::<usize>::new();
+                let mut cs = Vec::<f64>::new();
+                let mm = m * m;
                 for (i, &ti) in t.iter().enumerate() {
                     zs.clear();
                     ss.clear();
+                    cs.clear();
                     first_row.push(p as i64);
                     while p < nd && scans[order[p]] == i {
                         let d = order[p];
                         zs.extend_from_slice(&z[d * m..(d + 1) * m]);
                         ss.push(ids[d]);
+                        if let Some(c) = covs {
+                            cs.extend_from_slice(&c[d * mm..(d + 1) * mm]);
+                        }
                         p += 1;
                     }
-                    if inner.step(ti, &zs, &ss)? == crate::tracker::StepOutcome::Dropped {
+                    let ci = covs.map(|_| cs.as_slice());
+                    // Errors name the row of the whole run, not of the scan.
+                    let res =
+                        inner
+                            .step_with_covariances(ti, &zs, &ss, ci)
+                            .map_err(|e| match e {
+                                Error::NotPositiveDefinite { arg, reason } => {
+                                    let row = arg
+                                        .strip_prefix("covariances[")
+                                        .and_then(|r| r.strip_suffix(']'))
+                                        .and_then(|r| r.parse::<usize>().ok());
+                                    match row {
+                                        Some(r) => Error::NotPositiveDefinite {
+                                            arg: format!(
+                                                "covariances[{}]",
+                                                order[first_row[i] as usize + r]
+                                            ),
+                                            reason,
+                                        },
+                                        None => Error::NotPositiveDefinite { arg, reason },
+                                    }
+                                }
+                                e => e,
+                            })?;
+                    if res == crate::tracker::StepOutcome::Dropped {
                         dropped.push(i as i64);
                         continue;
                     }
@@ -515,6 +568,27 @@ impl TrackerCore {
             )?,
         )?;
         d.set_item("detection", arr_i(py, lasti(|h| &h.detection), &[k])?)?;
+        // NIS of the newest entry where it is an update with a detection's innovation (the
+        // most probable detection under JPDA), 0 with 0 degrees of freedom elsewhere.
+        let m = self.inner.measurement_dim();
+        let nis: Vec<f64> = list
+            .iter()
+            .map(|t| t.history.nis[last(t)])
+            .map(|v| if v.is_finite() { v } else { 0.0 })
+            .collect();
+        let dof: Vec<i64> = list
+            .iter()
+            .map(|t| {
+                let h = &t.history;
+                if h.is_update[last(t)] && h.nis[last(t)].is_finite() {
+                    m as i64
+                } else {
+                    0
+                }
+            })
+            .collect();
+        d.set_item("nis", arr_f(py, nis, &[k])?)?;
+        d.set_item("nis_dof", arr_i(py, dof, &[k])?)?;
         d.set_item(
             "missed_probability",
             arr_f(
