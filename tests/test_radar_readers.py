@@ -119,7 +119,9 @@ def test_polar_plots_are_placed_from_the_own_ship():
         "6 " + nmea("RATLL,03,6300.5400,N,01000.0000,E,X,000006.00,T,"),
     ]
     p = read_radar_nmea(lines)
-    xy = _plots_ned(p, own, origin)
+    xy, brg = _plots_ned(p, own, origin)
+    np.testing.assert_allclose(brg[:2], [90.0, 45.0])
+    assert np.isnan(brg[2])
     np.testing.assert_allclose(xy[0], [50.0, 1000.0], atol=1e-3)
     np.testing.assert_allclose(xy[1], [50 + 1000 / np.sqrt(2), 1000 / np.sqrt(2)], atol=0.5)
     n, e, _ = geodesy.geodetic2ned(63.009, 10.0, 0.0, *origin, 0.0)
@@ -144,3 +146,47 @@ def test_run_vts_without_ais_tracks_radar_only():
     res = run_vts(plots_from_ned(times, scans), None, None, origin=(60.0, 5.0))
     assert {r.source for r in res.rows} == {"radar"}
     assert len({r.track_id for r in res.rows}) == 1
+
+
+def test_polar_plot_covariance_is_the_converted_measurement_covariance():
+    from usvfast.fusion import TrackerConfig
+    from usvfast.fusion.pipeline import _plot_covariances
+
+    rng = np.random.default_rng(4)
+    r0, b0 = 1500.0, 35.0
+    cfg = TrackerConfig(range_std=10.0, bearing_std_deg=1.0, sigma=25.0)
+    lines = [
+        "5 " + ttm(1, f"{r0 / 1852:.7f}", f"{b0}", "000005.00"),
+        "6 " + nmea("RATLL,03,6300.5400,N,01000.0000,E,X,000006.00,T,"),
+    ]
+    p = read_radar_nmea(lines)
+    cov = _plot_covariances(p, np.array([b0, np.nan]), cfg)
+    r = r0 + 10.0 * rng.standard_normal(200000)
+    b = np.radians(b0 + 1.0 * rng.standard_normal(200000))
+    mc = np.cov(np.stack([r * np.cos(b), r * np.sin(b)]))
+    np.testing.assert_allclose(cov[0], mc + np.eye(2), rtol=0.02)
+    np.testing.assert_allclose(cov[1], 625.0 * np.eye(2))
+
+
+def test_identity_survives_a_track_break_within_t_d_and_radius():
+    from usvfast.fusion import TrackerConfig
+
+    rng = np.random.default_rng(1)
+    times = np.arange(0.0, 140.0, 2.5)
+    # The target is not seen from 60 s to 80 s (scans with scattered clutter only).
+    scans = [
+        np.array([[100 + 5 * t, 50.0]]) + rng.normal(0, 3, (1, 2))
+        if not 60 <= t < 80
+        else rng.uniform(2000, 9000, (1, 2))
+        for t in times
+    ]
+    plots = plots_from_ned(times, scans)
+    cfg = TrackerConfig(delete_steps=3, sigma=5.0)
+    kept = run_vts(plots, None, None, origin=(60.0, 5.0), tracker=cfg, t_d=30.0, radius=60.0)
+    split = run_vts(plots, None, None, origin=(60.0, 5.0), tracker=cfg, t_d=30.0, radius=1.0)
+
+    def target_ids(res):
+        return {r.track_id for r in res.rows if r.north < 1000 and abs(r.east - 50) < 30}
+
+    assert len(target_ids(split)) == 2  # the tracker itself starts a new track after the gap
+    assert len(target_ids(kept)) == 1  # §1.2: the same object keeps its identity

@@ -71,8 +71,11 @@ class OwnShip:
 @dataclass(frozen=True)
 class TrackerConfig:
     """Radar tracker parameters (JPDA, constant velocity; the Joyride choice of the tracker
-    tests): q (m²/s³), sigma (m, plot noise per axis), prob_detect, clutter_density (1/m²),
-    prob_gate, delete_steps, init_steps, min_points, missed_distance, prior_velocity_var."""
+    tests): q (m²/s³), sigma (m, noise per axis of plots given in NED), prob_detect,
+    clutter_density (1/m²), prob_gate, delete_steps, init_steps, min_points,
+    missed_distance, prior_velocity_var; range_std (m) and bearing_std_deg (deg) of plots
+    given as (range, bearing), whose NED covariance is J diag(σ_r², σ_b²) Jᵀ with J the
+    Jacobian of (r, b) -> (r cos b, r sin b) (converted measurements), floored at 1 m²."""
 
     q: float = 5.0
     sigma: float = 25.0
@@ -84,6 +87,8 @@ class TrackerConfig:
     min_points: int = 2
     missed_distance: float = 5.0
     prior_velocity_var: float = 100.0
+    range_std: float = 10.0
+    bearing_std_deg: float = 1.0
 
 
 def radar_tracker(cfg: TrackerConfig) -> tk.Tracker:
@@ -147,10 +152,34 @@ class VtsResult:
     scan_times: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
 
-def _plots_ned(plots: RadarPlots, own: OwnShip | None, origin: tuple[float, float]) -> np.ndarray:
+def _plot_covariances(
+    plots: RadarPlots, true_bearing: np.ndarray, cfg: TrackerConfig
+) -> np.ndarray:
+    """(n, 2, 2) NED covariance of each plot (m²): converted polar noise (at the plot's true
+    bearing, degrees; NaN for plots not given polar), else sigma² I."""
+    cov = np.tile(np.eye(2) * cfg.sigma**2, (len(plots), 1, 1))
+    polar = np.isfinite(true_bearing)
+    if polar.any():
+        r = plots.range_m[polar]
+        b = np.radians(true_bearing[polar])
+        sb2 = np.radians(cfg.bearing_std_deg) ** 2
+        c, s = np.cos(b), np.sin(b)
+        rr, tt = cfg.range_std**2, (r * r) * sb2
+        cov[polar, 0, 0] = c * c * rr + s * s * tt
+        cov[polar, 1, 1] = s * s * rr + c * c * tt
+        cov[polar, 0, 1] = cov[polar, 1, 0] = c * s * (rr - tt)
+        cov[polar] += np.eye(2)  # floor: keeps plots at zero range positive definite
+    return cov
+
+
+def _plots_ned(
+    plots: RadarPlots, own: OwnShip | None, origin: tuple[float, float]
+) -> tuple[np.ndarray, np.ndarray]:
     """(n, 2) north, east of every plot in the plane: NED as given, TLL through geodesy,
-    polar from the own ship (relative bearings turned by its heading)."""
+    polar from the own ship (relative bearings turned by its heading); and (n,) the true
+    bearing (deg) of polar plots, NaN for the others."""
     n, e = plots.north.copy(), plots.east.copy()
+    true_bearing = np.full(len(n), np.nan)
     geo = np.isnan(n) & np.isfinite(plots.lat_deg)
     if geo.any():
         gn, ge, _ = geodesy.geodetic2ned(
@@ -167,10 +196,11 @@ def _plots_ned(plots: RadarPlots, own: OwnShip | None, origin: tuple[float, floa
         if np.any(rel & np.isnan(head)):
             raise ValueError("own: relative radar bearings need the own-ship heading")
         brg[rel] = brg[rel] + head[rel]
+        true_bearing[polar] = brg
         b = np.radians(brg)
         n[polar] = on + plots.range_m[polar] * np.cos(b)
         e[polar] = oe + plots.range_m[polar] * np.sin(b)
-    return np.stack([n, e], axis=1)
+    return np.stack([n, e], axis=1), true_bearing
 
 
 def _row(t, tid, mmsi, x, p, source) -> FusedRow:
@@ -224,9 +254,11 @@ def run_vts(
     ValueError when plots are polar without an own ship."""
     t_start = _time.perf_counter()
     timings: dict[str, float] = {}
-    xy = _plots_ned(plots, own, origin)
+    cfg = tracker or TrackerConfig()
+    xy, true_bearing = _plots_ned(plots, own, origin)
+    plot_cov = _plot_covariances(plots, true_bearing, cfg)
     scan_times, scan_index = plots.scans()
-    trk = radar_tracker(tracker or TrackerConfig())
+    trk = radar_tracker(cfg)
     assoc = WindowAssociator(method or JCost(), window=window)
     t0 = float(scan_times[0]) if len(scan_times) else 0.0
     names = dict(ais.names) if ais is not None else {}
@@ -243,9 +275,9 @@ def run_vts(
     prev_pairs: dict[int, int] = {}
     for s, t in enumerate(scan_times.tolist()):
         a = _time.perf_counter()
-        z = xy[order[bounds[s] : bounds[s + 1]]]
-        z = z[np.all(np.isfinite(z), axis=1)]  # empty scans (AIS-only schedules)
-        tracks = trk.step(t - t0, z)
+        rows_s = order[bounds[s] : bounds[s + 1]]
+        rows_s = rows_s[np.all(np.isfinite(xy[rows_s]), axis=1)]  # empty (AIS-only) scans
+        tracks = trk.step(t - t0, xy[rows_s], covariances=plot_cov[rows_s])
         b = _time.perf_counter()
         t_track += b - a
         ids = []
