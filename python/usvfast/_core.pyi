@@ -170,6 +170,7 @@ class TrackerCore:
         measurements: npt.NDArray[np.float64],
         sensor_ids: npt.NDArray[np.int64],
         covariances: npt.NDArray[np.float64] | None = None,
+        origins: npt.NDArray[np.float64] | None = None,
     ) -> bool: ...
     def run(
         self,
@@ -178,6 +179,7 @@ class TrackerCore:
         sensor_ids: npt.NDArray[np.int64],
         scan_index: npt.NDArray[np.int64],
         covariances: npt.NDArray[np.float64] | None = None,
+        origins: npt.NDArray[np.float64] | None = None,
     ) -> dict[str, npt.NDArray[np.generic]]: ...
     def add_sensor(
         self,
@@ -185,6 +187,7 @@ class TrackerCore:
         measurement_noise: npt.NDArray[np.float64],
         initiation_matrix: npt.NDArray[np.float64] | None = None,
         initiation_noise: npt.NDArray[np.float64] | None = None,
+        polar: tuple[int, int, str, float, float, float | None] | None = None,
     ) -> int: ...
     def add_track(
         self, state: npt.NDArray[np.float64], covariance: npt.NDArray[np.float64], time: float

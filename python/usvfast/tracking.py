@@ -49,6 +49,18 @@ the PDA/distance hypotheses, the Kalman updates of confirmed and tentative track
 start of a tentative track (unless the sensor has its own ``initiation_noise``), as Stone Soup
 does for a ``Detection`` that carries its own ``LinearGaussian`` measurement model.
 
+Range–bearing (radar) sensors: ``Sensor.bearing_range(noise_std=(σ_φ rad, σ_ρ m),
+update="ekf" | "ukf")`` measures z = (bearing, range) of the state positions from the sensor
+position given per detection as ``origins`` (k, 2) to ``step``/``run`` (the own-ship north,
+east); bearings are compass bearings (atan2(east, north)), residuals wrapped to [−π, π). Updates
+are extended (analytic Jacobian) or unscented Kalman — Stone Soup's ``CartesianToBearingRange``
+with ``ExtendedKalmanUpdater`` / ``UnscentedKalmanUpdater`` — and the linearised (or
+sigma-point) S is used by the gate, the PDA weights and GNN distances; tentative tracks start
+at the inverse of the plot with J⁺ R J⁺ᵀ (``SimpleMeasurementInitiator``). Radar and linear
+sensors mix in one tracker (all have m = 2). A polar sensor's plots are gated against every
+track (no spatial grid: cost tracks × plots); ``initiate_in_gates=False`` and, with "ukf",
+``use_joseph_cov`` are refused.
+
 Also: ``tracker.add_track(state, covariance, time)`` seeds a confirmed track (first state a
 prior, not an update); ``tracker.add_sensor(Sensor(...))`` registers a sensor between steps
 (returns its id); ``tracker.tracks`` also carries each track's newest association data;
@@ -91,6 +103,7 @@ __all__ = [
     "JPDA",
     "AllOf",
     "AnyOf",
+    "BearingRange",
     "CovarianceTrace",
     "MultiMeasurementInitiator",
     "NeverDelete",
@@ -105,19 +118,95 @@ __all__ = [
 
 
 @dataclass(frozen=True)
+class BearingRange:
+    """The range–bearing part of a `Sensor.bearing_range` (see there): state indices `mapping`
+    of the Cartesian (x, y) it observes, `update` "ekf" (extended Kalman, analytic Jacobian) or
+    "ukf" (unscented, sigma-point parameters alpha, beta, kappa as Stone Soup's
+    `UnscentedKalmanUpdater`; kappa None: 3 − ndim)."""
+
+    mapping: tuple[int, int] = (0, 2)
+    update: Literal["ekf", "ukf"] = "ekf"
+    alpha: float = 0.5
+    beta: float = 2.0
+    kappa: float | None = None
+
+
+@dataclass(frozen=True)
 class Sensor:
-    """A linear-Gaussian sensor: z = H x + w, w ~ N(0, R).
+    """A linear-Gaussian sensor: z = H x + w, w ~ N(0, R) — or a range–bearing sensor
+    (`Sensor.bearing_range`).
 
     measurement_matrix H: (m, ndim); measurement_noise R: (m, m), symmetric positive definite,
     in measurement units squared. `initiation_matrix`/`initiation_noise` (default: the same)
     are the model the initiator uses to start tracks from this sensor's detections (Stone
     Soup's initiator `measurement_model` for detections without their own model).
+    `polar`: set by `Sensor.bearing_range` (then H only selects the mapped positions).
     """
 
     measurement_matrix: Any
     measurement_noise: Any
     initiation_matrix: Any = None
     initiation_noise: Any = None
+    polar: BearingRange | None = None
+
+    @classmethod
+    def bearing_range(
+        cls,
+        noise_std: Sequence[float] | None = None,
+        *,
+        noise: Any = None,
+        update: Literal["ekf", "ukf"] = "ekf",
+        ndim_state: int = 4,
+        mapping: Sequence[int] = (0, 2),
+        alpha: float = 0.5,
+        beta: float = 2.0,
+        kappa: float | None = None,
+        initiation_noise: Any = None,
+    ) -> Sensor:
+        """A range–bearing sensor (radar): z = (φ, ρ), φ = atan2(y − y₀, x − x₀) in radians,
+        ρ the range in metres, of the state positions (x, y) = state[mapping] seen from the
+        sensor position (x₀, y₀) given per detection as `origins` to `Tracker.step`/`run`.
+        With the state [n, v_n, e, v_e] and mapping (0, 2), φ is the compass bearing from north
+        (clockwise). Stone Soup's `CartesianToBearingRange(ndim_state, mapping, noise_covar,
+        translation_offset=origin)`; bearings and residuals wrapped to [−π, π).
+
+        noise_std (σ_φ rad, σ_ρ m) or noise R (2, 2) in (rad², m²); update "ekf" (Stone Soup's
+        `ExtendedKalmanUpdater` with the analytic Jacobian) or "ukf" (`UnscentedKalmanUpdater`
+        with alpha, beta, kappa). New tracks start at the inverse of the detection with
+        covariance J⁺ R J⁺ᵀ on the positions (Stone Soup's `SimpleMeasurementInitiator`).
+        """
+        ndim_state = _non_negative_int("ndim_state", ndim_state)
+        mp = tuple(_non_negative_int("mapping", i) for i in mapping)
+        if len(mp) != 2 or mp[0] == mp[1] or max(mp) >= ndim_state:
+            raise ValueError(
+                f"mapping: two distinct state indices < ndim_state={ndim_state}, got {mapping}"
+            )
+        if (noise_std is None) == (noise is None):
+            raise TypeError("bearing_range: give exactly one of noise_std and noise")
+        if noise is None:
+            std = as_float_array("noise_std", noise_std, ndim=1)
+            if std.shape != (2,):
+                raise _core.DimensionError(
+                    f"noise_std: expected (bearing rad, range m), got shape {std.shape}"
+                )
+            noise = np.diag(std**2)
+        if update not in ("ekf", "ukf"):
+            raise ValueError(f"update: expected 'ekf' or 'ukf', got {update!r}")
+        h = np.zeros((2, ndim_state))
+        h[0, mp[0]] = h[1, mp[1]] = 1.0
+        return cls(
+            h,
+            noise,
+            None,
+            initiation_noise,
+            BearingRange(
+                (mp[0], mp[1]),
+                update,
+                float(alpha),
+                float(beta),
+                None if kappa is None else float(kappa),
+            ),
+        )
 
     @classmethod
     def position(
@@ -142,6 +231,19 @@ class Sensor:
 def _sensor_spec(s: Any, where: str) -> tuple:
     if not isinstance(s, Sensor):
         raise TypeError(f"{where}: expected Sensor, got {s!r}")
+    b = s.polar
+    polar = (
+        None
+        if b is None
+        else (
+            _non_negative_int(f"{where}.mapping", b.mapping[0]),
+            _non_negative_int(f"{where}.mapping", b.mapping[1]),
+            b.update,
+            float(b.alpha),
+            float(b.beta),
+            None if b.kappa is None else float(b.kappa),
+        )
+    )
     opt = [
         None if a is None else as_float_array(f"{where}.{name}", a, ndim=2)
         for name, a in (
@@ -153,6 +255,7 @@ def _sensor_spec(s: Any, where: str) -> tuple:
         as_float_array(f"{where}.measurement_matrix", s.measurement_matrix, 2),
         as_float_array(f"{where}.measurement_noise", s.measurement_noise, 2),
         *opt,
+        polar,
     )
 
 
@@ -563,21 +666,38 @@ class Tracker:
             )
         return c
 
+    def _origins(self, origins: Any, k: int) -> np.ndarray | None:
+        if origins is None:
+            return None
+        o = as_float_array("origins", origins)
+        if o.shape == (2,):
+            o = np.ascontiguousarray(np.broadcast_to(o, (k, 2)))
+        if o.size == 0 and k == 0:
+            o = o.reshape(0, 2)
+        if o.shape != (k, 2):
+            raise _core.DimensionError(f"origins: expected shape ({k}, 2) or (2,), got {o.shape}")
+        return o
+
     def step(
         self,
         t: float,
         measurements: Any = (),
         sensor_ids: Any = None,
         covariances: Any = None,
+        origins: Any = None,
     ) -> Tracks:
         """Process the scan at time `t` (seconds): measurements (k, m), sensor_ids (k,) ints
         (default: all sensor 0; a scalar applies to all), covariances (k, m, m) each detection's
         own measurement noise (measurement units squared, symmetric positive definite; default:
-        its sensor's R). Returns the confirmed tracks. A bad covariance raises
-        NotPositiveDefiniteError naming `covariances[i]`."""
+        its sensor's R), origins (k, 2) or (2,) for all: the position of the sensor that made
+        each detection in the state's mapped position coordinates (e.g. own-ship north, east
+        in m; used by range–bearing sensors, ignored by linear ones; default (0, 0)). Returns
+        the confirmed tracks. A bad covariance raises NotPositiveDefiniteError naming
+        `covariances[i]`."""
         z, ids = self._detections(measurements, sensor_ids)
         c = self._covariances(covariances, len(z))
-        self._core.step(float(t), z, ids, c)
+        o = self._origins(origins, len(z))
+        self._core.step(float(t), z, ids, c, o)
         return self.tracks
 
     def run(
@@ -587,14 +707,17 @@ class Tracker:
         sensor_ids: Any = None,
         scan_index: Any = None,
         covariances: Any = None,
+        origins: Any = None,
     ) -> RunResult:
         """Run a whole recording in one Rust call: scan i at times[i] (s,) holds the rows of
         measurements (d, m) whose scan_index (d,) is i; sensor_ids (d,); covariances (d, m, m)
-        per row as in `step` (NotPositiveDefiniteError names the row of the whole run).
+        per row as in `step` (NotPositiveDefiniteError names the row of the whole run);
+        origins (d, 2) per row as in `step`.
         Returns the confirmed tracks after every scan."""
         t = as_float_array("times", times, ndim=1)
         z, ids = self._detections(measurements, sensor_ids)
         c = self._covariances(covariances, len(z))
+        o = self._origins(origins, len(z))
         if scan_index is None:
             raise TypeError("scan_index: required, one scan number per measurement row")
         si = np.asarray(scan_index)
@@ -605,7 +728,7 @@ class Tracker:
         si = np.ascontiguousarray(si, dtype=np.int64)
         if si.shape != (len(z),):
             raise _core.DimensionError(f"scan_index: expected shape ({len(z)},), got {si.shape}")
-        out = self._core.run(t, z, ids, si, c)
+        out = self._core.run(t, z, ids, si, c, o)
         return RunResult(**out)
 
     def add_sensor(self, sensor: Sensor) -> int:

@@ -43,6 +43,8 @@ where
 {
     pub h: OMatrix<f64, M, N>,
     pub r: OMatrix<f64, M, M>,
+    /// A range–bearing sensor (its `h` then only selects the mapped positions).
+    pub polar: Option<crate::polar::Polar>,
 }
 
 /// The configured sensors converted to the kernel's dimensions (once per scan).
@@ -55,6 +57,7 @@ where
         .map(|s| SensorT {
             h: OMatrix::from_iterator_generic(m, n, s.h.iter().copied()),
             r: OMatrix::from_iterator_generic(m, m, s.r.iter().copied()),
+            polar: s.polar,
         })
         .collect()
 }
@@ -80,6 +83,26 @@ where
     pub k: OMatrix<f64, N, M>,
     /// The detection's own noise covariance (`None`: the sensor's `R`).
     pub r: Option<OMatrix<f64, M, M>>,
+    /// The linearised measurement matrix (extended Kalman; `None`: the sensor's `H`, or an
+    /// unscented innovation).
+    pub h: Option<OMatrix<f64, M, N>>,
+    /// The first measurement component is an angle: residuals are wrapped to `[−π, π)`.
+    pub angle: bool,
+}
+
+impl<N: Dim, M: Dim> Innovation<N, M>
+where
+    DefaultAllocator: Alloc<N, M>,
+{
+    /// The residual `z − ẑ` of a detection `z` (its angle wrapped).
+    pub fn residual(&self, z: &[f64]) -> OVector<f64, M> {
+        let (m, _) = self.zhat.shape_generic();
+        let mut y = OVector::<f64, M>::from_column_slice_generic(m, U1, z) - &self.zhat;
+        if self.angle {
+            y[0] = crate::polar::wrap(y[0]);
+        }
+        y
+    }
 }
 
 fn not_pd() -> Error {
@@ -118,6 +141,8 @@ where
         ln_det,
         k,
         r: own,
+        h: None,
+        angle: false,
     })
 }
 
@@ -224,7 +249,8 @@ where
 {
     let out = if form.joseph {
         let (n, _) = p.shape_generic();
-        let ikh = OMatrix::<f64, N, N>::identity_generic(n, n) - &inn.k * &sensor.h;
+        let h = inn.h.as_ref().unwrap_or(&sensor.h);
+        let ikh = OMatrix::<f64, N, N>::identity_generic(n, n) - &inn.k * h;
         let r = inn.r.as_ref().unwrap_or(&sensor.r);
         &ikh * p * ikh.transpose() + &inn.k * r * inn.k.transpose()
     } else {
@@ -290,18 +316,56 @@ where
         .collect()
 }
 
-/// Candidate pairs within `gate` (squared Mahalanobis) for predictions `preds[t] = (x⁻, P⁻)`,
-/// sorted by (track, detection). The per-(track, sensor) innovations of `innov` are filled
-/// lazily; a detection with its own noise covariance `covs[d]` gets its own innovation.
+/// One scan's detections as the kernels see them.
+pub(crate) struct Dets<'a, M: Dim>
+where
+    DefaultAllocator: Allocator<M, M>,
+{
+    /// Measurements `(k, m)` row-major.
+    pub z: &'a [f64],
+    /// Sensor of each detection `(k,)`.
+    pub sensor: &'a [usize],
+    /// Each detection's own noise covariance (`None`: its sensor's `R`).
+    pub covs: Option<&'a [OMatrix<f64, M, M>]>,
+    /// Sensor position `(k, 2)` of each detection (used by polar sensors; `None`: the
+    /// origin).
+    pub origins: Option<&'a [f64]>,
+}
+
+impl<M: Dim> Dets<'_, M>
+where
+    DefaultAllocator: Allocator<M, M>,
+{
+    /// Number of detections.
+    pub fn len(&self) -> usize {
+        self.sensor.len()
+    }
+
+    /// Measurement row `d`.
+    pub fn row(&self, d: usize, m: usize) -> &[f64] {
+        &self.z[d * m..(d + 1) * m]
+    }
+
+    /// Sensor position of detection `d`.
+    pub fn origin(&self, d: usize) -> [f64; 2] {
+        self.origins
+            .map_or([0.0, 0.0], |o| [o[2 * d], o[2 * d + 1]])
+    }
+}
+
+/// Candidate pairs within `gate` (squared Mahalanobis) for predictions `preds[t] = (x⁻, P⁻)` and
+/// the detections `which` of `dets`, sorted by (track, detection). The per-(track, sensor)
+/// innovations of `innov` are filled lazily for linear sensors; a detection with its own noise
+/// covariance, and every detection of a polar sensor (its innovation depends on the
+/// detection's sensor position), gets its own innovation. Polar sensors test every
+/// (track, detection) pair.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn gate_pairs<N: Dim, M: Dim>(
     preds: &[Pred<N>],
     sensors: &[SensorT<N, M>],
-    z: &[f64],
     m: M,
-    det_sensor: &[usize],
-    dets: &[usize],
-    covs: Option<&[OMatrix<f64, M, M>]>,
+    dets: &Dets<'_, M>,
+    which: &[usize],
     gate: f64,
     innov: &mut Innovations<N, M>,
 ) -> Result<Vec<Pair>>
@@ -309,18 +373,39 @@ where
     DefaultAllocator: Alloc<N, M>,
 {
     let mut pairs = Vec::new();
-    if preds.is_empty() || dets.is_empty() {
+    if preds.is_empty() || which.is_empty() {
         return Ok(pairs);
     }
     let ns = sensors.len();
     let md = m.value();
+    let covs = dets.covs;
     for (s, sensor) in sensors.iter().enumerate() {
-        let ids: Vec<usize> = dets
+        let ids: Vec<usize> = which
             .iter()
             .copied()
-            .filter(|&d| det_sensor[d] == s)
+            .filter(|&d| dets.sensor[d] == s)
             .collect();
         if ids.is_empty() {
+            continue;
+        }
+        if let Some(pol) = &sensor.polar {
+            for (t, (x, p)) in preds.iter().enumerate() {
+                for &d in &ids {
+                    let r = covs.map_or(&sensor.r, |c| &c[d]);
+                    let o = pol.innovation(x, p, r, dets.origin(d))?;
+                    let y = o.residual(dets.row(d, md));
+                    let d2 = y.dot(&o.chol.solve(&y));
+                    if d2 <= gate {
+                        pairs.push(Pair {
+                            t,
+                            d,
+                            d2,
+                            own: innov.own.len() as u32,
+                        });
+                        innov.own.push(o);
+                    }
+                }
+            }
             continue;
         }
         for (t, (x, p)) in preds.iter().enumerate() {
@@ -341,7 +426,7 @@ where
         };
         let pts: Vec<f64> = ids
             .iter()
-            .flat_map(|&d| z[d * md..(d + 1) * md].iter().copied())
+            .flat_map(|&d| dets.row(d, md).iter().copied())
             .collect();
         // Cell side: median gate box width over tracks.
         let mut widths: Vec<f64> = (0..preds.len())
@@ -375,9 +460,7 @@ where
                     return;
                 }
                 let d = ids[k];
-                let y =
-                    OVector::<f64, M>::from_column_slice_generic(m, U1, &z[d * md..(d + 1) * md])
-                        - &inn.zhat;
+                let y = inn.residual(dets.row(d, md));
                 match covs {
                     None => {
                         let d2 = y.dot(&inn.chol.solve(&y));
@@ -454,8 +537,8 @@ where
     out
 }
 
-/// Distance hypotheses + GNN + update/predict on `tracks` (confirmed or tentative), with the
-/// detections' own noise covariances `covs` when given. Returns the detection assigned to each
+/// Distance hypotheses + GNN + update/predict on `tracks` (confirmed or tentative) with the
+/// detections `which` of `dets`. Returns the detection assigned to each
 /// track.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn gnn_step<N: Dim, M: Dim>(
@@ -465,11 +548,9 @@ pub(crate) fn gnn_step<N: Dim, M: Dim>(
     g: &GnnParams,
     form: CovForm,
     t: f64,
-    z: &[f64],
+    dets: &Dets<'_, M>,
     (n, m): (N, M),
-    det_sensor: &[usize],
-    dets: &[usize],
-    covs: Option<&[OMatrix<f64, M, M>]>,
+    which: &[usize],
     scan: i64,
 ) -> Result<Vec<Option<usize>>>
 where
@@ -486,9 +567,7 @@ where
             Measure::SquaredMahalanobis => g.missed_distance,
         }
     };
-    let pairs = gate_pairs(
-        &preds, sensors, z, m, det_sensor, dets, covs, gate, &mut innov,
-    )?;
+    let pairs = gate_pairs(&preds, sensors, m, dets, which, gate, &mut innov)?;
     let mut hyps: Vec<Vec<(usize, f64)>> = vec![Vec::new(); tracks.len()];
     let mut kept: Vec<Vec<Pair>> = vec![Vec::new(); tracks.len()];
     for p in pairs {
@@ -501,7 +580,7 @@ where
             kept[p.t].push(p);
         }
     }
-    let assign = gnn_assign(&hyps, det_sensor.len(), g.missed_distance)?;
+    let assign = gnn_assign(&hyps, dets.len(), g.missed_distance)?;
     let md = m.value();
     let mut entry = Entry {
         time: t,
@@ -524,11 +603,9 @@ where
         match pair {
             Some(p) => {
                 let d = p.d;
-                let s = det_sensor[d];
+                let s = dets.sensor[d];
                 let inn = innov.of(p, s);
-                let y =
-                    OVector::<f64, M>::from_column_slice_generic(m, U1, &z[d * md..(d + 1) * md])
-                        - &inn.zhat;
+                let y = inn.residual(dets.row(d, md));
                 let xu = &xp + &inn.k * y;
                 let pu = posterior_cov(&pp, inn, &sensors[s], form);
                 entry.is_update = true;

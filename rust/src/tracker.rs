@@ -26,7 +26,7 @@ use crate::error::{check_finite, Error, Result};
 use crate::gating::{chi2_quantile, validation_volume};
 use crate::hypothesise::{
     axis_orders, gate_pairs, gnn_step, order_cluster, posterior_cov, predict_all, sensors_t, Alloc,
-    CovForm, Innovations, Pred, SensorT, NO_OWN,
+    CovForm, Dets, Innovations, Pred, SensorT, NO_OWN,
 };
 use crate::jpda::{clusters, ehm_size_estimate, marginals, Method, TrackHypotheses};
 use crate::kalman::check_covariance;
@@ -35,7 +35,7 @@ pub use crate::tracker_config::{
     Association, Confirmation, GnnParams, InitiatorConfig, JpdaParams, Measure, OutOfOrder, Sensor,
     TrackerConfig,
 };
-use nalgebra::{DMatrix, DVector, DefaultAllocator, Dim, Dyn, OMatrix, OVector, U1, U2, U4, U6};
+use nalgebra::{DMatrix, DVector, DefaultAllocator, Dim, Dyn, OMatrix, OVector, U2, U4, U6};
 
 /// `ln(2π)`.
 const LN_2PI: f64 = 1.837_877_066_409_345_5;
@@ -140,6 +140,10 @@ impl Tracker {
             ));
         }
         self.cfg.sensors.push(sensor);
+        if let Err(e) = self.cfg.validate_polar() {
+            self.cfg.sensors.pop();
+            return Err(e);
+        }
         Ok(i)
     }
 
@@ -182,7 +186,7 @@ impl Tracker {
     /// (`(k,)`) at time `t` seconds, each with its sensor's noise `R`. An empty scan only
     /// predicts.
     pub fn step(&mut self, t: f64, z: &[f64], sensor_ids: &[usize]) -> Result<StepOutcome> {
-        self.step_with_covariances(t, z, sensor_ids, None)
+        self.step_with(t, z, sensor_ids, None, None)
     }
 
     /// [`Tracker::step`] with a measurement noise covariance per detection: `covariances`
@@ -191,12 +195,17 @@ impl Tracker {
     /// confirmed and tentative tracks, and the start of a tentative track (unless the sensor has
     /// its own initiation noise; Stone Soup: a detection's own `measurement_model` is used by
     /// every component, `SimpleMeasurementInitiator` included). `None`: the sensors' `R`.
-    pub fn step_with_covariances(
+    ///
+    /// `origins` `(k, 2)` row-major: the position of the sensor that made each detection, in
+    /// the state's mapped position coordinates (e.g. own-ship north, east in metres), used by
+    /// range–bearing sensors (ignored for linear ones); `None`: every sensor at `(0, 0)`.
+    pub fn step_with(
         &mut self,
         t: f64,
         z: &[f64],
         sensor_ids: &[usize],
         covariances: Option<&[f64]>,
+        origins: Option<&[f64]>,
     ) -> Result<StepOutcome> {
         let m = self.m;
         check_finite("t", &[t])?;
@@ -220,6 +229,16 @@ impl Tracker {
             for (i, ci) in c.chunks(m * m).enumerate() {
                 check_covariance(&format!("covariances[{i}]"), ci, m, true)?;
             }
+        }
+        if let Some(o) = origins {
+            if o.len() != 2 * sensor_ids.len() {
+                return Err(Error::dim(
+                    "origins",
+                    format!("({}, 2) values (one per measurement row)", sensor_ids.len()),
+                    o.len(),
+                ));
+            }
+            check_finite("origins", o)?;
         }
         if let Some(pos) = sensor_ids.iter().position(|&s| s >= self.cfg.sensors.len()) {
             return Err(Error::param(
@@ -247,9 +266,9 @@ impl Tracker {
         }
         let nd = self.cfg.motion_model.ndim();
         match (nd, m) {
-            (4, 2) => self.step_dims((U4, U2), t, z, sensor_ids, covariances)?,
-            (6, 2) => self.step_dims((U6, U2), t, z, sensor_ids, covariances)?,
-            _ => self.step_dims((Dyn(nd), Dyn(m)), t, z, sensor_ids, covariances)?,
+            (4, 2) => self.step_dims((U4, U2), t, z, sensor_ids, covariances, origins)?,
+            (6, 2) => self.step_dims((U6, U2), t, z, sensor_ids, covariances, origins)?,
+            _ => self.step_dims((Dyn(nd), Dyn(m)), t, z, sensor_ids, covariances, origins)?,
         }
         self.last_time = Some(t);
         self.scan += 1;
@@ -264,6 +283,7 @@ impl Tracker {
         z: &[f64],
         sensor_ids: &[usize],
         covariances: Option<&[f64]>,
+        origins: Option<&[f64]>,
     ) -> Result<()>
     where
         DefaultAllocator: Alloc<N, M>,
@@ -277,11 +297,14 @@ impl Tracker {
                 .map(|ci| OMatrix::<f64, M, M>::from_row_slice_generic(md, md, ci))
                 .collect()
         });
-        let covs = covs.as_deref();
+        let dets = Dets {
+            z,
+            sensor: sensor_ids,
+            covs: covs.as_deref(),
+            origins,
+        };
         let associated = match self.cfg.association {
-            Association::Jpda(j) => {
-                self.step_jpda(t, z, sensor_ids, &all, covs, &j, &sensors, dims)?
-            }
+            Association::Jpda(j) => self.step_jpda(t, &dets, &all, &j, &sensors, dims)?,
             Association::Gnn(g) => {
                 let model = self.cfg.motion_model.clone();
                 let assoc = gnn_step(
@@ -294,11 +317,9 @@ impl Tracker {
                         symmetric: self.cfg.symmetric_covariance,
                     },
                     t,
-                    z,
+                    &dets,
                     dims,
-                    sensor_ids,
                     &all,
-                    covs,
                     self.scan,
                 )?;
                 let mut associated = vec![false; k];
@@ -324,17 +345,14 @@ impl Tracker {
             }
         }
         let free: Vec<usize> = (0..k).filter(|&d| !associated[d]).collect();
-        self.initiate(t, z, sensor_ids, &free, covs, &sensors, dims)
+        self.initiate(t, &dets, &free, &sensors, dims)
     }
 
-    #[allow(clippy::too_many_arguments)]
     fn step_jpda<N: Dim, M: Dim>(
         &mut self,
         t: f64,
-        z: &[f64],
-        det_sensor: &[usize],
-        dets: &[usize],
-        covs: Option<&[OMatrix<f64, M, M>]>,
+        dets: &Dets<'_, M>,
+        which: &[usize],
         j: &JpdaParams,
         sensors: &[SensorT<N, M>],
         (n, md): (N, M),
@@ -343,7 +361,8 @@ impl Tracker {
         DefaultAllocator: Alloc<N, M>,
     {
         let m = self.m;
-        let k = det_sensor.len();
+        let k = dets.len();
+        let det_sensor = dets.sensor;
         let ns = sensors.len();
         let preds = predict_all(&self.cfg.motion_model, &self.tracks, t, n);
         let mut innov = Innovations::new(preds.len(), ns);
@@ -352,9 +371,7 @@ impl Tracker {
         } else {
             self.gate
         };
-        let pairs = gate_pairs(
-            &preds, sensors, z, md, det_sensor, dets, covs, gate, &mut innov,
-        )?;
+        let pairs = gate_pairs(&preds, sensors, md, dets, which, gate, &mut innov)?;
         // Log weights per track: missed, then gated detections.
         let ln_missed = (1.0 - j.prob_detect * j.prob_gate).ln();
         // (det, ln w, d2, index into pairs)
@@ -449,11 +466,7 @@ impl Tracker {
             comps.clear();
             for (e, &b) in h.iter().zip(&mg.detections) {
                 let inn = innov.of(&pairs[e.3], det_sensor[e.0]);
-                let y = OVector::<f64, M>::from_column_slice_generic(
-                    md,
-                    U1,
-                    &z[e.0 * m..(e.0 + 1) * m],
-                ) - &inn.zhat;
+                let y = inn.residual(dets.row(e.0, m));
                 let xu = &xp + &inn.k * y;
                 mean += &xu * (b / tot);
                 comps.push((b / tot, xu, e.3));
@@ -507,14 +520,11 @@ impl Tracker {
         Ok(associated)
     }
 
-    #[allow(clippy::too_many_arguments)]
     fn initiate<N: Dim, M: Dim>(
         &mut self,
         t: f64,
-        z: &[f64],
-        det_sensor: &[usize],
+        dets: &Dets<'_, M>,
         free: &[usize],
-        covs: Option<&[OMatrix<f64, M, M>]>,
         sensors: &[SensorT<N, M>],
         dims: (N, M),
     ) -> Result<()>
@@ -527,6 +537,8 @@ impl Tracker {
             .motion_model
             .clone()
             .unwrap_or_else(|| self.cfg.motion_model.clone());
+        let det_sensor = dets.sensor;
+        let covs = dets.covs;
         let mut used = vec![false; det_sensor.len()];
         if !self.tentative.is_empty() {
             let assoc = gnn_step(
@@ -539,11 +551,9 @@ impl Tracker {
                     symmetric: init.symmetric_covariance,
                 },
                 t,
-                z,
+                dets,
                 dims,
-                det_sensor,
                 free,
-                covs,
                 self.scan,
             )?;
             for d in assoc.into_iter().flatten() {
@@ -599,6 +609,40 @@ impl Tracker {
                 continue;
             }
             let s = det_sensor[d];
+            if let Some(pol) = self.cfg.sensors[s].polar {
+                // Stone Soup's SimpleMeasurementInitiator with a reversible model: positions
+                // from the inverse function, J⁺ R J⁺ᵀ on them, the prior elsewhere.
+                let sensor = &self.cfg.sensors[s];
+                let r: Vec<f64> = match covs {
+                    Some(c) if !sensor.init_noise_given => {
+                        c[d].transpose().iter().copied().collect()
+                    }
+                    _ => sensor.init.1.transpose().iter().copied().collect(),
+                };
+                let (pos, c) = pol.inverse(dets.row(d, m), &r, dets.origin(d))?;
+                let mut x = init.prior_state.clone();
+                let mut p = init.prior_covariance.clone();
+                let n = x.len();
+                for &c in &pol.mapping {
+                    x[c] = 0.0;
+                    for r in 0..n {
+                        p[(c, r)] = 0.0;
+                        p[(r, c)] = 0.0;
+                    }
+                }
+                let [i, j] = pol.mapping;
+                x[i] += pos[0];
+                x[j] += pos[1];
+                p[(i, i)] += c[0];
+                p[(i, j)] += c[1];
+                p[(j, i)] += c[2];
+                p[(j, j)] += c[3];
+                for i in 0..n {
+                    p[(i, i)] += init.diag_load;
+                }
+                self.push_tentative(t, x, p, s, d);
+                continue;
+            }
             if init_of[s].is_none() {
                 let (hi, ri) = &self.cfg.sensors[s].init;
                 let pinv = hi
@@ -612,7 +656,7 @@ impl Tracker {
                 init_of[s] = Some((pinv, cov, mapped));
             }
             let (pinv, pcov, mapped) = init_of[s].as_ref().expect("filled above");
-            let zd = DVector::from_column_slice(&z[d * m..(d + 1) * m]);
+            let zd = DVector::from_column_slice(dets.row(d, m));
             let mut x = init.prior_state.clone();
             let mut p = init.prior_covariance.clone();
             let n = x.len();
@@ -636,29 +680,34 @@ impl Tracker {
             for i in 0..n {
                 p[(i, i)] += init.diag_load;
             }
-            let id = self.next_tentative_id;
-            self.next_tentative_id += 1;
-            self.tentative.push(Track::new(
-                id,
-                x,
-                p,
-                Entry {
-                    time: t,
-                    is_update: true,
-                    scan: self.scan,
-                    sensor: s as i64,
-                    detection: d as i64,
-                    nis: f64::NAN,
-                    missed_probability: f64::NAN,
-                    assoc: vec![(d as i64, 1.0)],
-                },
-            ));
+            self.push_tentative(t, x, p, s, d);
         }
         Ok(())
     }
 }
 
 impl Tracker {
+    /// Starts a tentative track `(x, p)` from detection `d` of sensor `s` at time `t`.
+    fn push_tentative(&mut self, t: f64, x: DVector<f64>, p: DMatrix<f64>, s: usize, d: usize) {
+        let id = self.next_tentative_id;
+        self.next_tentative_id += 1;
+        self.tentative.push(Track::new(
+            id,
+            x,
+            p,
+            Entry {
+                time: t,
+                is_update: true,
+                scan: self.scan,
+                sensor: s as i64,
+                detection: d as i64,
+                nis: f64::NAN,
+                missed_probability: f64::NAN,
+                assoc: vec![(d as i64, 1.0)],
+            },
+        ));
+    }
+
     /// Drops tentative tracks about to be confirmed whose position falls inside the gate of a
     /// confirmed track or of a candidate accepted before them (native duplicate suppression;
     /// the gate is the association gate widened to at least χ²_m(0.9999)).
@@ -714,15 +763,19 @@ impl Tracker {
             .collect();
         let mut innov = Innovations::new(existing.len(), ns);
         let mut reject = vec![false; cands.len()];
-        for p in gate_pairs(
-            &existing, &sensors, &z, md, &sens, &all, None, gate, &mut innov,
-        )? {
+        let dets = Dets {
+            z: &z,
+            sensor: &sens,
+            covs: None,
+            origins: None,
+        };
+        for p in gate_pairs(&existing, &sensors, md, &dets, &all, gate, &mut innov)? {
             reject[p.d] = true;
         }
         let own: Vec<Pred<Dyn>> = cands.iter().map(|t| (t.x.clone(), t.p.clone())).collect();
         let mut innov = Innovations::new(own.len(), ns);
         let mut gated_by: Vec<Vec<usize>> = vec![Vec::new(); cands.len()];
-        for p in gate_pairs(&own, &sensors, &z, md, &sens, &all, None, gate, &mut innov)? {
+        for p in gate_pairs(&own, &sensors, md, &dets, &all, gate, &mut innov)? {
             if p.t != p.d {
                 gated_by[p.d].push(p.t);
             }

@@ -21,6 +21,10 @@ pub struct Sensor {
     /// Whether the initiation noise was given (then it starts tracks even from detections with
     /// their own covariance).
     pub init_noise_given: bool,
+    /// A range–bearing sensor: measurements `(φ, ρ)` (rad, m) of the mapped positions, `r` in
+    /// rad², m²; `h` (and the initiation `H`) then only select the mapped positions. `None`:
+    /// linear `z = H x + w`.
+    pub polar: Option<crate::polar::Polar>,
 }
 
 impl Sensor {
@@ -73,7 +77,46 @@ impl Sensor {
             r,
             init,
             init_noise_given,
+            polar: None,
         })
+    }
+
+    /// A range–bearing sensor observing state positions `mapping` of an `ndim`-state model
+    /// with noise `r` (rad², m²; Stone Soup's `CartesianToBearingRange` with `noise_covar`)
+    /// and the initiation noise `init_r` (default `r`).
+    pub fn polar(
+        polar: crate::polar::Polar,
+        r: DMatrix<f64>,
+        init_r: Option<DMatrix<f64>>,
+        ndim: usize,
+        arg: &str,
+    ) -> Result<Self> {
+        let [i, j] = polar.mapping;
+        if i >= ndim || j >= ndim || i == j {
+            return Err(Error::param(
+                &format!("{arg}.mapping"),
+                format!("needs two distinct state indices < {ndim}, got ({i}, {j})"),
+            ));
+        }
+        if let crate::polar::PolarUpdate::Unscented { alpha, beta, kappa } = polar.update {
+            if !(alpha > 0.0 && alpha.is_finite() && beta.is_finite())
+                || kappa.is_some_and(|k| !k.is_finite() || ndim as f64 + k <= 0.0)
+            {
+                return Err(Error::param(
+                    &format!("{arg}.update"),
+                    format!(
+                        "unscented parameters need alpha > 0, finite beta and ndim + kappa > 0, \
+                         got alpha={alpha}, beta={beta}, kappa={kappa:?}"
+                    ),
+                ));
+            }
+        }
+        let mut h = DMatrix::zeros(2, ndim);
+        h[(0, i)] = 1.0;
+        h[(1, j)] = 1.0;
+        let mut s = Self::new(h, r, None, init_r, ndim, arg)?;
+        s.polar = Some(polar);
+        Ok(s)
     }
 
     /// Measurement dimension `m`.
@@ -198,7 +241,35 @@ pub struct TrackerConfig {
 }
 
 impl TrackerConfig {
+    /// Options the range–bearing sensors do not support.
+    pub(crate) fn validate_polar(&self) -> Result<()> {
+        for (i, s) in self.sensors.iter().enumerate() {
+            let Some(p) = &s.polar else { continue };
+            if !self.initiate_in_gates {
+                return Err(Error::param(
+                    "initiate_in_gates",
+                    format!(
+                        "False is not supported with the range–bearing sensors[{i}] (its \
+                         duplicate test compares positions with linear sensors only)"
+                    ),
+                ));
+            }
+            let joseph = self.use_joseph_cov || self.initiator.use_joseph_cov;
+            if joseph && matches!(p.update, crate::polar::PolarUpdate::Unscented { .. }) {
+                return Err(Error::param(
+                    "use_joseph_cov",
+                    format!(
+                        "the Joseph form needs a measurement matrix, which the unscented \
+                         sensors[{i}] has not"
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
     pub(crate) fn validate(&self) -> Result<()> {
+        self.validate_polar()?;
         let n = self.motion_model.ndim();
         if self.sensors.is_empty() {
             return Err(Error::param("sensors", "at least one sensor is needed"));

@@ -7,6 +7,7 @@ use super::to_py_err;
 use crate::error::Error;
 use crate::gating::chi2_quantile;
 use crate::jpda::{marginals, Method, TrackHypotheses};
+use crate::polar::{Polar, PolarUpdate};
 use crate::track::{Deleter, Track};
 use crate::tracker::{
     Association, Confirmation, GnnParams, InitiatorConfig, JpdaParams, Measure, OutOfOrder, Sensor,
@@ -116,11 +117,15 @@ fn deleter(spec: &Bound<'_, PyAny>) -> PyResult<Deleter> {
     })
 }
 
+/// `(i, j, "ekf" | "ukf", alpha, beta, kappa)` of a range–bearing sensor.
+type PolarSpec = (usize, usize, String, f64, f64, Option<f64>);
+
 type SensorSpec<'py> = (
     PyReadonlyArray2<'py, f64>,
     PyReadonlyArray2<'py, f64>,
     Option<PyReadonlyArray2<'py, f64>>,
     Option<PyReadonlyArray2<'py, f64>>,
+    Option<PolarSpec>,
 );
 
 fn history_dict<'py>(py: Python<'py>, tr: &Track, ndim: usize) -> PyResult<Bound<'py, PyDict>> {
@@ -172,6 +177,7 @@ fn sensor_from_arrays(
     r: &PyReadonlyArray2<'_, f64>,
     hi: Option<&PyReadonlyArray2<'_, f64>>,
     ri: Option<&PyReadonlyArray2<'_, f64>>,
+    polar: Option<&PolarSpec>,
     n: usize,
     i: usize,
 ) -> PyResult<Sensor> {
@@ -179,7 +185,30 @@ fn sensor_from_arrays(
     let r = matrix("measurement_noise", r)?;
     let hi = hi.map(|a| matrix("initiation_matrix", a)).transpose()?;
     let ri = ri.map(|a| matrix("initiation_noise", a)).transpose()?;
-    Sensor::new(h, r, hi, ri, n, &format!("sensors[{i}]")).map_err(to_py_err)
+    let arg = format!("sensors[{i}]");
+    match polar {
+        None => Sensor::new(h, r, hi, ri, n, &arg).map_err(to_py_err),
+        Some((a, b, kind, alpha, beta, kappa)) => {
+            let update = match kind.as_str() {
+                "ekf" => PolarUpdate::Extended,
+                "ukf" => PolarUpdate::Unscented {
+                    alpha: *alpha,
+                    beta: *beta,
+                    kappa: *kappa,
+                },
+                other => {
+                    return Err(PyValueError::new_err(format!(
+                        "{arg}.update: expected 'ekf' or 'ukf', got {other:?}"
+                    )))
+                }
+            };
+            let pol = Polar {
+                mapping: [*a, *b],
+                update,
+            };
+            Sensor::polar(pol, r, ri, n, &arg).map_err(to_py_err)
+        }
+    }
 }
 
 /// The multi-target tracker core; build it through `usvfast.tracking.Tracker`.
@@ -214,7 +243,9 @@ impl TrackerCore {
         let sensors = sensors
             .iter()
             .enumerate()
-            .map(|(i, (h, r, hi, ri))| sensor_from_arrays(h, r, hi.as_ref(), ri.as_ref(), n, i))
+            .map(|(i, (h, r, hi, ri, pol))| {
+                sensor_from_arrays(h, r, hi.as_ref(), ri.as_ref(), pol.as_ref(), n, i)
+            })
             .collect::<PyResult<Vec<_>>>()?;
         let kind = get_str(association, "kind")?;
         let association = match kind.as_str() {
@@ -291,7 +322,7 @@ impl TrackerCore {
 
     /// Processes one scan (detections with their own noise covariances `(k, m, m)` when
     /// given); returns False when it was dropped as out of order.
-    #[pyo3(signature = (t, measurements, sensor_ids, covariances=None))]
+    #[pyo3(signature = (t, measurements, sensor_ids, covariances=None, origins=None))]
     fn step(
         &mut self,
         py: Python<'_>,
@@ -299,6 +330,7 @@ impl TrackerCore {
         measurements: PyReadonlyArray2<'_, f64>,
         sensor_ids: PyReadonlyArray1<'_, i64>,
         covariances: Option<PyReadonlyArray3<'_, f64>>,
+        origins: Option<PyReadonlyArray2<'_, f64>>,
     ) -> PyResult<bool> {
         let z = slice("measurements", &measurements)?;
         let ids = to_usize("sensor_ids", slice("sensor_ids", &sensor_ids)?)?;
@@ -306,9 +338,10 @@ impl TrackerCore {
             .as_ref()
             .map(|c| slice("covariances", c))
             .transpose()?;
+        let orig = origins.as_ref().map(|o| slice("origins", o)).transpose()?;
         let inner = &mut self.inner;
         let out = py
-            .detach(|| inner.step_with_covariances(t, z, &ids, covs))
+            .detach(|| inner.step_with(t, z, &ids, covs, orig))
             .map_err(to_py_err)?;
         Ok(out == crate::tracker::StepOutcome::Processed)
     }
@@ -316,7 +349,8 @@ impl TrackerCore {
     /// Runs a whole recording: scan `i` at `times[i]` holds the detections with
     /// `scan_index == i` (with their own noise covariances `(d, m, m)` when given). Returns,
     /// per scan, the confirmed tracks after it.
-    #[pyo3(signature = (times, measurements, sensor_ids, scan_index, covariances=None))]
+    #[pyo3(signature = (times, measurements, sensor_ids, scan_index, covariances=None, origins=None))]
+    #[allow(clippy::too_many_arguments)]
     fn run<'py>(
         &mut self,
         py: Python<'py>,
@@ -325,6 +359,7 @@ impl TrackerCore {
         sensor_ids: PyReadonlyArray1<'py, i64>,
         scan_index: PyReadonlyArray1<'py, i64>,
         covariances: Option<PyReadonlyArray3<'py, f64>>,
+        origins: Option<PyReadonlyArray2<'py, f64>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let t = slice("times", &times)?;
         let z = slice("measurements", &measurements)?;
@@ -332,6 +367,7 @@ impl TrackerCore {
             .as_ref()
             .map(|c| slice("covariances", c))
             .transpose()?;
+        let orig = origins.as_ref().map(|o| slice("origins", o)).transpose()?;
         let m = self.inner.measurement_dim();
         let ids = to_usize("sensor_ids", slice("sensor_ids", &sensor_ids)?)?;
         let scans = to_usize("scan_index", slice("scan_index", &scan_index)?)?;
@@ -349,6 +385,15 @@ impl TrackerCore {
                 format!("{nd} entries, one per measurement row"),
                 scans.len(),
             )));
+        }
+        if let Some(o) = orig {
+            if o.len() != nd * 2 {
+                return Err(to_py_err(Error::dim(
+                    "origins",
+                    format!("({nd}, 2) values, one sensor position per measurement row"),
+                    o.len(),
+                )));
+            }
         }
         if let Some(c) = covs {
             if c.len() != nd * m * m {
@@ -390,11 +435,13 @@ impl TrackerCore {
                 let mut zs = Vec::<f64>::new();
                 let mut ss = Vec::<usize>::new();
                 let mut cs = Vec::<f64>::new();
+                let mut os = Vec::<f64>::new();
                 let mm = m * m;
                 for (i, &ti) in t.iter().enumerate() {
                     zs.clear();
                     ss.clear();
                     cs.clear();
+                    os.clear();
                     first_row.push(p as i64);
                     while p < nd && scans[order[p]] == i {
                         let d = order[p];
@@ -403,32 +450,33 @@ impl TrackerCore {
                         if let Some(c) = covs {
                             cs.extend_from_slice(&c[d * mm..(d + 1) * mm]);
                         }
+                        if let Some(o) = orig {
+                            os.extend_from_slice(&o[2 * d..2 * d + 2]);
+                        }
                         p += 1;
                     }
                     let ci = covs.map(|_| cs.as_slice());
+                    let oi = orig.map(|_| os.as_slice());
                     // Errors name the row of the whole run, not of the scan.
-                    let res =
-                        inner
-                            .step_with_covariances(ti, &zs, &ss, ci)
-                            .map_err(|e| match e {
-                                Error::NotPositiveDefinite { arg, reason } => {
-                                    let row = arg
-                                        .strip_prefix("covariances[")
-                                        .and_then(|r| r.strip_suffix(']'))
-                                        .and_then(|r| r.parse::<usize>().ok());
-                                    match row {
-                                        Some(r) => Error::NotPositiveDefinite {
-                                            arg: format!(
-                                                "covariances[{}]",
-                                                order[first_row[i] as usize + r]
-                                            ),
-                                            reason,
-                                        },
-                                        None => Error::NotPositiveDefinite { arg, reason },
-                                    }
-                                }
-                                e => e,
-                            })?;
+                    let res = inner.step_with(ti, &zs, &ss, ci, oi).map_err(|e| match e {
+                        Error::NotPositiveDefinite { arg, reason } => {
+                            let row = arg
+                                .strip_prefix("covariances[")
+                                .and_then(|r| r.strip_suffix(']'))
+                                .and_then(|r| r.parse::<usize>().ok());
+                            match row {
+                                Some(r) => Error::NotPositiveDefinite {
+                                    arg: format!(
+                                        "covariances[{}]",
+                                        order[first_row[i] as usize + r]
+                                    ),
+                                    reason,
+                                },
+                                None => Error::NotPositiveDefinite { arg, reason },
+                            }
+                        }
+                        e => e,
+                    })?;
                     if res == crate::tracker::StepOutcome::Dropped {
                         dropped.push(i as i64);
                         continue;
@@ -460,13 +508,14 @@ impl TrackerCore {
     }
 
     /// Registers one more sensor between scans; returns its index.
-    #[pyo3(signature = (measurement_matrix, measurement_noise, initiation_matrix=None, initiation_noise=None))]
+    #[pyo3(signature = (measurement_matrix, measurement_noise, initiation_matrix=None, initiation_noise=None, polar=None))]
     fn add_sensor(
         &mut self,
         measurement_matrix: PyReadonlyArray2<'_, f64>,
         measurement_noise: PyReadonlyArray2<'_, f64>,
         initiation_matrix: Option<PyReadonlyArray2<'_, f64>>,
         initiation_noise: Option<PyReadonlyArray2<'_, f64>>,
+        polar: Option<PolarSpec>,
     ) -> PyResult<usize> {
         let n = self.inner.config().motion_model.ndim();
         let i = self.inner.config().sensors.len();
@@ -475,6 +524,7 @@ impl TrackerCore {
             &measurement_noise,
             initiation_matrix.as_ref(),
             initiation_noise.as_ref(),
+            polar.as_ref(),
             n,
             i,
         )?;
