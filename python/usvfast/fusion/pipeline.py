@@ -75,7 +75,15 @@ class TrackerConfig:
     clutter_density (1/m²), prob_gate, delete_steps, init_steps, min_points,
     missed_distance, prior_velocity_var; range_std (m) and bearing_std_deg (deg) of plots
     given as (range, bearing), whose NED covariance is J diag(σ_r², σ_b²) Jᵀ with J the
-    Jacobian of (r, b) -> (r cos b, r sin b) (converted measurements), floored at 1 m²."""
+    Jacobian of (r, b) -> (r cos b, r sin b) (converted measurements), floored at 1 m²;
+    polar: how (range, bearing) plots update the tracks — "ekf" or "ukf" (the tracker's
+    range–bearing sensor with the own ship as origin, Stone Soup's CartesianToBearingRange
+    with the extended / unscented Kalman updater) or "converted" (the converted NED plot and
+    covariance through the linear sensor)."""
+
+    def __post_init__(self) -> None:
+        if self.polar not in ("ekf", "ukf", "converted"):
+            raise ValueError(f"polar: expected 'ekf', 'ukf' or 'converted', got {self.polar!r}")
 
     q: float = 5.0
     sigma: float = 25.0
@@ -89,13 +97,25 @@ class TrackerConfig:
     prior_velocity_var: float = 100.0
     range_std: float = 10.0
     bearing_std_deg: float = 1.0
+    polar: str = "ekf"
 
 
-def radar_tracker(cfg: TrackerConfig) -> tk.Tracker:
-    """The usvfast JPDA tracker for radar plots in NED (Cartesian sensor, R = sigma² I)."""
+def radar_tracker(cfg: TrackerConfig, polar: bool = False) -> tk.Tracker:
+    """The usvfast JPDA tracker for radar plots: sensor 0 linear in NED (R = sigma² I), and
+    with `polar` sensor 1 range–bearing (z = (bearing rad, range m), `cfg.polar` update).
+    The polar sensor needs the tracker's default `initiate_in_gates=True`; NED-only
+    trackers withhold detections inside confirmed gates from the initiator (no duplicate
+    tracks on one target)."""
+    sensors = [tk.Sensor.position(noise_std=cfg.sigma)]
+    if polar:
+        sensors.append(
+            tk.Sensor.bearing_range(
+                noise_std=(np.radians(cfg.bearing_std_deg), cfg.range_std), update=cfg.polar
+            )
+        )
     return tk.Tracker(
         motion_model=constant_velocity_2d(cfg.q),
-        sensors=[tk.Sensor.position(noise_std=cfg.sigma)],
+        sensors=sensors,
         association=tk.JPDA(
             prob_detect=cfg.prob_detect,
             prob_gate=cfg.prob_gate,
@@ -109,7 +129,7 @@ def radar_tracker(cfg: TrackerConfig) -> tk.Tracker:
             deleter=tk.StepsSinceUpdate(cfg.init_steps),
             missed_distance=cfg.missed_distance,
         ),
-        initiate_in_gates=False,
+        initiate_in_gates=polar,
     )
 
 
@@ -257,8 +277,16 @@ def run_vts(
     cfg = tracker or TrackerConfig()
     xy, true_bearing = _plots_ned(plots, own, origin)
     plot_cov = _plot_covariances(plots, true_bearing, cfg)
+    polar = np.isfinite(true_bearing) if cfg.polar != "converted" else np.zeros(len(xy), bool)
+    meas, sensor, origins = xy.copy(), polar.astype(np.int64), np.zeros((len(xy), 2))
+    if polar.any():
+        # Range–bearing rows: z = (true bearing rad, range m) from the own ship.
+        meas[polar] = np.column_stack([np.radians(true_bearing[polar]), plots.range_m[polar]])
+        plot_cov[polar] = np.diag([np.radians(cfg.bearing_std_deg) ** 2, cfg.range_std**2])
+        on, oe, _ = own.at(plots.time[polar])
+        origins[polar] = np.column_stack([on, oe])
     scan_times, scan_index = plots.scans()
-    trk = radar_tracker(cfg)
+    trk = radar_tracker(cfg, polar=bool(polar.any()))
     assoc = WindowAssociator(method or JCost(), window=window)
     t0 = float(scan_times[0]) if len(scan_times) else 0.0
     names = dict(ais.names) if ais is not None else {}
@@ -277,7 +305,13 @@ def run_vts(
         a = _time.perf_counter()
         rows_s = order[bounds[s] : bounds[s + 1]]
         rows_s = rows_s[np.all(np.isfinite(xy[rows_s]), axis=1)]  # empty (AIS-only) scans
-        tracks = trk.step(t - t0, xy[rows_s], covariances=plot_cov[rows_s])
+        tracks = trk.step(
+            t - t0,
+            meas[rows_s],
+            sensor[rows_s],
+            covariances=plot_cov[rows_s],
+            origins=origins[rows_s],
+        )
         b = _time.perf_counter()
         t_track += b - a
         ids = []
