@@ -146,7 +146,7 @@ def test_polar_csv_own_nmea_and_camera_overlays(tmp_path):
         str(calib),
     ]
     args += ["--detections", str(det), "--camera-height", "8", "--video-start", str(start)]
-    args += ["--mount-ypr=-20,0,0"]
+    args += ["--mount-ypr=-20,0,0", "--polar", "ukf", "--range-std", "5", "--bearing-std", "0.5"]
     r = runner.invoke(app, args)
     assert r.exit_code == 0, r.output
     with (out / "fused.csv").open() as fh:

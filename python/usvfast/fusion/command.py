@@ -24,7 +24,7 @@ import typer
 from usvfast import geodesy
 from usvfast.fusion.ais_feed import AisTargets, read_ais_feed
 from usvfast.fusion.associate import Chi2Test, JCost
-from usvfast.fusion.pipeline import FusedRow, OwnShip, VtsResult, run_vts
+from usvfast.fusion.pipeline import FusedRow, OwnShip, TrackerConfig, VtsResult, run_vts
 from usvfast.radar.readers import RadarPlots, plots_from_ned, read_radar_csv, read_radar_nmea
 
 __all__ = ["load_own_nmea", "vts_command", "write_fused_csv"]
@@ -286,6 +286,9 @@ def vts_command(
     method: Annotated[str, typer.Option(help="Radar–AIS test: j (paper §1.3) or chi2.")] = "j",
     window: Annotated[int, typer.Option(help="Association window N, scans.")] = 8,
     j_set: Annotated[float, typer.Option(help="J acceptance threshold J_set.")] = 2.5,
+    polar: Annotated[str, typer.Option(help="Polar plot update: ekf, ukf or converted.")] = "ekf",
+    range_std: Annotated[float, typer.Option(help="Radar range noise, m.")] = 10.0,
+    bearing_std: Annotated[float, typer.Option(help="Radar bearing noise, deg.")] = 1.0,
     camera: Annotated[Path | None, typer.Option(help="Camera video.")] = None,
     calibration: Annotated[Path | None, typer.Option(help="Camera calibration YAML/JSON.")] = None,
     detections: Annotated[
@@ -306,6 +309,8 @@ def vts_command(
         raise typer.BadParameter("give --radar, --ais or both")
     if camera is not None and calibration is None:
         raise typer.BadParameter("--camera needs --calibration")
+    if polar not in ("ekf", "ukf", "converted"):
+        raise typer.BadParameter(f"--polar: expected ekf, ukf or converted, got {polar!r}")
     if method not in ("j", "chi2"):
         raise typer.BadParameter(f"--method: expected j or chi2, got {method!r}")
     out.mkdir(parents=True, exist_ok=True)
@@ -338,6 +343,7 @@ def vts_command(
             origin=org,
             method=test,
             window=window,
+            tracker=TrackerConfig(polar=polar, range_std=range_std, bearing_std_deg=bearing_std),
             progress=lambda done, total: bar.update(task, completed=done, total=total),
         )
     timings.update({k: v for k, v in res.timings.items() if k != "read"})
