@@ -6,6 +6,7 @@ import typer
 
 from usvfast import __version__
 from usvfast.bearing.command import bearing_command, demo_command
+from usvfast.fusion.command import vts_command
 from usvfast.lidar.command import lidar_command
 from usvfast.nav.inspect import inspect_command
 from usvfast.report.command import report_command
@@ -56,6 +57,7 @@ app.command("report")(report_command)
 app.command("simulate")(simulate_command)
 app.command("shore")(shore_command)
 app.command("shore-train")(shore_train_command)
+app.command("vts")(vts_command)
 
 
 def main() -> None:
