@@ -8,6 +8,7 @@ from usvfast import __version__
 from usvfast.bearing.command import bearing_command, demo_command
 from usvfast.lidar.command import lidar_command
 from usvfast.nav.inspect import inspect_command
+from usvfast.sweep.command import sweep_command
 
 app = typer.Typer(
     help="usvfast: fast maritime multi-sensor detection and tracking.",
@@ -26,6 +27,7 @@ app.command("bearing")(bearing_command)
 app.command("demo")(demo_command)
 app.command("lidar")(lidar_command)
 app.command("inspect")(inspect_command)
+app.command("sweep")(sweep_command)
 
 
 def main() -> None:
