@@ -16,6 +16,7 @@ from usvfast.pipeline.command import run_command
 from usvfast.report.command import report_command
 from usvfast.sim.command import simulate_command
 from usvfast.shore.command import shore_command, shore_train_command
+from usvfast.sweep.command import sweep_command
 
 app = typer.Typer(
     help="usvfast: fast maritime multi-sensor detection and tracking.",
@@ -58,6 +59,7 @@ app.command("simulate")(simulate_command)
 app.command("shore")(shore_command)
 app.command("shore-train")(shore_train_command)
 app.command("vts")(vts_command)
+app.command("sweep")(sweep_command)
 
 
 def main() -> None:
