@@ -19,6 +19,9 @@ $(VENV)/bin/maturin:
 
 dev: $(VENV)/bin/maturin ## Create .venv, build the Rust extension (release) and install it with its extras
 	maturin develop --release --extras $(EXTRAS)
+	# TrackEval (HOTA oracle of the tests) requires opencv-python, which would shadow
+	# opencv-python-headless: install it without its dependencies (numpy and scipy are here).
+	pip install -q --no-deps "trackeval>=1.3"
 
 torch: dev ## Install the CPU-usable torch for the YOLO tests and benches (the `yolo` extra)
 	bash .ci/install-torch.sh $(VENV)/bin/python

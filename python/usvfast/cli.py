@@ -9,14 +9,13 @@ from usvfast.bearing.command import bearing_command, demo_command
 from usvfast.fusion.command import vts_command
 from usvfast.lidar.command import lidar_command
 from usvfast.nav.inspect import inspect_command
-from usvfast.report.command import report_command
-from usvfast.trackcmd import track_command
 from usvfast.pipeline.command import demo_command as pipeline_demo_command
 from usvfast.pipeline.command import run_command
 from usvfast.report.command import report_command
-from usvfast.sim.command import simulate_command
 from usvfast.shore.command import shore_command, shore_train_command
+from usvfast.sim.command import simulate_command
 from usvfast.sweep.command import sweep_command
+from usvfast.trackcmd import track_command
 
 app = typer.Typer(
     help="usvfast: fast maritime multi-sensor detection and tracking.",
