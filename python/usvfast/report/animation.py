@@ -86,7 +86,7 @@ def write_animation(
     parts = F.map_extent(tracks, detections, nav, truth)
     # the static layer once: harbour, axes, limits
     F.draw_scene(ax, scene)
-    F._limits(ax, parts)
+    F.fit_limits(ax, parts)
     ax.set_xlabel("east (m)", fontsize=9)
     ax.set_ylabel("north (m)", fontsize=9)
     ax.tick_params(labelsize=8)

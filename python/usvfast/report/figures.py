@@ -101,7 +101,9 @@ def map_extent(
     return parts
 
 
-def _limits(ax: Axes, parts: list[np.ndarray], margin: float = 5.0) -> None:
+def fit_limits(ax: Axes, parts: list[np.ndarray], margin: float = 5.0) -> None:
+    """Map axes limits around `parts` (arrays of (n, 2) NED points; 0.5–99.5 percentiles plus
+    `margin` m), widened so that equal metres fill the axes box."""
     pts = np.concatenate([p.reshape(-1, 2) for p in parts if len(p)] or [np.zeros((1, 2))])
     pts = pts[np.all(np.isfinite(pts), axis=1)]
     lo, hi = np.percentile(pts, 0.5, axis=0) - margin, np.percentile(pts, 99.5, axis=0) + margin
@@ -279,7 +281,7 @@ def map_figure(
     handles += draw_usv(ax, nav)
     handles += draw_tracks(ax, tracks, track_colors(tracks.track_id))
     parts = map_extent(tracks, detections, nav, truth)
-    _limits(ax, parts)
+    fit_limits(ax, parts)
     ax.set_xlabel("east (m)")
     ax.set_ylabel("north (m)")
     sub = ""
@@ -289,7 +291,7 @@ def map_figure(
     ax.grid(True, alpha=0.3)
     ax.legend(handles=handles, loc="best", fontsize=8, framealpha=0.85)
     fig.tight_layout()
-    _limits(ax, parts)  # again, for the box tight_layout settled on
+    fit_limits(ax, parts)  # again, for the box tight_layout settled on
     return fig
 
 
