@@ -96,9 +96,10 @@ def velodyne_packet_problem(payload: bytes, model_id: int | None = None) -> str 
     if len(payload) != VELODYNE_PACKET_SIZE:
         return "packet length"
     blocks = np.frombuffer(payload, dtype="<u2", count=600).reshape(12, 50)
-    if not np.isin(blocks[:, 0], list(_BLOCK_FLAGS)).all():
+    flags = blocks[:, 0].tolist()  # 12 values: plain Python is faster than np.isin here
+    if not all(f in _BLOCK_FLAGS for f in flags):
         return "block flag"
-    if (blocks[:, 1] >= 36000).any():
+    if max(blocks[:, 1].tolist()) >= 36000:
         return "azimuth"
     return_mode, model = payload[1204], payload[1205]
     if return_mode not in _RETURN_MODES or model not in _KNOWN_MODEL_IDS:
