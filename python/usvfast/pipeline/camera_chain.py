@@ -16,6 +16,9 @@ from typing import Any
 
 import numpy as np
 
+from usvfast.camera.backends import load_detector as _load_backend
+from usvfast.camera.chain import CameraPipeline
+from usvfast.camera.detect import Detections, as_detections
 from usvfast.camera.georef import (
     OK,
     FovCamera,
@@ -24,7 +27,6 @@ from usvfast.camera.georef import (
     horizon_line,
     mount_rotation,
 )
-from usvfast.camera.yolo import CameraPipeline, Detections, _as_detections
 from usvfast.frames import Mount
 from usvfast.pipeline.pose import VesselPose
 from usvfast.pipeline.timing import StageTimer
@@ -65,26 +67,9 @@ def load_detector(settings: dict[str, Any], base: Any = None) -> Any:
     if settings.get("classes") is not None:
         options["classes"] = [int(c) for c in settings["classes"]]
     try:
-        from usvfast.camera.backends import load_detector as _load  # type: ignore[import-not-found]
-    except ImportError:
-        _load = None
-    if _load is not None:
-        try:
-            return _load(backend, settings["weights"], base=base, **options)
-        except FileNotFoundError as exc:
-            raise ValueError(f"detector.weights: {exc}") from exc
-    if backend == "torch":
-        from pathlib import Path
-
-        from usvfast.camera.yolo import YoloDetector
-
-        weights = Path(settings["weights"])
-        if not weights.is_absolute() and base is not None:
-            weights = Path(base) / weights
-        return YoloDetector(str(weights), **options)
-    raise ValueError(
-        f"detector.backend: {backend!r} needs usvfast.camera.backends (not in this install)"
-    )
+        return _load_backend(backend, settings["weights"], base=base, **options)
+    except FileNotFoundError as exc:
+        raise ValueError(f"detector.weights: {exc}") from exc
 
 
 @dataclass(frozen=True)
@@ -169,7 +154,7 @@ class CameraChain:
         tm = self.timer
         with tm("camera.detector"):
             raw = self.detector([image])[0] if self.detector is not None else Detections.empty()
-        det = _as_detections(raw)
+        det = as_detections(raw)
         with tm("camera.filters"):
             self.filters.horizon_line = self._horizon(pose)
             reason = self.filters.filter(det)
