@@ -37,8 +37,9 @@ def _report(mmsi=257000009, lat=63.0, lon=10.0, speed=10.0, course=90.0, second=
 def test_saab_log_gets_times_from_its_zda_clock():
     feed = read_ais_feed(NMEA / "saab-r4.log")
     p = feed.log.positions
-    # The first AIVDM and AIVDO come before the first ZDA: no receive time, counted.
-    assert feed.n_untimed == 2 and feed.n_clock > 10
+    # The first AIVDM and AIVDO come before the first ZDA: the reader times them from that
+    # first clock and their own UTC-second field, so none is left untimed.
+    assert feed.n_untimed == 0 and feed.n_clock > 10
     t = p.time[np.isfinite(p.time)]
     assert t.min() >= calendar.timegm((2011, 6, 1, 13, 7, 11))
     assert t.max() <= calendar.timegm((2011, 6, 1, 13, 8, 0))

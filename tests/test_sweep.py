@@ -53,10 +53,15 @@ sleep = [{sleep}]
 
 def test_grid_expands_every_combination_with_stable_ids():
     spec = load_spec(JOYRIDE_SPEC)
-    assert len(spec.jobs) == 36
-    assert len({j.job_id for j in spec.jobs}) == 36
-    assert {(j.params["tracker.q"], j.params["tracker.sigma"]) for j in spec.jobs} == {
-        (q, s) for q in (1.0, 2.0, 5.0, 10.0, 20.0, 50.0) for s in (10, 15, 20, 25, 30, 40.0)
+    assert len(spec.jobs) == 72
+    assert len({j.job_id for j in spec.jobs}) == 72
+    assert {
+        (j.params["base"], j.params["tracker.q"], j.params["tracker.sigma"]) for j in spec.jobs
+    } == {
+        (b, q, s)
+        for b in ("joyride-cv", "joyride")
+        for q in (1.0, 2.0, 5.0, 10.0, 20.0, 50.0)
+        for s in (10, 15, 20, 25, 30, 40.0)
     }
     assert [j.job_id for j in load_spec(JOYRIDE_SPEC).jobs] == [j.job_id for j in spec.jobs]
 
@@ -108,17 +113,21 @@ def test_bad_specs_name_the_key_and_the_file(tmp_path, body, match):
 def test_joyride_sweep_on_the_local_cluster_equals_a_plain_loop(tmp_path):
     spec = load_spec(JOYRIDE_SPEC)
     result = run_sweep(spec, tmp_path, engine="local", workers=2)
-    assert result.ran == 36 and (result.table["status"] == "ok").all()
+    assert result.ran == 72 and (result.table["status"] == "ok").all()
     assert result.table["worker"].nunique() == 2  # both workers took jobs
     loop = pd.DataFrame([run_job(j) for j in spec.jobs])
     metrics = [c for c in loop if c.startswith(("metric.", "param."))]
     metrics.remove("metric.ms_per_scan")  # a timing, not a result
     got = result.table.set_index("job_id").loc[loop["job_id"], metrics].reset_index(drop=True)
     pd.testing.assert_frame_equal(got, loop[metrics])
-    # The chosen Joyride parameters (q 5, sigma 25) are one of the grid's jobs.
-    chosen = loop[(loop["param.tracker.q"] == 5.0) & (loop["param.tracker.sigma"] == 25.0)]
-    assert chosen["metric.fragments"].item() == 1
-    assert chosen["metric.coverage"].item() >= 0.93
+    # The shipped joyride preset (IMM, q 5, sigma 20) is one of the grid's jobs, and beats
+    # the same tracker without its turn modes on coverage and false tracks.
+    at = (loop["param.tracker.q"] == 5.0) & (loop["param.tracker.sigma"] == 20.0)
+    imm = loop[at & (loop["param.base"] == "joyride")].iloc[0]
+    cv = loop[at & (loop["param.base"] == "joyride-cv")].iloc[0]
+    assert imm["metric.fragments"] == 1 and imm["metric.coverage"] >= 0.94
+    assert imm["metric.coverage"] > cv["metric.coverage"]
+    assert imm["metric.tracks_elsewhere"] < cv["metric.tracks_elsewhere"]
 
 
 def test_resume_runs_only_the_jobs_not_finished(tmp_path):
@@ -183,10 +192,10 @@ def test_sweep_command_writes_results_and_plots(tmp_path):
     )
     assert res.exit_code == 0, res.output
     t = pd.read_parquet(out / "results.parquet")
-    assert len(t) == 36 and set(t["status"]) == {"ok"}
+    assert len(t) == 72 and set(t["status"]) == {"ok"}
     assert (out / "pareto.png").stat().st_size > 10_000
     assert (out / "rmse_vs_tracker.q.png").exists()
-    assert "36 jobs (36 run now, 0 finished before, 0 failed)" in res.output
+    assert "72 jobs (72 run now, 0 finished before, 0 failed)" in res.output
 
 
 def test_engine_errors_are_clean(tmp_path):
