@@ -234,3 +234,41 @@ def test_pareto_front_equals_brute_force(points):
     assert {(acc[i], cost[i]) for i in front} == undominated
     assert len(front) == len(undominated)  # one point per undominated value
     assert np.all(np.diff(cost[front]) > 0)
+
+
+def test_harbour_sweep_over_eight_simulated_recordings_equals_a_plain_loop(tmp_path):
+    # Eight short simulated harbour recordings x two JPDA detection probabilities, through the
+    # whole pipeline (LiDAR and camera chains, the thesis tracker) on the local cluster.
+    from usvfast.sim.recording import SimulationOptions, simulate
+
+    for seed in range(101, 109):
+        simulate(tmp_path / f"rec{seed}", SimulationOptions(seed=seed, duration=3.0))
+    spec_path = tmp_path / "harbour.toml"
+    spec_path.write_text(
+        """
+[sweep]
+kind = "pipeline"
+base = "recording"
+recordings = [{path = "rec*/recording.toml", truth = "{dir}/truth.csv"}]
+metric = "thesis.rmse"
+[grid]
+"tracker.prob_detect" = [0.75, 0.9]
+"""
+    )
+    spec = load_spec(spec_path)
+    assert len(spec.jobs) == 16
+    result = run_sweep(spec, tmp_path / "out", workers=2)
+    t = result.table
+    assert (t["status"] == "ok").all(), t.loc[t["status"] != "ok", "error"].tolist()
+    assert t["recording"].nunique() == 8
+    loop = pd.DataFrame([run_job(j) for j in spec.jobs])
+    results = [
+        c
+        for c in loop
+        if c.startswith(("metric.thesis.", "metric.clear_mot.", "param."))
+        and not c.endswith("real_time_factor")
+    ]
+    assert "metric.thesis.rmse" in results and "metric.clear_mot.mota" in results
+    got = t.set_index("job_id").loc[loop["job_id"], results].reset_index(drop=True)
+    pd.testing.assert_frame_equal(got, loop[results])
+    assert (t["time.tracker"] > 0).all() and (t["metric.real_time_factor"] > 0).all()
