@@ -72,14 +72,18 @@ def load_joyride(path: str | PathLike[str]) -> JoyrideRecording:
     Scans whose time or truth is non-finite or malformed are skipped, and plots that are
     non-finite are dropped, with a warning and counts on the result (`skipped_scans`,
     `skipped_plots`); scans out of time order are skipped likewise. Raises FileNotFoundError
-    when `path` does not exist, ValueError when a key is missing or no scan is usable.
+    when `path` does not exist, ValueError when the file is damaged, a key is missing or no
+    scan is usable.
     """
     from scipy.io import loadmat
 
     p = Path(path)
     if not p.is_file():
         raise FileNotFoundError(f"path: no such file {p}")
-    data = loadmat(p)
+    try:
+        data = loadmat(p)
+    except Exception as exc:  # scipy raises ValueError, TypeError, OSError, zlib.error, ...
+        raise ValueError(f"path: {p.name} is not a readable MATLAB v5 file ({exc})") from exc
     for key in ("time", "measurements", "target", "telemetron"):
         if key not in data:
             raise ValueError(f"path: {p.name} has no '{key}' array; not a Joyride file")

@@ -1,0 +1,43 @@
+"""The CLI for users: `--version`, one-line errors with exit status 2, a missing extra named."""
+
+from __future__ import annotations
+
+import sys
+
+import pytest
+
+from usvfast import __version__, cli
+from usvfast._extras import MissingExtraError
+from usvfast.lidar import VelodynePcapReader
+
+from conftest import SHARED_DATA
+
+PCAP = SHARED_DATA / "lidar" / "velodyne_hdl32e.pcap"
+
+
+def run(monkeypatch, capsys, *args):
+    monkeypatch.setattr(sys, "argv", ["usvfast", *args])
+    with pytest.raises(SystemExit) as info:
+        cli.main()
+    out = capsys.readouterr()
+    return info.value.code, out.out, out.err
+
+
+def test_version(monkeypatch, capsys):
+    code, out, _ = run(monkeypatch, capsys, "--version")
+    assert code == 0 and out.strip() == __version__
+
+
+def test_user_error_is_one_line_and_exit_2(monkeypatch, capsys, tmp_path):
+    code, _, err = run(monkeypatch, capsys, "lidar", str(tmp_path / "missing.pcap"))
+    assert code == 2
+    assert err.startswith("usvfast: error: ") and err.count("\n") == 1
+    assert "Traceback" not in err
+
+
+def test_missing_extra_names_what_to_install(monkeypatch, capsys):
+    monkeypatch.setitem(sys.modules, "velodyne_decoder", None)  # as if not installed
+    with pytest.raises(MissingExtraError, match=r"install usvfast\[lidar\] for"):
+        list(VelodynePcapReader(PCAP))
+    code, _, err = run(monkeypatch, capsys, "lidar", str(PCAP))
+    assert code == 2 and "install usvfast[lidar]" in err and err.count("\n") == 1
