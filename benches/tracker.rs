@@ -75,6 +75,7 @@ fn config() -> TrackerConfig {
         out_of_order: OutOfOrder::Raise,
         initiate_in_gates: true,
         imm: None,
+        existence: None,
     }
 }
 

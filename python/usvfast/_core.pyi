@@ -164,6 +164,7 @@ class TrackerCore:
         initiate_in_gates: bool = True,
         symmetric_covariance: bool = False,
         imm: tuple[list[tuple[object, ...]], npt.NDArray[np.float64], list[float]] | None = None,
+        existence: tuple[float, float, float, float, float, float | None, float] | None = None,
     ) -> None: ...
     def step(
         self,

@@ -322,6 +322,7 @@ impl Tracker {
                     &all,
                     self.scan,
                     self.cfg.imm.as_ref(),
+                    None,
                 )?;
                 let mut associated = vec![false; k];
                 for d in assoc.into_iter().flatten() {
@@ -334,7 +335,11 @@ impl Tracker {
         // before them is deleted).
         let mut i = 0;
         while i < self.tracks.len() {
-            if self.cfg.deleter.check(&self.tracks[i]) {
+            let gone = match (&self.cfg.existence, self.tracks[i].existence) {
+                (Some(e), Some((r, _))) => r < e.delete,
+                _ => false,
+            };
+            if gone || self.cfg.deleter.check(&self.tracks[i]) {
                 let mut tr = self.tracks.remove(i);
                 if self.cfg.delete_last_prediction {
                     tr.drop_last_prediction();
@@ -500,6 +505,15 @@ impl Tracker {
                 let dx = xu - &mean;
                 cov += pu * *w + (&dx * dx.transpose()) * *w;
             }
+            if let Some(ex) = &self.cfg.existence {
+                // ln L = logsumexp(ln(1 − P_D P_G), ln w_i) over the track's gated detections.
+                let mx = h.iter().map(|e| e.1).fold(ln_missed, f64::max);
+                let ln_l = mx
+                    + ((ln_missed - mx).exp() + h.iter().map(|e| (e.1 - mx).exp()).sum::<f64>())
+                        .ln();
+                let rv = tr.existence.unwrap_or((ex.initial, 1.0));
+                tr.existence = Some(ex.update(rv, ln_l));
+            }
             let mut best: Option<usize> = None;
             for (i, &b) in mg.detections.iter().enumerate() {
                 if b > b0 {
@@ -578,6 +592,7 @@ impl Tracker {
         let covs = dets.covs;
         let mut used = vec![false; det_sensor.len()];
         if !self.tentative.is_empty() {
+            let mut ln_pdf = Vec::new();
             let assoc = gnn_step(
                 &mut self.tentative,
                 &model,
@@ -593,7 +608,24 @@ impl Tracker {
                 free,
                 self.scan,
                 None,
+                Some(&mut ln_pdf),
             )?;
+            // Existence of tentative tracks: L = 1 − P_D P_G (+ P_D N(z)/λ with a detection).
+            let ex_conf = match (&self.cfg.existence, &self.cfg.association) {
+                (Some(e), Association::Jpda(j)) if e.confirm.is_some() => Some((*e, *j)),
+                _ => None,
+            };
+            if let Some((e, j)) = ex_conf {
+                let lam = j.clutter_density.unwrap_or(1.0);
+                let ln_missed = (1.0 - j.prob_detect * j.prob_gate).ln();
+                for (tr, lp) in self.tentative.iter_mut().zip(&ln_pdf) {
+                    let lw = j.prob_detect.ln() - lam.ln() + lp;
+                    let mx = lw.max(ln_missed);
+                    let ln_l = mx + ((ln_missed - mx).exp() + (lw - mx).exp()).ln();
+                    let rv = tr.existence.unwrap_or((e.birth, 1.0));
+                    tr.existence = Some(e.update(rv, ln_l));
+                }
+            }
             for d in assoc.into_iter().flatten() {
                 used[d] = true;
             }
@@ -616,6 +648,13 @@ impl Tracker {
                         let ups = tr.history.is_update.iter().take(n).filter(|u| **u).count();
                         (ups >= mm, tr.history.len() >= n)
                     }
+                };
+                let (confirm, drop) = match (ex_conf, tr.existence) {
+                    (Some((e, _)), Some((r, _))) => (
+                        confirm && r >= e.confirm.unwrap_or(0.0),
+                        drop || r < e.delete,
+                    ),
+                    _ => (confirm, drop),
                 };
                 if confirm {
                     confirmed.push(tr);
@@ -872,6 +911,7 @@ mod tests {
             out_of_order: OutOfOrder::Raise,
             initiate_in_gates: true,
             imm: None,
+            existence: None,
         }
     }
 

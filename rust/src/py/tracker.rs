@@ -157,6 +157,9 @@ fn imm_from_spec(spec: &ImmSpec<'_>) -> PyResult<ImmConfig> {
     })
 }
 
+/// `(survival, initial, delete, vis_stay, invis_stay, confirm, birth)`.
+type ExistenceSpec = (f64, f64, f64, f64, f64, Option<f64>, f64);
+
 type SensorSpec<'py> = (
     PyReadonlyArray2<'py, f64>,
     PyReadonlyArray2<'py, f64>,
@@ -260,7 +263,7 @@ impl TrackerCore {
     #[pyo3(signature = (
         motion_model, sensors, association, deleter_spec, initiator, *,
         use_joseph_cov=false, delete_last_prediction=false, out_of_order="raise",
-        initiate_in_gates=true, symmetric_covariance=false, imm=None
+        initiate_in_gates=true, symmetric_covariance=false, imm=None, existence=None
     ))]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -275,6 +278,7 @@ impl TrackerCore {
         initiate_in_gates: bool,
         symmetric_covariance: bool,
         imm: Option<ImmSpec<'_>>,
+        existence: Option<ExistenceSpec>,
     ) -> PyResult<Self> {
         let model = motion_model_from_spec(&motion_model)?;
         let n = model.ndim();
@@ -353,6 +357,19 @@ impl TrackerCore {
             out_of_order,
             initiate_in_gates,
             imm: imm.map(|s| imm_from_spec(&s)).transpose()?,
+            existence: existence.map(
+                |(survival, initial, delete, vis_stay, invis_stay, confirm, birth)| {
+                    crate::tracker_config::Existence {
+                        survival,
+                        initial,
+                        delete,
+                        vis_stay,
+                        invis_stay,
+                        confirm,
+                        birth,
+                    }
+                },
+            ),
         };
         Ok(Self {
             inner: Tracker::new(cfg).map_err(to_py_err)?,
@@ -689,6 +706,20 @@ impl TrackerCore {
             })
             .collect();
         d.set_item("mode_probabilities", arr_f(py, mu, &[k, r])?)?;
+        // Existence / visibility (1 without an existence model or before the first scan).
+        let init = self.inner.config().existence.map_or(1.0, |e| e.initial);
+        let ex: Vec<(f64, f64)> = list
+            .iter()
+            .map(|t| t.existence.unwrap_or((init, 1.0)))
+            .collect();
+        d.set_item(
+            "existence",
+            arr_f(py, ex.iter().map(|e| e.0).collect(), &[k])?,
+        )?;
+        d.set_item(
+            "visibility",
+            arr_f(py, ex.iter().map(|e| e.1).collect(), &[k])?,
+        )?;
         d.set_item("nis_dof", arr_i(py, dof, &[k])?)?;
         d.set_item(
             "missed_probability",
