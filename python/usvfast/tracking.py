@@ -409,6 +409,9 @@ class MultiMeasurementInitiator:
     missed_distance/measure/include_all: the tentative tracks' `DistanceHypothesiser`.
     motion_model: the initiator predictor's model (default: the tracker's). use_joseph_cov /
     symmetric_covariance: the initiator updater's covariance form (as the tracker's).
+    max_new_tentative: at most this many new tentative tracks per scan (the first free
+    detections in scan order; `Tracker.capped_detections` counts the rest), so a clutter burst
+    costs O(plots) and leaves no flood of tracks; None: no cap.
     """
 
     prior_state: Any
@@ -424,6 +427,7 @@ class MultiMeasurementInitiator:
     motion_model: MotionModel | None = None
     use_joseph_cov: bool = False
     symmetric_covariance: bool = True
+    max_new_tentative: int | None = None
 
     def _spec(self) -> dict[str, Any]:
         pc = as_float_array("prior_covariance", self.prior_covariance, ndim=2)
@@ -445,6 +449,9 @@ class MultiMeasurementInitiator:
             "motion_model": None if self.motion_model is None else model_spec(self.motion_model),
             "use_joseph_cov": bool(self.use_joseph_cov),
             "symmetric_covariance": bool(self.symmetric_covariance),
+            "max_new_tentative": None
+            if self.max_new_tentative is None
+            else _non_negative_int("max_new_tentative", self.max_new_tentative),
         }
 
 
@@ -685,7 +692,8 @@ class Tracker:
     Stone Soup's `delete_last_pred`; out_of_order: "raise" (TimeOrderError) or "drop";
     initiate_in_gates: see the module docstring; imm: an `IMM` bank for the confirmed tracks
     (its modes replace motion_model for them); existence: an `Existence` model for the
-    confirmed tracks (JPDA only).
+    confirmed tracks (JPDA only); max_deleted: keep at most this many deleted tracks (oldest
+    dropped first; `drain_deleted` hands them out), None: all.
 
     Raises ValueError subclasses naming the argument on bad shapes (DimensionError), NaN/inf
     (NonFiniteError), non-positive-definite noise (NotPositiveDefiniteError) or probabilities
@@ -707,6 +715,7 @@ class Tracker:
         initiate_in_gates: bool = True,
         imm: IMM | None = None,
         existence: Existence | None = None,
+        max_deleted: int | None = None,
     ) -> None:
         if not isinstance(association, JPDA | GNN):
             raise TypeError(f"association: expected JPDA or GNN, got {association!r}")
@@ -734,6 +743,9 @@ class Tracker:
             initiate_in_gates=bool(initiate_in_gates),
             imm=None if imm is None else imm._spec(),
             existence=None if existence is None else existence._spec(),
+            max_deleted=None
+            if max_deleted is None
+            else _non_negative_int("max_deleted", max_deleted),
         )
 
     def _detections(self, measurements: Any, sensor_ids: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -876,6 +888,16 @@ class Tracker:
     def history(self, track_id: int) -> TrackHistory:
         """Every state of a confirmed track, alive or deleted."""
         return TrackHistory(**self._core.history(_non_negative_int("track_id", track_id)))
+
+    def drain_deleted(self) -> list[TrackHistory]:
+        """Remove the deleted tracks kept so far and return their histories (in order of
+        deletion); memory then stays bounded over long runs."""
+        return [TrackHistory(**h) for h in self._core.drain_deleted()]
+
+    @property
+    def capped_detections(self) -> int:
+        """Detections that started no tentative track because of `max_new_tentative`."""
+        return self._core.capped_detections
 
     @property
     def dropped_scans(self) -> int:

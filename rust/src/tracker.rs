@@ -65,6 +65,8 @@ pub struct Tracker {
     scan: i64,
     /// Number of scans dropped for being out of order.
     pub dropped_scans: usize,
+    /// Detections that started no tentative track because of `max_new_tentative`.
+    pub capped_detections: usize,
     gate: f64,
 }
 
@@ -88,8 +90,15 @@ impl Tracker {
             last_time: None,
             scan: 0,
             dropped_scans: 0,
+            capped_detections: 0,
             gate,
         })
+    }
+
+    /// Removes and returns the deleted confirmed tracks kept so far (their histories are then
+    /// the caller's; memory stays bounded in long runs).
+    pub fn drain_deleted(&mut self) -> Vec<Track> {
+        std::mem::take(&mut self.deleted)
     }
 
     /// The configuration.
@@ -346,6 +355,12 @@ impl Tracker {
                 }
                 tr.deleted_time = t;
                 self.deleted.push(tr);
+                if let Some(cap) = self.cfg.max_deleted {
+                    if self.deleted.len() > cap {
+                        let extra = self.deleted.len() - cap;
+                        self.deleted.drain(..extra);
+                    }
+                }
             } else {
                 i += 1;
             }
@@ -681,10 +696,16 @@ impl Tracker {
         // covariance R_d (unless the sensor has its own initiation noise).
         type InitModel = (DMatrix<f64>, DMatrix<f64>, Vec<bool>);
         let mut init_of: Vec<Option<InitModel>> = vec![None; self.cfg.sensors.len()];
+        let mut started = 0usize;
         for &d in free {
             if used[d] {
                 continue;
             }
+            if init.max_new_tentative.is_some_and(|cap| started >= cap) {
+                self.capped_detections += 1;
+                continue;
+            }
+            started += 1;
             let s = det_sensor[d];
             if let Some(pol) = self.cfg.sensors[s].polar {
                 // Stone Soup's SimpleMeasurementInitiator with a reversible model: positions
@@ -907,11 +928,13 @@ mod tests {
                 motion_model: None,
                 use_joseph_cov: false,
                 symmetric_covariance: false,
+                max_new_tentative: None,
             },
             out_of_order: OutOfOrder::Raise,
             initiate_in_gates: true,
             imm: None,
             existence: None,
+            max_deleted: None,
         }
     }
 

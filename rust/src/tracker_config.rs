@@ -201,6 +201,10 @@ pub struct InitiatorConfig {
     pub use_joseph_cov: bool,
     /// Symmetrise the initiator updater's posterior covariances.
     pub symmetric_covariance: bool,
+    /// At most this many new tentative tracks per scan (the first free detections in scan
+    /// order; the others are counted in `Tracker::capped_detections`): a clutter burst then
+    /// costs O(plots) and leaves no flood of tentative tracks. `None`: no cap.
+    pub max_new_tentative: Option<usize>,
 }
 
 /// Track existence with visibility for confirmed JPDA tracks (IPDA of Mušicki, Evans and
@@ -279,6 +283,9 @@ pub struct TrackerConfig {
     pub imm: Option<crate::imm::ImmConfig>,
     /// Existence and visibility of confirmed tracks (JPDA only; `None`: not modelled).
     pub existence: Option<Existence>,
+    /// Keep at most this many deleted tracks (the oldest are dropped; take them earlier with
+    /// `Tracker::drain_deleted`). `None`: keep all.
+    pub max_deleted: Option<usize>,
     /// Stone Soup passes detections to the initiator unless some track's marginal for them
     /// exceeds its missed marginal (`true`). With `false` (native option against duplicate
     /// tracks on one target): detections inside any confirmed track's gate are withheld too,
