@@ -71,10 +71,13 @@ fn config() -> TrackerConfig {
             motion_model: None,
             use_joseph_cov: false,
             symmetric_covariance: false,
+            max_new_tentative: None,
         },
         out_of_order: OutOfOrder::Raise,
         initiate_in_gates: true,
         imm: None,
+        existence: None,
+        max_deleted: None,
     }
 }
 

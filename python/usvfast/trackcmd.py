@@ -39,9 +39,11 @@ _TOP = {
     "initiate_in_gates",
     "initiator",
     "imm",
+    "existence",
 }
 _INIT = {"min_points", "delete_steps", "missed_distance", "prior_velocity_var"}
 _IMM = {"turn_rates", "turn_q", "stay"}
+_EXIST = {"survival", "initial", "delete", "vis_stay", "invis_stay", "confirm", "birth"}
 
 
 def load_config(config: str | Path) -> dict[str, Any]:
@@ -92,6 +94,11 @@ def tracker_from_config(cfg: dict[str, Any]) -> tk.Tracker:
         m = np.full((r, r), (1.0 - stay) / max(r - 1, 1))
         np.fill_diagonal(m, stay)
         imm = tk.IMM(modes, m)
+    existence = None
+    if "existence" in cfg:
+        e = dict(cfg["existence"])
+        _check_keys(e, _EXIST, "tracker.existence")
+        existence = tk.Existence(**{k: float(v) for k, v in e.items()})
     pvv = float(init.get("prior_velocity_var", 100.0))
     return tk.Tracker(
         motion_model=constant_velocity_2d(q),
@@ -107,6 +114,7 @@ def tracker_from_config(cfg: dict[str, Any]) -> tk.Tracker:
         ),
         initiate_in_gates=bool(cfg.get("initiate_in_gates", False)),
         imm=imm,
+        existence=existence,
     )
 
 

@@ -106,6 +106,7 @@ __all__ = [
     "AnyOf",
     "BearingRange",
     "CovarianceTrace",
+    "Existence",
     "KnownTurnRate",
     "MultiMeasurementInitiator",
     "NeverDelete",
@@ -408,6 +409,9 @@ class MultiMeasurementInitiator:
     missed_distance/measure/include_all: the tentative tracks' `DistanceHypothesiser`.
     motion_model: the initiator predictor's model (default: the tracker's). use_joseph_cov /
     symmetric_covariance: the initiator updater's covariance form (as the tracker's).
+    max_new_tentative: at most this many new tentative tracks per scan (the first free
+    detections in scan order; `Tracker.capped_detections` counts the rest), so a clutter burst
+    costs O(plots) and leaves no flood of tracks; None: no cap.
     """
 
     prior_state: Any
@@ -423,6 +427,7 @@ class MultiMeasurementInitiator:
     motion_model: MotionModel | None = None
     use_joseph_cov: bool = False
     symmetric_covariance: bool = True
+    max_new_tentative: int | None = None
 
     def _spec(self) -> dict[str, Any]:
         pc = as_float_array("prior_covariance", self.prior_covariance, ndim=2)
@@ -444,6 +449,9 @@ class MultiMeasurementInitiator:
             "motion_model": None if self.motion_model is None else model_spec(self.motion_model),
             "use_joseph_cov": bool(self.use_joseph_cov),
             "symmetric_covariance": bool(self.symmetric_covariance),
+            "max_new_tentative": None
+            if self.max_new_tentative is None
+            else _non_negative_int("max_new_tentative", self.max_new_tentative),
         }
 
 
@@ -496,6 +504,48 @@ class IMM:
         return (modes, tr, [float(v) for v in init])
 
 
+@dataclass(frozen=True)
+class Existence:
+    """Track existence with visibility for confirmed JPDA tracks (IPDA, Mušicki, Evans and
+    Stanković 1994; the visibility chain of Brekke et al.'s VIMMJIPDA).
+
+    Per track: r = P(target exists), v = P(visible | exists). Each scan r⁻ = survival·r,
+    v⁻ = v·vis_stay + (1 − v)(1 − invis_stay); with the likelihood ratio of the scan
+    L = 1 − P_D P_G + Σ_i P_D N(z_i; ẑ, S)/λ over the track's gated detections (the JPDA
+    hypothesis weights), r⁺ = r⁻(v⁻L + 1 − v⁻) / (r⁻(v⁻L + 1 − v⁻) + 1 − r⁻) and
+    v⁺ = v⁻L / (v⁻L + 1 − v⁻). A confirmed track starts at r = initial, v = 1 and is deleted
+    once r < delete (besides `deleter`). The defaults vis_stay = 1, invis_stay = 0 keep v = 1
+    (plain IPDA); vis_stay < 1 lets a target exist unseen (behind another ship) without losing
+    its existence. Per track, not joint (JIPDA would also weight the association by r).
+
+    confirm: confirmation by existence. Tentative tracks then start at r = birth, are updated
+    each scan with the likelihood ratio of their GNN-assigned detection
+    (L = 1 − P_D P_G + P_D N(z; ẑ, S)/λ, or 1 − P_D P_G when missed), are confirmed once the
+    initiator would confirm them (min_points / M-of-N) and r >= confirm, dropped once
+    r < delete, and keep their r when confirmed. None: the initiator alone confirms and
+    confirmed tracks start at r = initial.
+    """
+
+    survival: float = 0.99
+    initial: float = 0.9
+    delete: float = 0.05
+    vis_stay: float = 1.0
+    invis_stay: float = 0.0
+    confirm: float | None = None
+    birth: float = 0.5
+
+    def _spec(self) -> tuple[float, float, float, float, float, float | None, float]:
+        return (
+            float(self.survival),
+            float(self.initial),
+            float(self.delete),
+            float(self.vis_stay),
+            float(self.invis_stay),
+            None if self.confirm is None else float(self.confirm),
+            float(self.birth),
+        )
+
+
 def _non_negative_int(name: str, v: Any) -> int:
     try:
         ok = not isinstance(v, bool) and int(v) == v and int(v) >= 0
@@ -521,7 +571,8 @@ class Tracks:
     one `detection` names — the mixture itself has no single innovation); elsewhere (a
     prediction, or a tentative track's first state) nis is 0 with nis_dof 0, so `nis_dof > 0` is
     the mask of valid entries (no NaN). mode_probabilities (k, r): IMM mode probabilities
-    ((k, 0) without an IMM)."""
+    ((k, 0) without an IMM). existence (k,), visibility (k,): the `Existence` probabilities
+    (1 without an existence model; the initial value before a track's first scan)."""
 
     ids: np.ndarray
     times: np.ndarray
@@ -539,6 +590,8 @@ class Tracks:
     nis: np.ndarray
     nis_dof: np.ndarray
     mode_probabilities: np.ndarray
+    existence: np.ndarray
+    visibility: np.ndarray
 
     def __len__(self) -> int:
         return len(self.ids)
@@ -638,7 +691,9 @@ class Tracker:
     indefinite, e.g. constant-acceleration models on Joyride); delete_last_prediction:
     Stone Soup's `delete_last_pred`; out_of_order: "raise" (TimeOrderError) or "drop";
     initiate_in_gates: see the module docstring; imm: an `IMM` bank for the confirmed tracks
-    (its modes replace motion_model for them).
+    (its modes replace motion_model for them); existence: an `Existence` model for the
+    confirmed tracks (JPDA only); max_deleted: keep at most this many deleted tracks (oldest
+    dropped first; `drain_deleted` hands them out), None: all.
 
     Raises ValueError subclasses naming the argument on bad shapes (DimensionError), NaN/inf
     (NonFiniteError), non-positive-definite noise (NotPositiveDefiniteError) or probabilities
@@ -659,9 +714,13 @@ class Tracker:
         out_of_order: Literal["raise", "drop"] = "raise",
         initiate_in_gates: bool = True,
         imm: IMM | None = None,
+        existence: Existence | None = None,
+        max_deleted: int | None = None,
     ) -> None:
         if not isinstance(association, JPDA | GNN):
             raise TypeError(f"association: expected JPDA or GNN, got {association!r}")
+        if existence is not None and not isinstance(existence, Existence):
+            raise TypeError(f"existence: expected Existence, got {existence!r}")
         if imm is not None and not isinstance(imm, IMM):
             raise TypeError(f"imm: expected IMM, got {imm!r}")
         if not isinstance(initiator, MultiMeasurementInitiator):
@@ -683,6 +742,10 @@ class Tracker:
             out_of_order=out_of_order,
             initiate_in_gates=bool(initiate_in_gates),
             imm=None if imm is None else imm._spec(),
+            existence=None if existence is None else existence._spec(),
+            max_deleted=None
+            if max_deleted is None
+            else _non_negative_int("max_deleted", max_deleted),
         )
 
     def _detections(self, measurements: Any, sensor_ids: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -825,6 +888,16 @@ class Tracker:
     def history(self, track_id: int) -> TrackHistory:
         """Every state of a confirmed track, alive or deleted."""
         return TrackHistory(**self._core.history(_non_negative_int("track_id", track_id)))
+
+    def drain_deleted(self) -> list[TrackHistory]:
+        """Remove the deleted tracks kept so far and return their histories (in order of
+        deletion); memory then stays bounded over long runs."""
+        return [TrackHistory(**h) for h in self._core.drain_deleted()]
+
+    @property
+    def capped_detections(self) -> int:
+        """Detections that started no tentative track because of `max_new_tentative`."""
+        return self._core.capped_detections
 
     @property
     def dropped_scans(self) -> int:

@@ -538,7 +538,8 @@ where
 }
 
 /// Distance hypotheses + GNN + update/predict on `tracks` (confirmed or tentative) with the
-/// detections `which` of `dets`. Returns the detection assigned to each
+/// detections `which` of `dets`; `ln_pdf` receives per track `ln N(z; ẑ, S)` of its assigned
+/// detection (−∞ when missed). Returns the detection assigned to each
 /// track.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn gnn_step<N: Dim, M: Dim>(
@@ -553,6 +554,7 @@ pub(crate) fn gnn_step<N: Dim, M: Dim>(
     which: &[usize],
     scan: i64,
     imm: Option<&crate::imm::ImmConfig>,
+    mut ln_pdf: Option<&mut Vec<f64>>,
 ) -> Result<Vec<Option<usize>>>
 where
     DefaultAllocator: Alloc<N, M>,
@@ -612,6 +614,10 @@ where
                 let d = p.d;
                 let s = dets.sensor[d];
                 let inn = innov.of(p, s);
+                if let Some(out) = ln_pdf.as_deref_mut() {
+                    const LN_2PI: f64 = 1.837_877_066_409_345_5;
+                    out.push(-0.5 * (p.d2 + inn.ln_det + md as f64 * LN_2PI));
+                }
                 let (xu, pu) = match &imm_preds {
                     Some(ip) => {
                         let hy = [(d, 1.0, 0.0)];
@@ -641,6 +647,9 @@ where
                 tr.append_slices(xu.as_slice(), pu.as_slice(), &entry);
             }
             None => {
+                if let Some(out) = ln_pdf.as_deref_mut() {
+                    out.push(f64::NEG_INFINITY);
+                }
                 entry.is_update = false;
                 entry.sensor = -1;
                 entry.detection = -1;

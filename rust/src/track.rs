@@ -138,6 +138,9 @@ pub struct Track {
     /// Mode probabilities and mode-conditioned states under an IMM (`None` without one, or
     /// until the first IMM prediction).
     pub imm: Option<crate::imm::ImmState>,
+    /// Existence and visibility probabilities `(r, v)` (`None` without an existence model, or
+    /// until the first scan as a confirmed track).
+    pub existence: Option<(f64, f64)>,
 }
 
 impl Track {
@@ -152,6 +155,7 @@ impl Track {
             confirmed_time: f64::NAN,
             deleted_time: f64::NAN,
             imm: None,
+            existence: None,
         };
         // Room for a few scans up front: growing 12 vectors one by one dominated the cost of
         // appending.

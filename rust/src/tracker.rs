@@ -65,6 +65,8 @@ pub struct Tracker {
     scan: i64,
     /// Number of scans dropped for being out of order.
     pub dropped_scans: usize,
+    /// Detections that started no tentative track because of `max_new_tentative`.
+    pub capped_detections: usize,
     gate: f64,
 }
 
@@ -88,8 +90,15 @@ impl Tracker {
             last_time: None,
             scan: 0,
             dropped_scans: 0,
+            capped_detections: 0,
             gate,
         })
+    }
+
+    /// Removes and returns the deleted confirmed tracks kept so far (their histories are then
+    /// the caller's; memory stays bounded in long runs).
+    pub fn drain_deleted(&mut self) -> Vec<Track> {
+        std::mem::take(&mut self.deleted)
     }
 
     /// The configuration.
@@ -322,6 +331,7 @@ impl Tracker {
                     &all,
                     self.scan,
                     self.cfg.imm.as_ref(),
+                    None,
                 )?;
                 let mut associated = vec![false; k];
                 for d in assoc.into_iter().flatten() {
@@ -334,13 +344,23 @@ impl Tracker {
         // before them is deleted).
         let mut i = 0;
         while i < self.tracks.len() {
-            if self.cfg.deleter.check(&self.tracks[i]) {
+            let gone = match (&self.cfg.existence, self.tracks[i].existence) {
+                (Some(e), Some((r, _))) => r < e.delete,
+                _ => false,
+            };
+            if gone || self.cfg.deleter.check(&self.tracks[i]) {
                 let mut tr = self.tracks.remove(i);
                 if self.cfg.delete_last_prediction {
                     tr.drop_last_prediction();
                 }
                 tr.deleted_time = t;
                 self.deleted.push(tr);
+                if let Some(cap) = self.cfg.max_deleted {
+                    if self.deleted.len() > cap {
+                        let extra = self.deleted.len() - cap;
+                        self.deleted.drain(..extra);
+                    }
+                }
             } else {
                 i += 1;
             }
@@ -500,6 +520,15 @@ impl Tracker {
                 let dx = xu - &mean;
                 cov += pu * *w + (&dx * dx.transpose()) * *w;
             }
+            if let Some(ex) = &self.cfg.existence {
+                // ln L = logsumexp(ln(1 − P_D P_G), ln w_i) over the track's gated detections.
+                let mx = h.iter().map(|e| e.1).fold(ln_missed, f64::max);
+                let ln_l = mx
+                    + ((ln_missed - mx).exp() + h.iter().map(|e| (e.1 - mx).exp()).sum::<f64>())
+                        .ln();
+                let rv = tr.existence.unwrap_or((ex.initial, 1.0));
+                tr.existence = Some(ex.update(rv, ln_l));
+            }
             let mut best: Option<usize> = None;
             for (i, &b) in mg.detections.iter().enumerate() {
                 if b > b0 {
@@ -578,6 +607,7 @@ impl Tracker {
         let covs = dets.covs;
         let mut used = vec![false; det_sensor.len()];
         if !self.tentative.is_empty() {
+            let mut ln_pdf = Vec::new();
             let assoc = gnn_step(
                 &mut self.tentative,
                 &model,
@@ -593,7 +623,24 @@ impl Tracker {
                 free,
                 self.scan,
                 None,
+                Some(&mut ln_pdf),
             )?;
+            // Existence of tentative tracks: L = 1 − P_D P_G (+ P_D N(z)/λ with a detection).
+            let ex_conf = match (&self.cfg.existence, &self.cfg.association) {
+                (Some(e), Association::Jpda(j)) if e.confirm.is_some() => Some((*e, *j)),
+                _ => None,
+            };
+            if let Some((e, j)) = ex_conf {
+                let lam = j.clutter_density.unwrap_or(1.0);
+                let ln_missed = (1.0 - j.prob_detect * j.prob_gate).ln();
+                for (tr, lp) in self.tentative.iter_mut().zip(&ln_pdf) {
+                    let lw = j.prob_detect.ln() - lam.ln() + lp;
+                    let mx = lw.max(ln_missed);
+                    let ln_l = mx + ((ln_missed - mx).exp() + (lw - mx).exp()).ln();
+                    let rv = tr.existence.unwrap_or((e.birth, 1.0));
+                    tr.existence = Some(e.update(rv, ln_l));
+                }
+            }
             for d in assoc.into_iter().flatten() {
                 used[d] = true;
             }
@@ -616,6 +663,13 @@ impl Tracker {
                         let ups = tr.history.is_update.iter().take(n).filter(|u| **u).count();
                         (ups >= mm, tr.history.len() >= n)
                     }
+                };
+                let (confirm, drop) = match (ex_conf, tr.existence) {
+                    (Some((e, _)), Some((r, _))) => (
+                        confirm && r >= e.confirm.unwrap_or(0.0),
+                        drop || r < e.delete,
+                    ),
+                    _ => (confirm, drop),
                 };
                 if confirm {
                     confirmed.push(tr);
@@ -642,10 +696,16 @@ impl Tracker {
         // covariance R_d (unless the sensor has its own initiation noise).
         type InitModel = (DMatrix<f64>, DMatrix<f64>, Vec<bool>);
         let mut init_of: Vec<Option<InitModel>> = vec![None; self.cfg.sensors.len()];
+        let mut started = 0usize;
         for &d in free {
             if used[d] {
                 continue;
             }
+            if init.max_new_tentative.is_some_and(|cap| started >= cap) {
+                self.capped_detections += 1;
+                continue;
+            }
+            started += 1;
             let s = det_sensor[d];
             if let Some(pol) = self.cfg.sensors[s].polar {
                 // Stone Soup's SimpleMeasurementInitiator with a reversible model: positions
@@ -868,10 +928,13 @@ mod tests {
                 motion_model: None,
                 use_joseph_cov: false,
                 symmetric_covariance: false,
+                max_new_tentative: None,
             },
             out_of_order: OutOfOrder::Raise,
             initiate_in_gates: true,
             imm: None,
+            existence: None,
+            max_deleted: None,
         }
     }
 

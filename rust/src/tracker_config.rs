@@ -201,6 +201,52 @@ pub struct InitiatorConfig {
     pub use_joseph_cov: bool,
     /// Symmetrise the initiator updater's posterior covariances.
     pub symmetric_covariance: bool,
+    /// At most this many new tentative tracks per scan (the first free detections in scan
+    /// order; the others are counted in `Tracker::capped_detections`): a clutter burst then
+    /// costs O(plots) and leaves no flood of tentative tracks. `None`: no cap.
+    pub max_new_tentative: Option<usize>,
+}
+
+/// Track existence with visibility for confirmed JPDA tracks (IPDA of Mušicki, Evans and
+/// Stanković 1994, with the visibility chain of the VIMMJIPDA of Brekke and co-workers): per
+/// track the probability `r` that the target exists and `v` that it is visible (detectable)
+/// given it exists. Each scan: `r⁻ = survival · r`, `v⁻ = v·vis_stay + (1 − v)(1 − invis_stay)`;
+/// with the scan's likelihood ratio `L = 1 − P_D P_G + Σ_i P_D N(z_i; ẑ, S) / λ` over the
+/// track's gated detections, `r⁺ ∝ r⁻ (v⁻ L + 1 − v⁻)` against `1 − r⁻`, and
+/// `v⁺ = v⁻ L / (v⁻ L + 1 − v⁻)`. A confirmed track starts at `initial` (visible) and is deleted
+/// when `r < delete` (besides the deleter). Per track (IPDA), not joint: the JPDA association
+/// itself does not weight tracks by existence.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Existence {
+    pub survival: f64,
+    pub initial: f64,
+    pub delete: f64,
+    pub vis_stay: f64,
+    pub invis_stay: f64,
+    /// Confirmation by existence: a tentative track (starting at `birth`, updated with its
+    /// single GNN detection, `L = 1 − P_D P_G + P_D N(z)/λ`) is confirmed once the initiator
+    /// would confirm it and `r ≥ confirm`, and dropped once `r < delete`; it keeps its `r`.
+    pub confirm: Option<f64>,
+    pub birth: f64,
+}
+
+impl Existence {
+    /// One scan of the existence/visibility recursion from `(r, v)` with the scan's
+    /// log-likelihood ratio `ln L` (computed in the log domain).
+    pub fn update(&self, (r, v): (f64, f64), ln_l: f64) -> (f64, f64) {
+        let r0 = self.survival * r;
+        let v0 = v * self.vis_stay + (1.0 - v) * (1.0 - self.invis_stay);
+        let a = v0.ln() + ln_l; // ln(v0 L)
+        let b = (1.0 - v0).ln(); // ln(1 − v0)
+        let m2 = a.max(b);
+        let ln_ev = m2 + ((a - m2).exp() + (b - m2).exp()).ln(); // ln(v0 L + 1 − v0)
+        let num = r0.ln() + ln_ev;
+        let other = (1.0 - r0).ln();
+        let m3 = num.max(other);
+        let r1 = (num - m3).exp() / ((num - m3).exp() + (other - m3).exp());
+        let v1 = (a - ln_ev).exp();
+        (r1.clamp(0.0, 1.0), v1.clamp(0.0, 1.0))
+    }
 }
 
 /// What to do with a scan older than the previous one.
@@ -235,6 +281,11 @@ pub struct TrackerConfig {
     /// An IMM bank for the confirmed tracks (`None`: `motion_model` alone). Tentative tracks
     /// use the initiator's model; a confirmed track starts every mode at its state.
     pub imm: Option<crate::imm::ImmConfig>,
+    /// Existence and visibility of confirmed tracks (JPDA only; `None`: not modelled).
+    pub existence: Option<Existence>,
+    /// Keep at most this many deleted tracks (the oldest are dropped; take them earlier with
+    /// `Tracker::drain_deleted`). `None`: keep all.
+    pub max_deleted: Option<usize>,
     /// Stone Soup passes detections to the initiator unless some track's marginal for them
     /// exceeds its missed marginal (`true`). With `false` (native option against duplicate
     /// tracks on one target): detections inside any confirmed track's gate are withheld too,
@@ -275,6 +326,30 @@ impl TrackerConfig {
         self.validate_polar()?;
         if let Some(imm) = &self.imm {
             imm.validate(self.motion_model.ndim())?;
+        }
+        if let Some(e) = &self.existence {
+            if !matches!(self.association, Association::Jpda(_)) {
+                return Err(Error::param(
+                    "existence",
+                    "needs JPDA association (its clutter density gives the likelihood ratio)",
+                ));
+            }
+            let p = |v: f64| (0.0..=1.0).contains(&v);
+            let open = |v: f64| v > 0.0 && v <= 1.0;
+            let ok = p(e.survival)
+                && p(e.delete)
+                && p(e.vis_stay)
+                && p(e.invis_stay)
+                && open(e.initial)
+                && open(e.birth)
+                && e.confirm.is_none_or(p);
+            if !ok {
+                return Err(Error::param(
+                    "existence",
+                    "survival, delete, confirm and visibility probabilities must be in [0, 1], \
+                     initial and birth in (0, 1]",
+                ));
+            }
         }
         let n = self.motion_model.ndim();
         if self.sensors.is_empty() {

@@ -156,6 +156,9 @@ fn imm_from_spec(spec: &ImmSpec<'_>) -> PyResult<ImmConfig> {
     })
 }
 
+/// `(survival, initial, delete, vis_stay, invis_stay, confirm, birth)`.
+type ExistenceSpec = (f64, f64, f64, f64, f64, Option<f64>, f64);
+
 type SensorSpec<'py> = (
     PyReadonlyArray2<'py, f64>,
     PyReadonlyArray2<'py, f64>,
@@ -259,7 +262,8 @@ impl TrackerCore {
     #[pyo3(signature = (
         motion_model, sensors, association, deleter_spec, initiator, *,
         use_joseph_cov=false, delete_last_prediction=false, out_of_order="raise",
-        initiate_in_gates=true, symmetric_covariance=false, imm=None
+        initiate_in_gates=true, symmetric_covariance=false, imm=None, existence=None,
+        max_deleted=None
     ))]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -274,6 +278,8 @@ impl TrackerCore {
         initiate_in_gates: bool,
         symmetric_covariance: bool,
         imm: Option<ImmSpec<'_>>,
+        existence: Option<ExistenceSpec>,
+        max_deleted: Option<usize>,
     ) -> PyResult<Self> {
         let model = motion_model_from_spec(&motion_model)?;
         let n = model.ndim();
@@ -330,6 +336,7 @@ impl TrackerCore {
             motion_model: init_model.map(|m| motion_model_from_spec(&m)).transpose()?,
             use_joseph_cov: get_bool(initiator, "use_joseph_cov")?,
             symmetric_covariance: get_bool(initiator, "symmetric_covariance")?,
+            max_new_tentative: item(initiator, "max_new_tentative")?.extract()?,
         };
         let out_of_order = match out_of_order {
             "raise" => OutOfOrder::Raise,
@@ -352,6 +359,20 @@ impl TrackerCore {
             out_of_order,
             initiate_in_gates,
             imm: imm.map(|s| imm_from_spec(&s)).transpose()?,
+            max_deleted,
+            existence: existence.map(
+                |(survival, initial, delete, vis_stay, invis_stay, confirm, birth)| {
+                    crate::tracker_config::Existence {
+                        survival,
+                        initial,
+                        delete,
+                        vis_stay,
+                        invis_stay,
+                        confirm,
+                        birth,
+                    }
+                },
+            ),
         };
         Ok(Self {
             inner: Tracker::new(cfg).map_err(to_py_err)?,
@@ -468,6 +489,7 @@ impl TrackerCore {
                     Vec::<bool>::new(),
                 );
                 let mut dropped = Vec::<i64>::new();
+                let mut interrupted: Option<PyErr> = None;
                 let mut first_row = Vec::<i64>::with_capacity(t.len());
                 let mut p = 0;
                 let mut zs = Vec::<f64>::new();
@@ -515,6 +537,13 @@ impl TrackerCore {
                         }
                         e => e,
                     })?;
+                    // Ctrl-C between scans of a long run.
+                    if i % 256 == 255 {
+                        if let Err(e) = Python::attach(|py| py.check_signals()) {
+                            interrupted = Some(e);
+                            break;
+                        }
+                    }
                     if res == crate::tracker::StepOutcome::Dropped {
                         dropped.push(i as i64);
                         continue;
@@ -528,9 +557,14 @@ impl TrackerCore {
                         rows.5.push(*tr.history.is_update.last().unwrap_or(&false));
                     }
                 }
-                Ok((rows, dropped))
+                Ok((rows, dropped, interrupted))
             })
             .map_err(to_py_err)?;
+        let (rows, dropped, interrupted) = out;
+        if let Some(e) = interrupted {
+            return Err(e);
+        }
+        let out = (rows, dropped);
         let ((scan, id, time, st, cv, upd), dropped) = out;
         let r = scan.len();
         let d = PyDict::new(py);
@@ -688,6 +722,20 @@ impl TrackerCore {
             })
             .collect();
         d.set_item("mode_probabilities", arr_f(py, mu, &[k, r])?)?;
+        // Existence / visibility (1 without an existence model or before the first scan).
+        let init = self.inner.config().existence.map_or(1.0, |e| e.initial);
+        let ex: Vec<(f64, f64)> = list
+            .iter()
+            .map(|t| t.existence.unwrap_or((init, 1.0)))
+            .collect();
+        d.set_item(
+            "existence",
+            arr_f(py, ex.iter().map(|e| e.0).collect(), &[k])?,
+        )?;
+        d.set_item(
+            "visibility",
+            arr_f(py, ex.iter().map(|e| e.1).collect(), &[k])?,
+        )?;
         d.set_item("nis_dof", arr_i(py, dof, &[k])?)?;
         d.set_item(
             "missed_probability",
@@ -735,6 +783,22 @@ impl TrackerCore {
             .find(|t| t.id == track_id)
             .ok_or_else(|| PyValueError::new_err(format!("track_id: no track {track_id}")))?;
         history_dict(py, tr, n)
+    }
+
+    /// Removes the deleted tracks kept so far and returns their histories.
+    fn drain_deleted<'py>(&mut self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
+        let n = self.inner.config().motion_model.ndim();
+        self.inner
+            .drain_deleted()
+            .iter()
+            .map(|t| history_dict(py, t, n))
+            .collect()
+    }
+
+    /// Detections that started no tentative track because of the per-scan cap.
+    #[getter]
+    fn capped_detections(&self) -> usize {
+        self.inner.capped_detections
     }
 
     /// Scans dropped for being out of order.

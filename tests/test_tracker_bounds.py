@@ -1,0 +1,63 @@
+"""Bounded cost and memory: a cap on new tentative tracks per scan under a clutter burst, and
+deleted tracks handed out (drain) or kept up to a bound."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from usvfast import tracking as T
+from usvfast.kalman import constant_velocity_2d
+
+
+def make(cap=None, max_deleted=None):
+    return T.Tracker(
+        motion_model=constant_velocity_2d(0.1),
+        sensors=[T.Sensor.position(0.5)],
+        association=T.JPDA(0.9, 0.99, 1e-3),
+        deleter=T.StepsSinceUpdate(2),
+        initiator=T.MultiMeasurementInitiator(
+            np.zeros(4), np.diag([0, 1.0, 0, 1.0]), missed_distance=2.0, max_new_tentative=cap
+        ),
+        max_deleted=max_deleted,
+    )
+
+
+def test_clutter_burst_starts_at_most_the_cap():
+    rng = np.random.default_rng(0)
+    burst = rng.uniform(0, 1000, (5000, 2))
+    tr = make(cap=50)
+    tr.step(0.0, burst)
+    assert len(tr.tentative_tracks) == 50 and tr.capped_detections == 4950
+    # The first free detections in scan order are kept.
+    np.testing.assert_allclose(tr.tentative_tracks.states[:, [0, 2]], burst[:50])
+    uncapped = make()
+    uncapped.step(0.0, burst)
+    assert len(uncapped.tentative_tracks) == 5000 and uncapped.capped_detections == 0
+
+
+def scans(n):
+    """Targets appearing for 4 scans each, one after the other (each becomes a deleted track)."""
+    for k in range(n):
+        j = k // 6
+        yield float(k), (np.array([[j * 100.0, 0.0]]) if k % 6 < 4 else np.zeros((0, 2)))
+
+
+def test_deleted_tracks_are_drained_or_bounded():
+    a, b = make(), make(max_deleted=3)
+    drained = []
+    for t, z in scans(120):
+        a.step(t, z)
+        b.step(t, z)
+        if t % 30 == 29:
+            drained += a.drain_deleted()
+    drained += a.drain_deleted()
+    assert len(drained) >= 15 and len(a.deleted_track_ids) == 0
+    assert sorted(h.id for h in drained) == list(range(len(drained)))
+    assert all(np.isfinite(h.deleted_time) for h in drained)
+    kept = b.deleted_track_ids
+    assert len(kept) == 3 and list(kept) == list(range(len(drained) - 3, len(drained)))
+    with pytest.raises(ValueError, match="max_deleted"):
+        make(max_deleted=-1)
+    with pytest.raises(ValueError, match="max_new_tentative"):
+        make(cap=1.5)
