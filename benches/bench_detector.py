@@ -39,7 +39,7 @@ def main() -> None:
         backends = [("OpenCV DNN (ONNX)", onnx)]
     for name, det in backends:
         batch, _ = det.preprocess([frame])
-        for _ in range(3):  # warm-up (TorchScript profiles its first calls)
+        for _ in range(10):  # warm-up (TorchScript profiles and optimises its first calls)
             det([frame])
         t, out = best_of(lambda d=det: d([frame]), a.repeat)
         t_net, _ = best_of(lambda d=det, b=batch: d.forward(b), a.repeat)

@@ -71,7 +71,7 @@ def test_precision_recall_on_unseen_seeds(frames, card):
     m = evaluate(det, frames, min_box_px=card["train"]["min_box_px"])
     assert m["truth"] >= 20
     # Measured on these 12 frames: precision 0.72, recall 0.70 (the model card's 24 frames of
-    # seeds 2000-2002: 0.61 / 0.66). Most misses and false alarms are trash boxes of 3-6 px,
+    # seeds 2000-2002: 0.59 / 0.68). Most misses and false alarms are trash boxes of 3-6 px,
     # where a 1 px offset already costs IoU 0.5.
     assert m["precision"] >= 0.6, m
     assert m["recall"] >= 0.6, m
