@@ -10,7 +10,9 @@
 Frames: MarDCT's regDTV9 frames resized to each size when ../shared/data is present
 (USVFAST_SHARED_DATA), else synthetic sea-and-sky frames with moving dark hulls.
 
-Run: python benches/bench_shore.py [--frames N] [--repeat R]
+* With `--cascade boat.xml` (from `usvfast shore-train`), the cascade detector too.
+
+Run: python benches/bench_shore.py [--frames N] [--repeat R] [--cascade boat.xml]
 """
 
 from __future__ import annotations
@@ -51,8 +53,10 @@ def frames_at(size: tuple[int, int], n: int) -> list[np.ndarray]:
     return out
 
 
-def chain_fps(frames: list[np.ndarray], keypoints: str) -> float:
+def chain_fps(frames: list[np.ndarray], keypoints: str, model: Path | None = None) -> float:
     cfg = ShoreConfig(tracker="sort", bayes=replace(BayesDetectorConfig(), keypoints=keypoints))
+    if model is not None:
+        cfg = replace(cfg, detector="cascade", cascade_model=model)
     chain = ShoreChain(cfg)
     chain.step(frames[0])  # warm-up
     t0 = time.perf_counter()
@@ -103,14 +107,20 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--frames", type=int, default=40)
     ap.add_argument("--repeat", type=int, default=20)
+    ap.add_argument(
+        "--cascade", type=Path, default=None, help="Cascade XML (usvfast shore-train) to time"
+    )
     a = ap.parse_args()
-    print(f"{'frame size':>12} {'keypoints':>9} {'FPS (2 cores)':>14} {'vs paper':>9}")
-    print(f"{'319x261':>12} {'STAR':>9} {PAPER_FPS:>14.1f} {'(paper)':>9}")
+    print(f"{'frame size':>12} {'detector':>16} {'FPS (2 cores)':>14} {'vs paper':>9}")
+    print(f"{'319x261':>12} {'paper cascade':>16} {PAPER_FPS:>14.1f} {'(paper)':>9}")
     for size in ((320, 240), (704, 576)):
         frames = frames_at(size, a.frames)
-        for kp in ("sift", "fast"):
-            fps = chain_fps(frames, kp)
-            print(f"{size[0]}x{size[1]:<8} {kp:>9} {fps:>14.1f} {fps / PAPER_FPS:>8.2f}x")
+        runs = [(f"bayes {kp}", kp, None) for kp in ("sift", "fast")]
+        if a.cascade is not None:
+            runs.append(("cascade", "sift", a.cascade))
+        for name, kp, model in runs:
+            fps = chain_fps(frames, kp, model)
+            print(f"{size[0]}x{size[1]:<8} {name:>16} {fps:>14.1f} {fps / PAPER_FPS:>8.2f}x")
     kalman_step_compare(20, a.repeat)
 
 

@@ -8,9 +8,10 @@ Lee store "the optimal threshold" per frame class; eq. 4), is chosen on the thre
 scored with it. Reported per video (Bloisi et al.'s Tables I–II layout): TPR and FAR with and
 without the horizon filter for the paper's fixed thresholds (23/203, one box per frame from the
 keypoints' extent) and for the held-out-tuned threshold with one box per keypoint cluster;
-then CLEAR MOT with IoU (MOTA, MOTP as mean IoU, IDF1, precision, recall; `usvfast.metrics`,
-equal to py-motmetrics) of the SORT-like and the adaptive Kalman trackers on the tuned
-detections.
+and for the Haar cascade (`usvfast.shore.cascade`) trained on the three other videos; then
+CLEAR MOT with IoU (MOTA, MOTP as mean IoU, IDF1, precision, recall; `usvfast.metrics`, equal
+to py-motmetrics) of the SORT-like and the adaptive Kalman trackers on each detector's
+detections (horizon filter on). `--no-cascade` skips the cascade.
 
 MarDCT boxes carry no identities: the ground-truth ids are derived by linking the boxes of
 consecutive annotated frames (optimal assignment on centre distance, gated at two box
