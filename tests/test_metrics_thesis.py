@@ -241,7 +241,7 @@ def test_readers_skip_damaged_lines_and_name_missing_columns(tmp_path):
     (tmp_path / "bad.csv").write_text("time,north\n1,2\n")
     with pytest.raises(ValueError, match="missing column"):
         read_truth(tmp_path / "bad.csv")
-    with pytest.raises(FileNotFoundError, match="path"):
+    with pytest.raises(ValueError, match="path"):
         read_tracks(tmp_path / "none.csv")
 
 

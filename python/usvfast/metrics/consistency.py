@@ -38,6 +38,8 @@ def chi2_band(dof: Any, n: int = 1, confidence: float = 0.95) -> tuple[float, fl
     if n < 1 or not total > 0:
         raise ValueError(f"dof, n: need at least one sample with dof > 0, got {dof}, {n}")
     lo, hi = chi2.ppf([(1 - confidence) / 2, (1 + confidence) / 2], total) / n
+    if not (np.isfinite(lo) and np.isfinite(hi)):
+        raise ValueError(f"dof: χ² quantiles are not finite for {total} degrees of freedom")
     return float(lo), float(hi)
 
 

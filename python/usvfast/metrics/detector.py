@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from usvfast._core import DimensionError
+from usvfast._validate import instance
 from usvfast.metrics.protocol import EXCLUDED_KINDS, truth_at
 from usvfast.metrics.tables import Detections, Truth
 
@@ -70,6 +71,8 @@ def detector_scores(
     `period` s from its first to its last detection. A detection belongs to the nearest frame
     within period/2. gate: metres. visible: (N,) bool over the truth rows (default all).
     Raises ValueError on a bad period/gate/max_frames, DimensionError on a wrong `visible`."""
+    instance("truth", truth, Truth)
+    instance("detections", detections, Detections)
     if not period > 0:
         raise ValueError(f"period: must be positive, got {period}")
     if not gate > 0:

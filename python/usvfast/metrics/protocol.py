@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 
 from usvfast._core import DimensionError
+from usvfast._validate import instance
 from usvfast.metrics.consistency import Consistency, average_consistency, nees
 from usvfast.metrics.mot import _gated_assignment
 from usvfast.metrics.tables import Innovations, Nav, Tracks, Truth
@@ -64,6 +65,7 @@ def truth_at(truth: Truth, object_id: int, times: Any, window: float = 1.0) -> n
     """Position (n, 2) of one object at `times` (n,) s: linear interpolation between its
     samples when both neighbours lie within `window` s, else its nearest sample within
     `window`, else NaN."""
+    instance("truth", truth, Truth)
     t = np.asarray(times, float)
     sel = truth.object_id == object_id
     order = np.argsort(truth.time[sel], kind="stable")
@@ -99,6 +101,8 @@ def _row_nees(errors: np.ndarray, cov: np.ndarray) -> np.ndarray:
 def match_tracks(truth: Truth, tracks: Tracks, *, window: float = 1.0, cap: float = 5.0) -> Matches:
     """Match track rows to truth objects with the thesis's protocol (module doc). window:
     seconds; cap: metres per component. Raises ValueError on a non-positive window or cap."""
+    instance("truth", truth, Truth)
+    instance("tracks", tracks, Tracks)
     if not window > 0:
         raise ValueError(f"window: must be positive, got {window}")
     if not cap > 0:
@@ -161,6 +165,8 @@ def in_range(
     times are out of range."""
     if not max_range > 0:
         raise ValueError(f"max_range: must be positive, got {max_range}")
+    instance("truth", truth, Truth)
+    instance("nav", nav, Nav)
     if not 0 < fov_deg <= 360:
         raise ValueError(f"fov_deg: must lie in (0, 360], got {fov_deg}")
     if len(nav.time) == 0:
@@ -327,6 +333,10 @@ def thesis_metrics(
     seconds an object must be visible to count as a target; window, cap: the matching
     protocol (s, m); confidence: of the χ² bands. Raises DimensionError when `visible` does not
     match the truth."""
+    instance("truth", truth, Truth)
+    instance("tracks", tracks, Tracks)
+    if innovations is not None:
+        instance("innovations", innovations, Innovations)
     vis = np.ones(len(truth.time), bool) if visible is None else np.asarray(visible, bool)
     if vis.shape != truth.time.shape:
         raise DimensionError(f"visible: expected shape {truth.time.shape}, got {vis.shape}")

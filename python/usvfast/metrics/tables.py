@@ -4,7 +4,8 @@
 Every reader returns a table of numpy columns (one row per CSV line), skips damaged lines
 (a missing column, a non-number, a non-finite required value; an empty optional value, e.g.
 a LiDAR detection's score, reads as NaN) with one `DamagedRecordsWarning` and the
-count in `.skipped`, and raises FileNotFoundError naming the path, or ValueError naming the
+count in `.skipped` (a line that is not UTF-8 or longer than 64 KiB costs that line), and
+raises ValueError naming the path when it is missing or not a regular file, or naming the
 missing header columns. Positions are local NED metres (north, east); times UNIX seconds.
 
 Example::
@@ -23,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from usvfast._damage import DamageCounter
+from usvfast._files import OVERLONG_LINE, bounded_lines, regular_file
 
 TRUTH_COLUMNS = ("time", "object_id", "kind", "north", "east")
 TRACK_COLUMNS = ("time", "track_id", "north", "east", "v_north", "v_east")
@@ -35,13 +37,12 @@ INNOVATION_COLUMNS = ("time", "track_id", "sensor", "nis", "dof")
 def _read(
     path: str | Path, need: tuple[str, ...], optional: tuple[str, ...], text: tuple[str, ...]
 ) -> tuple[dict[str, np.ndarray], int]:
-    p = Path(path)
-    if not p.is_file():
-        raise FileNotFoundError(f"path: no such file {p}")
+    p = regular_file(path, "path")
     damage = DamageCounter(str(p), what="damaged line(s)")
-    with p.open(newline="") as fh:
-        reader = csv.reader(fh)
-        header = [h.strip() for h in next(reader, [])]
+    with p.open("rb") as fh:
+        lines = bounded_lines(fh)
+        first = next(lines, b"").decode("utf-8", "replace")
+        header = [h.strip() for h in next(csv.reader([first]), [])]
         missing = [c for c in need if c not in header]
         if missing:
             raise ValueError(f"{p}: missing column(s) {', '.join(missing)} (header {header})")
@@ -49,7 +50,15 @@ def _read(
         index = [header.index(c) for c in cols]
         out: dict[str, list] = {c: [] for c in cols}
         numeric = [c for c in need if c not in text]  # required numbers must be finite
-        for lineno, row in enumerate(reader, start=2):
+        for lineno, raw in enumerate(lines, start=2):
+            try:
+                row = next(csv.reader([raw.decode("utf-8")]), [])
+            except (UnicodeDecodeError, csv.Error):
+                damage.add(f"line {lineno}")
+                continue
+            if raw == OVERLONG_LINE:
+                damage.add(f"line {lineno}: over-long")
+                continue
             if not row:
                 continue
             try:
