@@ -22,6 +22,10 @@ dev: $(VENV)/bin/maturin ## Create .venv, build the Rust extension (release) and
 	# TrackEval (HOTA oracle of the tests) requires opencv-python, which would shadow
 	# opencv-python-headless: install it without its dependencies (numpy and scipy are here).
 	pip install -q --no-deps "trackeval>=1.3"
+	# OpenCV 5 keeps CascadeClassifier and STAR in the contrib build: install it over the
+	# headless wheel at the same version (a superset) for the cascade-XML test.
+	pip install -q --no-deps --force-reinstall "opencv-contrib-python-headless==$$(python -c \
+		'import importlib.metadata as m; print(m.version("opencv-python-headless"))')"
 
 torch: dev ## Install the CPU-usable torch for the YOLO tests and benches (the `yolo` extra)
 	bash .ci/install-torch.sh $(VENV)/bin/python
