@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from usvfast import TimeOrderError
 from usvfast import tracking as T
 from usvfast.kalman import constant_velocity_2d
 
@@ -61,3 +62,50 @@ def test_deleted_tracks_are_drained_or_bounded():
         make(max_deleted=-1)
     with pytest.raises(ValueError, match="max_new_tentative"):
         make(cap=1.5)
+
+
+def test_copies_are_independent_and_continue_exactly():
+    import copy
+
+    sc = list(scans(40))
+    a = make()
+    for t, z in sc[:20]:
+        a.step(t, z)
+    b, c = copy.deepcopy(a), copy.copy(a)
+    for t, z in sc[20:]:
+        ra, rb = a.step(t, z), b.step(t, z)
+        np.testing.assert_array_equal(ra.states, rb.states)
+        np.testing.assert_array_equal(ra.ids, rb.ids)
+    # c was not advanced by a or b.
+    assert c.last_time == sc[19][0] and a.last_time == sc[-1][0]
+
+
+def test_two_threads_get_a_clear_error():
+    import threading
+
+    tr = make(cap=20)
+    with tr._busy:  # another thread is inside the core
+        with pytest.raises(RuntimeError, match="two threads"):
+            tr.step(0.0, [[0.0, 0.0]])
+    # Real threads: every failure is the clear error, never pyo3's "Already borrowed".
+    rng = np.random.default_rng(1)
+    z = rng.uniform(0, 1000, (300, 2))
+    errors = []
+
+    def work(k):
+        try:
+            for i in range(5):
+                tr.step(float(10 * k + i), z)
+        except Exception as e:
+            errors.append(e)
+
+    threads = [threading.Thread(target=work, args=(k,)) for k in range(4)]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join()
+    # Interleaved threads also step the shared tracker back in time: TimeOrderError.
+    assert all(
+        (isinstance(e, RuntimeError) and "two threads" in str(e)) or isinstance(e, TimeOrderError)
+        for e in errors
+    ), errors

@@ -88,7 +88,9 @@ constant-acceleration tracks indefinite (NotPositiveDefiniteError naming the opt
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import threading
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -729,6 +731,7 @@ class Tracker:
             sensors = [sensors]
         specs = [_sensor_spec(s, f"sensors[{i}]") for i, s in enumerate(sensors)]
         self.sensors = tuple(sensors)
+        self._busy = threading.Lock()
         self._m = specs[0][0].shape[0] if specs else 0
         self._core = _core.TrackerCore(
             model_spec(motion_model),
@@ -747,6 +750,34 @@ class Tracker:
             if max_deleted is None
             else _non_negative_int("max_deleted", max_deleted),
         )
+
+    @contextmanager
+    def _exclusive(self) -> Iterator[None]:
+        """One call into the core at a time: a second thread gets a clear error instead of
+        pyo3's "Already borrowed"."""
+        if not self._busy.acquire(blocking=False):
+            raise RuntimeError(
+                "Tracker: used from two threads at once; a Tracker is not thread-safe (give each "
+                "thread its own, e.g. copy.deepcopy(tracker))"
+            )
+        try:
+            yield
+        finally:
+            self._busy.release()
+
+    def __copy__(self) -> Tracker:
+        """A real copy (copy.copy and copy.deepcopy alike): the copy and the original then
+        advance independently."""
+        new = object.__new__(type(self))
+        new.sensors = self.sensors
+        new._m = self._m
+        new._busy = threading.Lock()
+        with self._exclusive():
+            new._core = self._core.copy()
+        return new
+
+    def __deepcopy__(self, memo: dict[int, Any]) -> Tracker:
+        return self.__copy__()
 
     def _detections(self, measurements: Any, sensor_ids: Any) -> tuple[np.ndarray, np.ndarray]:
         z = as_float_array("measurements", measurements)
@@ -818,7 +849,8 @@ class Tracker:
         z, ids = self._detections(measurements, sensor_ids)
         c = self._covariances(covariances, len(z))
         o = self._origins(origins, len(z))
-        self._core.step(float(t), z, ids, c, o)
+        with self._exclusive():
+            self._core.step(float(t), z, ids, c, o)
         return self.tracks
 
     def run(
@@ -849,7 +881,8 @@ class Tracker:
         si = np.ascontiguousarray(si, dtype=np.int64)
         if si.shape != (len(z),):
             raise _core.DimensionError(f"scan_index: expected shape ({len(z)},), got {si.shape}")
-        out = self._core.run(t, z, ids, si, c, o)
+        with self._exclusive():
+            out = self._core.run(t, z, ids, si, c, o)
         return RunResult(**out)
 
     def add_sensor(self, sensor: Sensor) -> int:
@@ -857,28 +890,32 @@ class Tracker:
         `sensor_ids`. Same checks as the constructor's `sensors` (DimensionError when H does
         not fit the state or the shared measurement dimension)."""
         spec = _sensor_spec(sensor, "sensor")
-        idx = self._core.add_sensor(*spec)
+        with self._exclusive():
+            idx = self._core.add_sensor(*spec)
         self.sensors = (*self.sensors, sensor)
         return idx
 
     def add_track(self, state: Any, covariance: Any, time: float) -> int:
         """Add a confirmed track (state (ndim,), covariance (ndim, ndim) at `time`); its first
         state is a prior, not an update. Returns its id."""
-        return self._core.add_track(
-            as_float_array("state", state, ndim=1),
-            as_float_array("covariance", covariance, ndim=2),
-            float(time),
-        )
+        with self._exclusive():
+            return self._core.add_track(
+                as_float_array("state", state, ndim=1),
+                as_float_array("covariance", covariance, ndim=2),
+                float(time),
+            )
 
     @property
     def tracks(self) -> Tracks:
         """The confirmed, alive tracks."""
-        return Tracks(**self._core.snapshot())
+        with self._exclusive():
+            return Tracks(**self._core.snapshot())
 
     @property
     def tentative_tracks(self) -> Tracks:
         """The initiator's tentative tracks (their ids are a separate counter)."""
-        return Tracks(**self._core.snapshot(tentative=True))
+        with self._exclusive():
+            return Tracks(**self._core.snapshot(tentative=True))
 
     @property
     def deleted_track_ids(self) -> np.ndarray:
@@ -892,7 +929,8 @@ class Tracker:
     def drain_deleted(self) -> list[TrackHistory]:
         """Remove the deleted tracks kept so far and return their histories (in order of
         deletion); memory then stays bounded over long runs."""
-        return [TrackHistory(**h) for h in self._core.drain_deleted()]
+        with self._exclusive():
+            return [TrackHistory(**h) for h in self._core.drain_deleted()]
 
     @property
     def capped_detections(self) -> int:

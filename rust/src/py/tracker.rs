@@ -785,6 +785,13 @@ impl TrackerCore {
         history_dict(py, tr, n)
     }
 
+    /// An independent copy of the whole tracker state (configuration, tracks, histories).
+    fn copy(&self) -> Self {
+        Self {
+            inner: self.inner.clone(),
+        }
+    }
+
     /// Removes the deleted tracks kept so far and returns their histories.
     fn drain_deleted<'py>(&mut self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
         let n = self.inner.config().motion_model.ndim();
