@@ -120,8 +120,8 @@ def test_joyride_sweep_on_the_local_cluster_equals_a_plain_loop(tmp_path):
     metrics.remove("metric.ms_per_scan")  # a timing, not a result
     got = result.table.set_index("job_id").loc[loop["job_id"], metrics].reset_index(drop=True)
     pd.testing.assert_frame_equal(got, loop[metrics])
-    # The shipped joyride preset (IMM, q 5, sigma 20) is one of the grid's jobs, and beats
-    # the same tracker without its turn modes on coverage and false tracks.
+    # The shipped joyride preset (IMM + existence, q 5, sigma 20) is one of the jobs, and beats
+    # the same tracker without them (CV only) on coverage and false tracks.
     at = (loop["param.tracker.q"] == 5.0) & (loop["param.tracker.sigma"] == 20.0)
     imm = loop[at & (loop["param.base"] == "joyride")].iloc[0]
     cv = loop[at & (loop["param.base"] == "joyride-cv")].iloc[0]
