@@ -18,7 +18,7 @@ from usvfast.lidar import LidarDetector
 from usvfast.nav.replay import Replay
 from usvfast.pipeline import ConfigError, NavigationError, Pipeline, load_config
 from usvfast.pipeline.config import preset_names
-from usvfast.pipeline.lidar_chain import _TimedDetector, level_points
+from usvfast.pipeline.lidar_chain import level_points
 from usvfast.pipeline.pose import imu_roll_pitch
 from usvfast.pipeline.timing import StageTimer
 
@@ -168,11 +168,16 @@ def test_level_points_equals_sensor_to_ned():
     np.testing.assert_allclose(out["z"], -ned[:, 2], atol=1e-5)
 
 
-def test_timed_detector_equals_lidar_detector(rec):
+def test_timed_numpy_line_of_sight_detector_equals_the_plain_one(rec):
+    # The thesis stack's numpy line-of-sight filter (the benchmark's peer), timed per stage,
+    # gives the plain Rust detector's results.
     from usvfast.lidar import BagReader, LidarConfig
+    from usvfast.lidar.line_of_sight import line_of_sight_filter_numpy
 
     cfg = LidarConfig(mount_height=1.2, lever_arm=(0.5, 0.0))
-    ref, timed = LidarDetector(cfg), _TimedDetector(cfg, StageTimer())
+    timer = StageTimer()
+    ref = LidarDetector(cfg)
+    timed = LidarDetector(cfg, stage_timer=timer, line_of_sight=line_of_sight_filter_numpy)
     for k, frame in enumerate(BagReader(rec.bag, topic="/velodyne_points")):
         pose = pr.vessel(frame.stamp - pr.EPOCH)
         a, b = ref.process(frame, pose), timed.process(frame, pose)
@@ -183,6 +188,7 @@ def test_timed_detector_equals_lidar_detector(rec):
             assert len(a.cycle.detections) == len(b.cycle.detections)
         if k == 20:
             break
+    assert timer.calls["lidar.line_of_sight"] == 21 and timer.calls["lidar.mean_shift"] >= 1
 
 
 def test_imu_roll_pitch_from_rep103():

@@ -13,7 +13,10 @@ LiDAR sits at `lever_arm` (forward, starboard m) on the vessel, rotated by `moun
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from contextlib import AbstractContextManager, nullcontext
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -366,10 +369,26 @@ class LidarDetector:
     Every `config.buffer_frames` frames the buffered world points are clustered and the
     result (with its detections) is attached to that frame's `FrameResult.cycle`; the
     buffer then starts afresh.
+
+    stage_timer: optional callable `stage_timer(name)` returning a context manager that times
+    the stage named lidar.prefilter, lidar.lines, lidar.line_memory, lidar.line_of_sight or
+    lidar.mean_shift (e.g. the pipeline's StageTimer); line_of_sight: the filter function
+    (default the Rust sweep `line_of_sight_filter`; `line_of_sight_filter_numpy` for the
+    reference implementation), same signature.
     """
 
-    def __init__(self, config: LidarConfig | None = None) -> None:
+    def __init__(
+        self,
+        config: LidarConfig | None = None,
+        *,
+        stage_timer: Callable[[str], AbstractContextManager] | None = None,
+        line_of_sight: Callable[..., Any] | None = None,
+    ) -> None:
+        from usvfast.lidar.line_of_sight import line_of_sight_filter
+
         self.config = config or LidarConfig()
+        self._stage = stage_timer or (lambda name: nullcontext())
+        self._line_of_sight = line_of_sight or line_of_sight_filter
         self.memory = LineMemory(self.config.line_memory_frames, self.config.cover_tolerance)
         self._previous_pose: np.ndarray | None = None
         self._buffer: list[tuple[np.ndarray, int, np.ndarray]] = []
@@ -384,49 +403,51 @@ class LidarDetector:
 
     def process(self, frame: LidarFrame, pose) -> FrameResult:
         """Run every stage on one frame taken at vessel `pose` (north, east, heading rad)."""
-        from usvfast.lidar.line_of_sight import line_of_sight_filter
-
-        cfg = self.config
+        cfg, stage = self.config, self._stage
         pose = _pose("pose", pose)
         mount = {"lever_arm": cfg.lever_arm, "mount_yaw": cfg.mount_yaw}
         line_radius = cfg.radius + cfg.line_margin
-        xy, index = prefilter(
-            frame.points,
-            radius=line_radius,
-            mount_height=cfg.mount_height,
-            slice_min=cfg.slice_min,
-            slice_max=cfg.slice_max,
-            min_intensity=cfg.min_intensity,
-        )
-        image = blur(rasterize(xy, radius=line_radius, pixel=cfg.pixel))
-        new = detect_segments(
-            image, radius=line_radius, pixel=cfg.pixel, min_length=cfg.min_segment_length
-        )
+        with stage("lidar.prefilter"):
+            xy, index = prefilter(
+                frame.points,
+                radius=line_radius,
+                mount_height=cfg.mount_height,
+                slice_min=cfg.slice_min,
+                slice_max=cfg.slice_max,
+                min_intensity=cfg.min_intensity,
+            )
+        with stage("lidar.lines"):
+            image = blur(rasterize(xy, radius=line_radius, pixel=cfg.pixel))
+            new = detect_segments(
+                image, radius=line_radius, pixel=cfg.pixel, min_length=cfg.min_segment_length
+            )
         inside = (xy**2).sum(axis=1) <= cfg.radius**2
         xy, index = xy[inside], index[inside]
-        motion = (0.0, 0.0, 0.0)
-        if self._previous_pose is not None:
-            motion = sensor_motion(self._previous_pose, pose, **mount)
-        segments = self.memory.update(new, motion)
-        self._previous_pose = pose
-        los_segments = extend_segments(segments, cfg.segment_extension)
-        if xy.shape[0]:
-            keep = np.asarray(
-                line_of_sight_filter(
-                    xy, los_segments, sensor=(0.0, 0.0), tolerance=cfg.los_tolerance
-                ),
-                dtype=bool,
-            )
-        else:
+        with stage("lidar.line_memory"):
+            motion = (0.0, 0.0, 0.0)
+            if self._previous_pose is not None:
+                motion = sensor_motion(self._previous_pose, pose, **mount)
+            segments = self.memory.update(new, motion)
+            self._previous_pose = pose
+            los_segments = extend_segments(segments, cfg.segment_extension)
+        with stage("lidar.line_of_sight"):
             keep = np.zeros(0, dtype=bool)
-        world = sensor_to_world(xy[keep], pose, **mount)
+            if xy.shape[0]:
+                keep = np.asarray(
+                    self._line_of_sight(
+                        xy, los_segments, sensor=(0.0, 0.0), tolerance=cfg.los_tolerance
+                    ),
+                    dtype=bool,
+                )
+            world = sensor_to_world(xy[keep], pose, **mount)
         self._buffer.append((world, frame.index, index[keep]))
         self._frames += 1
         result = FrameResult(
             frame.stamp, pose, xy, index, image, new, segments, los_segments, keep, world
         )
         if len(self._buffer) >= cfg.buffer_frames:
-            result.cycle = self._cluster(frame.stamp)
+            with stage("lidar.mean_shift"):
+                result.cycle = self._cluster(frame.stamp)
             self._buffer = []
         return result
 

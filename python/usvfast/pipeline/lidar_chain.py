@@ -18,13 +18,9 @@ import numpy as np
 from usvfast.frames import Mount, rotation_matrix
 from usvfast.lidar.frame import LidarFrame
 from usvfast.lidar.pipeline import (
-    FrameResult,
     LidarConfig,
     LidarDetection,
     LidarDetector,
-    prefilter,
-    sensor_motion,
-    sensor_to_world,
 )
 from usvfast.pipeline.pose import VesselPose
 from usvfast.pipeline.timing import StageTimer
@@ -71,71 +67,6 @@ def level_points(
     return out
 
 
-class _TimedDetector(LidarDetector):
-    """`LidarDetector.process`, stage by stage, with each stage timed (same results)."""
-
-    def __init__(self, config: LidarConfig, timer: StageTimer, los_backend: str = "rust") -> None:
-        super().__init__(config)
-        self.timer = timer
-        self.los_backend = los_backend
-
-    def process(self, frame: LidarFrame, pose: Any) -> FrameResult:
-        from usvfast.lidar.line_of_sight import line_of_sight_filter, line_of_sight_filter_numpy
-        from usvfast.lidar.lines import blur, detect_segments, extend_segments, rasterize
-
-        cfg, tm = self.config, self.timer
-        pose = np.asarray(pose, dtype=np.float64)
-        mount = {"lever_arm": cfg.lever_arm, "mount_yaw": cfg.mount_yaw}
-        line_radius = cfg.radius + cfg.line_margin
-        with tm("lidar.prefilter"):
-            xy, index = prefilter(
-                frame.points,
-                radius=line_radius,
-                mount_height=cfg.mount_height,
-                slice_min=cfg.slice_min,
-                slice_max=cfg.slice_max,
-                min_intensity=cfg.min_intensity,
-            )
-        with tm("lidar.lines"):
-            image = blur(rasterize(xy, radius=line_radius, pixel=cfg.pixel))
-            new = detect_segments(
-                image, radius=line_radius, pixel=cfg.pixel, min_length=cfg.min_segment_length
-            )
-        inside = (xy**2).sum(axis=1) <= cfg.radius**2
-        xy, index = xy[inside], index[inside]
-        with tm("lidar.line_memory"):
-            motion = (0.0, 0.0, 0.0)
-            if self._previous_pose is not None:
-                motion = sensor_motion(self._previous_pose, pose, **mount)
-            segments = self.memory.update(new, motion)
-            self._previous_pose = pose
-            los_segments = extend_segments(segments, cfg.segment_extension)
-        with tm("lidar.line_of_sight"):
-            if xy.shape[0]:
-                los = (
-                    line_of_sight_filter_numpy
-                    if self.los_backend == "numpy"
-                    else line_of_sight_filter
-                )
-                keep = np.asarray(
-                    los(xy, los_segments, sensor=(0.0, 0.0), tolerance=cfg.los_tolerance),
-                    dtype=bool,
-                )
-            else:
-                keep = np.zeros(0, dtype=bool)
-            world = sensor_to_world(xy[keep], pose, **mount)
-        self._buffer.append((world, frame.index, index[keep]))
-        self._frames += 1
-        result = FrameResult(
-            frame.stamp, pose, xy, index, image, new, segments, los_segments, keep, world
-        )
-        if len(self._buffer) >= cfg.buffer_frames:
-            with tm("lidar.mean_shift"):
-                result.cycle = self._cluster(frame.stamp)
-            self._buffer = []
-        return result
-
-
 class LidarChain:
     """One LiDAR stream through the chain. `process(frame, pose)` returns the detections of a
     closed clustering cycle (a list of `LidarDetection`, world NED metres with covariance) or
@@ -171,7 +102,14 @@ class LidarChain:
         self.timer = timer
         self.covariance = settings.get("covariance", "spread")
         self._reach2 = (self.config.radius + self.config.line_margin + 1.0) ** 2
-        self.detector = _TimedDetector(self.config, timer, settings.get("los_backend", "rust"))
+        from usvfast.lidar.line_of_sight import line_of_sight_filter_numpy
+
+        numpy_los = settings.get("los_backend", "rust") == "numpy"
+        self.detector = LidarDetector(
+            self.config,
+            stage_timer=timer,
+            line_of_sight=line_of_sight_filter_numpy if numpy_los else None,
+        )
         self.frames = 0
 
     def process(
