@@ -49,9 +49,14 @@ THRESHOLD_GRID: tuple[float, ...] = (40, 60, 80, 100, 120, 140, 160, 180, 200, 2
 
 
 def default_data() -> Path:
-    """MarDCT's annotations under $USVFAST_SHARED_DATA (default ../shared/data)."""
-    root = Path(os.environ.get("USVFAST_SHARED_DATA", "../shared/data"))
-    return root / "mardct" / "training" / "annotations"
+    """MarDCT's annotations under the data folder named by $USVFAST_SHARED_DATA (MarDCT is GPL
+    and not shipped: pass --data, or set the variable). Raises ValueError when neither is."""
+    root = os.environ.get("USVFAST_SHARED_DATA")
+    if not root:
+        raise ValueError(
+            "data: pass --data DIR (MarDCT training/annotations) or set USVFAST_SHARED_DATA"
+        )
+    return Path(root) / "mardct" / "training" / "annotations"
 
 
 def derive_truth_ids(frames: Sequence[AnnotatedFrame], gate: float = 2.0) -> list[np.ndarray]:
