@@ -208,16 +208,9 @@ def test_engine_errors_are_clean(tmp_path):
 
 
 def test_missing_dask_is_one_clean_line(monkeypatch):
-    import builtins
+    import sys
 
-    real_import = builtins.__import__
-
-    def no_dask(name, *args, **kwargs):
-        if name == "distributed" or name.startswith("distributed."):
-            raise ImportError("No module named 'distributed'")
-        return real_import(name, *args, **kwargs)
-
-    monkeypatch.setattr(builtins, "__import__", no_dask)
+    monkeypatch.setitem(sys.modules, "distributed", None)  # as if not installed
     with pytest.raises(ImportError, match=r"usvfast\[cluster\]"), open_client("local"):
         pass
 

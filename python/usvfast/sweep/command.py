@@ -25,15 +25,16 @@ def sweep_command(
     """Run every job (recording × parameter set) of SPEC not yet finished in OUT, one Parquet
     row per job in OUT/results.parquet, then print the best jobs and write the plots."""
     from rich.console import Console
+    from rich.markup import escape
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeRemainingColumn
     from rich.table import Table
 
-    from usvfast.sweep.run import run_sweep
-    from usvfast.sweep.spec import load_spec
-    from usvfast.sweep.summary import best_rows, param_columns, write_plots
-
     console = Console(stderr=True)
     try:
+        from usvfast.sweep.run import run_sweep
+        from usvfast.sweep.spec import load_spec
+        from usvfast.sweep.summary import best_rows, param_columns, write_plots
+
         parsed = load_spec(spec, out)
         out.mkdir(parents=True, exist_ok=True)
         with Progress(
@@ -62,7 +63,7 @@ def sweep_command(
             )
             progress.update(task, completed=len(parsed.jobs))
     except (ValueError, ImportError, OSError) as exc:
-        console.print(f"[red]error:[/red] {exc}")
+        console.print(f"[red]error:[/red] {escape(str(exc))}", soft_wrap=True)
         raise typer.Exit(code=1) from None
     table = result.table
     plots = write_plots(table, out, parsed.metric, parsed.maximize)

@@ -18,17 +18,13 @@ from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from typing import Any
 
+from usvfast._extras import require
+
 ENGINES = ("local", "dask")
 
 
 def _distributed():
-    try:
-        import distributed
-    except ImportError:
-        raise ImportError(
-            "sweeps need Dask: install usvfast[cluster] (pip install 'usvfast[cluster]')"
-        ) from None
-    return distributed
+    return require("distributed", "cluster", "sweeps")
 
 
 @contextmanager

@@ -12,7 +12,9 @@ import os
 from pathlib import Path
 from typing import Any
 
-import pandas as pd
+from usvfast._extras import require
+
+pd = require("pandas", "cluster", "sweep results")
 
 FINISHED = ("ok", "error")
 

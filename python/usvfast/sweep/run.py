@@ -8,8 +8,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import pandas as pd
-
 from usvfast.sweep.engine import map_unordered, open_client
 from usvfast.sweep.jobs import run_job
 from usvfast.sweep.results import ResultsStore
@@ -18,10 +16,11 @@ from usvfast.sweep.spec import SweepSpec, load_spec
 
 @dataclass(frozen=True)
 class SweepResult:
-    """table: one row per job of the spec (results.parquet); ran / skipped: jobs run now and
-    jobs found finished from an earlier run; path: the results.parquet written."""
+    """table: one row per job of the spec (a pandas DataFrame, from results.parquet);
+    ran / skipped: jobs run now and jobs found finished from an earlier run; path: the
+    results.parquet written."""
 
-    table: pd.DataFrame
+    table: Any
     ran: int
     skipped: int
     path: Path
@@ -61,7 +60,6 @@ def run_sweep(
                 if on_result is not None:
                     on_result(row)
     path = store.write_table()
-    ids = [j.job_id for j in spec.jobs]
-    table = pd.read_parquet(path)
-    table = table[table["job_id"].isin(ids)].reset_index(drop=True)
+    table = store.table()
+    table = table[table["job_id"].isin([j.job_id for j in spec.jobs])].reset_index(drop=True)
     return SweepResult(table, ran=len(todo), skipped=len(spec.jobs) - len(todo), path=path)
