@@ -41,3 +41,20 @@ def test_missing_extra_names_what_to_install(monkeypatch, capsys):
         list(VelodynePcapReader(PCAP))
     code, _, err = run(monkeypatch, capsys, "lidar", str(PCAP))
     assert code == 2 and "install usvfast[lidar]" in err and err.count("\n") == 1
+
+
+def test_the_cli_imports_without_any_optional_extra():
+    # `make demo` installs no test tools, no torch and no cluster extra: the CLI must load.
+    import subprocess
+    import sys
+
+    # (torch is left alone: scipy probes sys.modules["torch"] itself; the demo venv has none.)
+    blocked = ("pandas", "distributed", "pyarrow", "stonesoup", "plotly", "trackeval")
+    code = (
+        "import sys\n"
+        f"for m in {blocked!r}: sys.modules[m] = None\n"
+        "import usvfast.cli\n"
+        "print('ok')\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=False)
+    assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr
