@@ -117,13 +117,17 @@ fn not_pd() -> Error {
     }
 }
 
-/// `S = hph + R`, its Cholesky factor, `ln det S` and the gain `pht S⁻¹`.
-fn finish<N: Dim, M: Dim>(
+/// `S = hph + R`, its Cholesky factor, `ln det S` and the gain `pht S⁻¹`. `own`: the
+/// detection's own R, kept on the innovation; `h`: the linearised measurement matrix of a
+/// non-linear sensor; `angle`: the innovation's first component is an angle (wrapped).
+pub(crate) fn finish<N: Dim, M: Dim>(
     zhat: OVector<f64, M>,
     hph: OMatrix<f64, M, M>,
     pht: OMatrix<f64, N, M>,
     r: &OMatrix<f64, M, M>,
     own: Option<OMatrix<f64, M, M>>,
+    h: Option<OMatrix<f64, M, N>>,
+    angle: bool,
 ) -> Result<Innovation<N, M>>
 where
     DefaultAllocator: Alloc<N, M>,
@@ -141,8 +145,8 @@ where
         ln_det,
         k,
         r: own,
-        h: None,
-        angle: false,
+        h,
+        angle,
     })
 }
 
@@ -157,7 +161,7 @@ where
     let h = &sensor.h;
     let pht = p * h.transpose();
     let hph = h * &pht;
-    finish(h * x, hph, pht, &sensor.r, None)
+    finish(h * x, hph, pht, &sensor.r, None, None, false)
 }
 
 /// The innovation of one detection with its own noise covariance `r`, from the track's
@@ -175,6 +179,8 @@ where
         base.pht.clone(),
         r,
         Some(r.clone()),
+        None,
+        false,
     )
 }
 

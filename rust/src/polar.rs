@@ -14,7 +14,7 @@
 //! weighted mean of the bearings).
 
 use crate::error::{Error, Result};
-use crate::hypothesise::{Alloc, Innovation};
+use crate::hypothesise::{finish, Alloc, Innovation};
 use nalgebra::{Cholesky, DefaultAllocator, Dim, OMatrix, OVector, U1};
 use std::f64::consts::PI;
 
@@ -95,7 +95,7 @@ impl Polar {
                 let zhat = OVector::<f64, M>::from_column_slice_generic(m, U1, &f);
                 let pht = p * h.transpose();
                 let hph = &h * &pht;
-                finish(zhat, hph, pht, r, Some(h))
+                finish(zhat, hph, pht, r, Some(r.clone()), Some(h), true)
             }
             PolarUpdate::Unscented { alpha, beta, kappa } => {
                 let nd = n.value();
@@ -155,7 +155,7 @@ impl Polar {
                     }
                 }
                 let zhat = OVector::<f64, M>::from_column_slice_generic(m, U1, &mean);
-                finish(zhat, hph, pht, r, None)
+                finish(zhat, hph, pht, r, Some(r.clone()), None, true)
             }
         }
     }
@@ -182,39 +182,6 @@ impl Polar {
         let c = ji * rm * ji.transpose();
         Ok((pos, [c[(0, 0)], c[(0, 1)], c[(1, 0)], c[(1, 1)]]))
     }
-}
-
-/// `S = hph + R`, its Cholesky factor, `ln det S` and the gain `pht S⁻¹` of a polar innovation
-/// (its first component an angle).
-fn finish<N: Dim, M: Dim>(
-    zhat: OVector<f64, M>,
-    hph: OMatrix<f64, M, M>,
-    pht: OMatrix<f64, N, M>,
-    r: &OMatrix<f64, M, M>,
-    h: Option<OMatrix<f64, M, N>>,
-) -> Result<Innovation<N, M>>
-where
-    DefaultAllocator: Alloc<N, M>,
-{
-    let s = &hph + r;
-    let chol = Cholesky::new(s.clone()).ok_or_else(|| Error::NotPositiveDefinite {
-        arg: "innovation covariance".into(),
-        reason: "the polar innovation covariance of a track is not positive definite".into(),
-    })?;
-    let ln_det = chol.l_dirty().diagonal().iter().map(|d| 2.0 * d.ln()).sum();
-    let k = chol.solve(&pht.transpose()).transpose();
-    Ok(Innovation {
-        zhat,
-        hph,
-        pht,
-        s,
-        chol,
-        ln_det,
-        k,
-        r: Some(r.clone()),
-        h,
-        angle: true,
-    })
 }
 
 #[cfg(test)]
