@@ -6,7 +6,7 @@ from __future__ import annotations
 import hypothesis.strategies as st
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import example, given
 
 from usvfast import DimensionError, NonFiniteError
 from usvfast.datasets import load_joyride
@@ -123,7 +123,9 @@ def _motmetrics(truth, scans, ids, pos, gate):
     acc = mm.MOTAccumulator(auto_id=True)
     for k in range(len(truth)):
         m = scans == k
-        d = np.hypot(*(pos[m] - truth[k]).T).reshape(1, -1)
+        # the same distance arithmetic as clear_mot: np.hypot and np.linalg.norm differ by an
+        # ulp, which decides a match for an offset exactly on the gate
+        d = np.linalg.norm(pos[m] - truth[k], axis=1).reshape(1, -1)
         d[d > gate] = np.nan
         acc.update([0], list(ids[m]), d)
     names = ["mota", "motp", "num_matches", "num_misses", "num_false_positives", "num_switches"]
@@ -134,6 +136,7 @@ def _motmetrics(truth, scans, ids, pos, gate):
     st.integers(2, 25),
     st.lists(st.tuples(st.integers(0, 24), st.integers(0, 4), st.floats(-80, 80)), max_size=60),
 )
+@example(2, [(0, 0, 44.721359549995796), (1, 0, 0.0)])  # on the 50 m gate to the last ulp
 def test_clear_mot_equals_motmetrics(n_scans, rows):
     truth = np.column_stack([np.arange(n_scans) * 5.0, np.zeros(n_scans)])
     rows = [(k, i, off) for k, i, off in rows if k < n_scans]
