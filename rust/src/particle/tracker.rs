@@ -379,7 +379,8 @@ impl ParticleTracker {
         let mut touching = vec![false; n];
         for i in 0..n {
             for j in i + 1..n {
-                if !(self.tracks[i].confirmed && self.tracks[j].confirmed) {
+                let live = |t: &Track| t.confirmed && t.misses == 0;
+                if !(live(&self.tracks[i]) && live(&self.tracks[j])) {
                     continue;
                 }
                 if box_iou(&boxes[i], &boxes[j]) <= self.params.group_iou {
@@ -420,13 +421,15 @@ impl ParticleTracker {
             return None;
         }
         let (st, sc) = (t.mean[2].hypot(t.mean[3]), c.mean[2].hypot(c.mean[3]));
-        if st >= p.min_speed && sc >= p.min_speed {
+        // the velocity tests apply once the speeds stand out of their spread (2σ)
+        let (vt, vc) = (t.std[2].hypot(t.std[3]), c.std[2].hypot(c.std[3]));
+        if st >= p.min_speed.max(2.0 * vt) && sc >= p.min_speed.max(2.0 * vc) {
             let cos = (t.mean[2] * c.mean[2] + t.mean[3] * c.mean[3]) / (st * sc);
             if cos.clamp(-1.0, 1.0).acos().to_degrees() > p.max_angle_deg {
                 return None;
             }
         }
-        if (st - sc).abs() > p.speed_abs + p.speed_rel * st.max(sc) {
+        if (st - sc).abs() > p.speed_abs + p.speed_rel * st.max(sc) + 2.0 * (vt + vc) {
             return None;
         }
         Some(dist / t.diag().max(1.0))
