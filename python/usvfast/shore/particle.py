@@ -44,7 +44,7 @@ class ParticleConfig:
     (Bhattacharyya distance, predicted-box diagonals); size_gain: box-size smoothing; seed."""
 
     particles: int = 64
-    accel_std: float = 0.05
+    accel_std: float = 0.01
     meas_scale: float = 0.15
     birth_vel_std: float = 1.0
     track_vel_std: float = 0.3

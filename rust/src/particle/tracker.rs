@@ -69,7 +69,7 @@ impl Default for TrackerParams {
     fn default() -> Self {
         Self {
             particles: 64,
-            accel_std: 0.05,
+            accel_std: 0.01,
             meas_scale: 0.15,
             birth_vel_std: 1.0,
             track_vel_std: 0.3,
@@ -412,12 +412,18 @@ impl ParticleTracker {
         }
     }
 
+    /// The proximity gate of a track: `gate` predicted-box diagonals plus 3σ of its particles'
+    /// position spread, the spread's part capped at half a diagonal (px).
+    fn reach(&self, t: &Track) -> f64 {
+        let d = t.diag();
+        self.params.gate * d + (3.0 * t.std[0].hypot(t.std[1])).min(0.5 * d)
+    }
+
     /// Whether a cluster may continue a track: close, same direction, same speed module.
     fn compatible(&self, t: &Track, c: &Cluster) -> Option<f64> {
         let p = &self.params;
         let dist = (c.mean[0] - t.mean[0]).hypot(c.mean[1] - t.mean[1]);
-        let reach = p.gate * t.diag() + 3.0 * t.std[0].hypot(t.std[1]);
-        if dist > reach {
+        if dist > self.reach(t) {
             return None;
         }
         let (st, sc) = (t.mean[2].hypot(t.mean[3]), c.mean[2].hypot(c.mean[3]));
@@ -471,7 +477,7 @@ impl ParticleTracker {
                 .tracks
                 .iter()
                 .map(|t| ((t.mean[0] - c[0]).hypot(t.mean[1] - c[1]), t))
-                .filter(|(d, t)| *d <= p.gate * t.diag() + 3.0 * t.std[0].hypot(t.std[1]))
+                .filter(|(d, t)| *d <= self.reach(t))
                 .min_by(|a, b| a.0.total_cmp(&b.0));
             let (vel, vsd) = match near {
                 Some((_, t)) => (

@@ -294,7 +294,7 @@ pub struct ParticleTracker {
 impl ParticleTracker {
     #[new]
     #[pyo3(signature = (
-        *, seed=0, particles=64, accel_std=0.05, meas_scale=0.15, birth_vel_std=1.0,
+        *, seed=0, particles=64, accel_std=0.01, meas_scale=0.15, birth_vel_std=1.0,
         track_vel_std=0.3, vel_gain=0.5, clutter=1e-9, delta=20.0, min_cluster=8,
         min_kurtosis=1.9, max_depth=3, gate=1.0, max_angle_deg=10.0, min_speed=0.5,
         speed_abs=1.0, speed_rel=0.5, appearance_weight=0.3, confirm_hits=2,
