@@ -35,7 +35,7 @@ pub fn fuse_mixtures(
     params: &ClusterParams,
     seed: u64,
 ) -> Result<(Vec<Cluster>, Vec<f64>)> {
-    if !(window >= 0.0) || !now.is_finite() {
+    if !window.is_finite() || window < 0.0 || !now.is_finite() {
         return Err(Error::param(
             "window",
             "must be finite and ≥ 0 (and now finite)",

@@ -139,6 +139,7 @@ fn leader(particles: &[f64], members: &[usize], delta: f64) -> Vec<Vec<usize>> {
     groups
 }
 
+#[allow(clippy::too_many_arguments)]
 fn recurse(
     particles: &[f64],
     weights: &[f64],
