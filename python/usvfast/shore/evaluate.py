@@ -185,7 +185,7 @@ def evaluate(
 
 def print_tables(results: dict, console: Console | None = None) -> None:
     """Tables I–II layout (detection) and Table III layout (tracking)."""
-    console = console or Console()
+    console = console or Console(width=max(Console().width, 170))
     t = Table(title="Detection (MarDCT, leave one video out, IoU ≥ 0.5)")
     for col in ("video", "detector", "horizon", "TPR", "FAR", "TP", "FP", "FN"):
         t.add_column(col)
