@@ -222,3 +222,34 @@ def test_shore_scores_equal_motmetrics_and_trackeval(mardct, tracker):
         1 - (mm["num_misses"] + mm["num_false_positives"] + log10) / n, rel=1e-12
     )
     assert ours["hota"] == pytest.approx(np.mean(te["HOTA"]), rel=1e-12)
+
+
+def test_shore_command_runs_both_trackers_on_one_video(tmp_path):
+    import cv2
+    from typer.testing import CliRunner
+
+    from usvfast.cli import app
+    from usvfast.shore.mot import read_mot
+
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    for k in range(8):
+        img = np.full((120, 160, 3), (200, 170, 150), np.uint8)
+        img[60:, :] = (120, 90, 60)
+        cv2.rectangle(img, (30 + 5 * k, 50), (70 + 5 * k, 65), (5, 5, 5), -1)
+        cv2.imwrite(str(frames / f"f_{k:03d}.png"), img)
+    tracks = {}
+    for tracker in ("sort", "particle"):
+        out = tmp_path / tracker
+        args = ["shore", str(frames), "--out", str(out), "--tracker", tracker, "--no-progress"]
+        res = CliRunner().invoke(app, [*args, "--no-video"])
+        assert res.exit_code == 0, res.output
+        tracks[tracker] = read_mot(out / "tracks.txt")
+    det = read_mot(tmp_path / "particle" / "detections.txt")
+    assert len(det) == 8
+    # the particle tracker confirms on the second frame and keeps one id
+    pf = tracks["particle"]
+    assert pf[:, 0].tolist() == list(range(2, 9)) and len(np.unique(pf[:, 1])) == 1
+    np.testing.assert_allclose(pf[:, 2:6], det[1:, 2:6], atol=3.0)
+    bad = CliRunner().invoke(app, ["shore", str(frames), "--out", str(tmp_path), "--tracker", "x"])
+    assert bad.exit_code != 0 and "tracker" in bad.output
