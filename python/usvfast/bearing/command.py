@@ -294,11 +294,32 @@ def _run_and_report(
 
 
 def _tracks_and_report(
-    tracks: Path, ais: Path, out: Path, cameras: Path | None, **kwargs: float
+    tracks: Path,
+    ais: Path,
+    out: Path,
+    cameras: Path | None,
+    *,
+    source: int,
+    fps: float,
+    start_time: float,
+    visible_std_deg: float,
+    thermal_std_deg: float,
+    noise_diff_coeff_deg2: float,
 ) -> None:
     console, err = Console(), Console(stderr=True)
     try:
-        run = run_track_bearing(tracks, ais, out, cameras_json=cameras, **kwargs)
+        run = run_track_bearing(
+            tracks,
+            ais,
+            out,
+            cameras_json=cameras,
+            source=source,
+            fps=fps,
+            start_time=start_time,
+            visible_std_deg=visible_std_deg,
+            thermal_std_deg=thermal_std_deg,
+            noise_diff_coeff_deg2=noise_diff_coeff_deg2,
+        )
     except ValueError as exc:
         err.print(f"[red]error:[/red] {escape(str(exc))}", soft_wrap=True)
         raise typer.Exit(code=1) from exc

@@ -68,7 +68,7 @@ def run_tracker(
     frames: Sequence[AnnotatedFrame],
     dets: Sequence[Detections],
     tracker: str,
-    images: Sequence[np.ndarray] | None = None,
+    images: Sequence[np.ndarray | None] | None = None,
     seed: int = 0,
 ) -> Tracks:
     """(frame numbers from 1, ids, boxes (n, 4) px) of `tracker` ('sort', 'particle' or
@@ -96,6 +96,8 @@ def run_tracker(
             dt = 1.0 if prev_index is None else float(max(f.index - prev_index, 1))
             i, b, _ = t.step(image, d, dt)
         elif isinstance(t, SortTracker):
+            if image is None:
+                raise ValueError(f"images: cannot read {f.path}")
             i, b, _ = t.step(image, d)
         else:
             r = t.step(d)
@@ -151,5 +153,5 @@ def tracking_rows(
     trackers: Sequence[str] = TRACKERS,
 ) -> dict[str, dict[str, float]]:
     """mot_scores of each tracker on one video's detections (frames read once)."""
-    images = [cv2.imread(str(f.path), cv2.IMREAD_COLOR) for f in frames]
+    images: list[np.ndarray | None] = [cv2.imread(str(f.path), cv2.IMREAD_COLOR) for f in frames]
     return {t: mot_scores(frames, run_tracker(frames, dets, t, images)) for t in trackers}

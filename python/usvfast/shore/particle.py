@@ -90,8 +90,9 @@ class ParticleTracker:
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Advance `dt` frames with this frame's detections (BGR `image` for the colour
         histograms; None: no appearance)."""
-        if self.core is None:
-            self.core = self._make(image.shape[1] if image is not None else 320)
+        core = self.core
+        if core is None:
+            core = self.core = self._make(image.shape[1] if image is not None else 320)
         boxes = np.ascontiguousarray(np.asarray(detections.boxes, dtype=float).reshape(-1, 4))
         scores = np.ascontiguousarray(np.asarray(detections.scores, dtype=float).reshape(-1))
         hists = None
@@ -101,4 +102,4 @@ class ParticleTracker:
             hists = np.array(
                 [(empty if h is None else h).ravel() for h in hs], dtype=float
             ).reshape(len(boxes), BINS[0] * BINS[1])
-        return self.core.step(boxes, scores, hists, float(dt))
+        return core.step(boxes, scores, hists, float(dt))
