@@ -11,6 +11,10 @@ Frames: MarDCT's regDTV9 frames resized to each size when ../shared/data is pres
 (USVFAST_SHARED_DATA), else synthetic sea-and-sky frames with moving dark hulls.
 
 * With `--cascade boat.xml` (from `usvfast shore-train`), the cascade detector too.
+* Tracking alone (per frame, 5 boats, colour histograms included) for the SORT-like and the
+  particle tracker, and the chain's FPS with each tracker.
+* One local-tier step of the particle filter (propagate, proposals, weights, SIR, KClusterize):
+  usvfast's Rust vs the plain numpy version of tests/particle_reference.py, same numbers.
 
 Run: python benches/bench_shore.py [--frames N] [--repeat R] [--cascade boat.xml]
 """
@@ -19,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -27,9 +32,13 @@ import cv2
 import numpy as np
 from filterpy.kalman import KalmanFilter
 
+from usvfast import _core
 from usvfast.kalman import predict_states, update_states
 from usvfast.shore import ShoreChain, ShoreConfig
 from usvfast.shore.bayes import BayesDetectorConfig
+from usvfast.shore.boxes import Detections
+from usvfast.shore.particle import ParticleTracker
+from usvfast.shore.sort import SortTracker
 
 from timing import best_of
 
@@ -53,8 +62,10 @@ def frames_at(size: tuple[int, int], n: int) -> list[np.ndarray]:
     return out
 
 
-def chain_fps(frames: list[np.ndarray], keypoints: str, model: Path | None = None) -> float:
-    cfg = ShoreConfig(tracker="sort", bayes=replace(BayesDetectorConfig(), keypoints=keypoints))
+def chain_fps(
+    frames: list[np.ndarray], keypoints: str, model: Path | None = None, tracker: str = "sort"
+) -> float:
+    cfg = ShoreConfig(tracker=tracker, bayes=replace(BayesDetectorConfig(), keypoints=keypoints))
     if model is not None:
         cfg = replace(cfg, detector="cascade", cascade_model=model)
     chain = ShoreChain(cfg)
@@ -103,6 +114,57 @@ def kalman_step_compare(k: int, repeat: int) -> None:
     )
 
 
+def boats(size: tuple[int, int], n_frames: int, k: int = 5) -> list[Detections]:
+    """k boxes moving across a frame of size (w, h), n_frames frames."""
+    w, h = size
+    out = []
+    for f in range(n_frames):
+        x = (np.arange(k) * w / k + 2.0 * f) % (w - 0.15 * w)
+        y = h * (0.4 + 0.1 * np.arange(k) / k)
+        b = np.column_stack([x, y, np.full(k, 0.12 * w), np.full(k, 0.06 * w)])
+        out.append(Detections(b, np.ones(k), np.full(k, -1)))
+    return out
+
+
+def tracking_ms(frames: list[np.ndarray], size: tuple[int, int]) -> dict[str, float]:
+    """Milliseconds per frame of each tracker alone (histograms included), 5 boats."""
+    dets = boats(size, len(frames))
+    out = {}
+    for name, make in (("sort", SortTracker), ("particle", ParticleTracker)):
+        t = make()
+        t.step(frames[0], dets[0])
+        t0 = time.perf_counter()
+        for img, d in zip(frames, dets, strict=True):
+            t.step(img, d)
+        out[name] = (time.perf_counter() - t0) / len(frames) * 1e3
+    return out
+
+
+def local_step_compare(repeat: int) -> None:
+    """One local-tier step, 5 boats × 64 particles: Rust vs the numpy reference."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    import particle_reference as ref
+
+    rng = np.random.default_rng(0)
+    centres = rng.uniform(0, 300, (5, 2))
+    prior = np.concatenate(
+        [
+            np.column_stack([c + rng.normal(0, 3, (64, 2)), rng.normal(1, 0.3, (64, 2))])
+            for c in centres
+        ]
+    )
+    obs = np.column_stack([centres + 1.0, np.full((5, 2), 3.0)])
+    vel = np.ones((5, 2))
+    kw = dict(count=64, dt=2.0, accel_std=0.05, vel_std=0.3, clutter=1e-9, n_out=320, delta=20.0)
+    t_ours, a = best_of(lambda: _core.particle_local_step(prior, obs, vel, seed=1, **kw), repeat)
+    t_peer, b = best_of(lambda: ref.local_step(prior, obs, vel, seed=1, **kw), repeat)
+    assert np.allclose(a[0], b[0], atol=1e-9) and len(a[1]) == len(b[1])
+    print(
+        f"particle local step, 5 boats x 64 particles: usvfast {t_ours * 1e6:.0f} µs, numpy "
+        f"{t_peer * 1e6:.0f} µs, ratio {t_peer / t_ours:.1f}x (same numbers)"
+    )
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--frames", type=int, default=40)
@@ -115,13 +177,20 @@ def main() -> None:
     print(f"{'319x261':>12} {'paper cascade':>16} {PAPER_FPS:>14.1f} {'(paper)':>9}")
     for size in ((320, 240), (704, 576)):
         frames = frames_at(size, a.frames)
-        runs = [(f"bayes {kp}", kp, None) for kp in ("sift", "fast")]
+        runs = [(f"bayes {kp}", kp, None, "sort") for kp in ("sift", "fast")]
+        runs.append(("bayes fast+pf", "fast", None, "particle"))
         if a.cascade is not None:
-            runs.append(("cascade", "sift", a.cascade))
-        for name, kp, model in runs:
-            fps = chain_fps(frames, kp, model)
+            runs.append(("cascade", "sift", a.cascade, "sort"))
+        for name, kp, model, tracker in runs:
+            fps = chain_fps(frames, kp, model, tracker)
             print(f"{size[0]}x{size[1]:<8} {name:>16} {fps:>14.1f} {fps / PAPER_FPS:>8.2f}x")
+        ms = tracking_ms(frames, size)
+        print(
+            f"{size[0]}x{size[1]:<8} tracking alone, 5 boats: "
+            + ", ".join(f"{k} {v:.2f} ms/frame ({1e3 / v:.0f} FPS)" for k, v in ms.items())
+        )
     kalman_step_compare(20, a.repeat)
+    local_step_compare(a.repeat)
 
 
 if __name__ == "__main__":

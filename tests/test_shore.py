@@ -300,4 +300,5 @@ def test_leave_one_out_runs_on_the_small_videos(tmp_path):
     assert -10 < r["tracking"]["bayes"]["sort"]["mota"] <= 1.0
     c = r["cascade_horizon"]
     assert c["tp"] + c["fn"] == 8 and r["cascade_stages"] >= 1
-    assert set(r["tracking"]["cascade"]) == {"sort", "adaptive"}
+    assert set(r["tracking"]["cascade"]) == {"sort", "particle", "adaptive"}
+    assert r["tracking"]["truth boxes"]["particle"]["mota"] > 0.5

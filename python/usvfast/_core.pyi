@@ -274,3 +274,121 @@ class HaarCascade:
     @staticmethod
     def from_opencv_xml(text: str) -> HaarCascade: ...
     def to_opencv_xml(self) -> str: ...
+
+# two-tier multi-clustered particle filter (Bloisi et al. §V)
+def particle_uniforms(seed: int, start: int, n: int) -> npt.NDArray[np.float64]: ...
+def particle_resample(
+    weights: npt.NDArray[np.float64], count: int, *, seed: int, counter: int = 0
+) -> npt.NDArray[np.int64]: ...
+def particle_kclusterize(
+    particles: npt.NDArray[np.float64],
+    weights: npt.NDArray[np.float64],
+    *,
+    delta: float,
+    min_size: int = 8,
+    min_kurtosis: float = 1.9,
+    max_depth: int = 3,
+) -> tuple[
+    npt.NDArray[np.float64],
+    npt.NDArray[np.float64],
+    npt.NDArray[np.float64],
+    npt.NDArray[np.int64],
+]: ...
+def particle_local_step(
+    particles: npt.NDArray[np.float64],
+    obs: npt.NDArray[np.float64],
+    velocities: npt.NDArray[np.float64],
+    *,
+    count: int,
+    dt: float,
+    accel_std: float,
+    vel_std: float,
+    clutter: float,
+    n_out: int,
+    delta: float,
+    seed: int,
+    min_size: int = 8,
+    min_kurtosis: float = 1.9,
+    max_depth: int = 3,
+) -> tuple[
+    npt.NDArray[np.float64],
+    npt.NDArray[np.float64],
+    npt.NDArray[np.float64],
+    npt.NDArray[np.float64],
+    npt.NDArray[np.int64],
+]: ...
+def particle_fuse(
+    times: npt.NDArray[np.float64],
+    weights: npt.NDArray[np.float64],
+    means: npt.NDArray[np.float64],
+    stds: npt.NDArray[np.float64],
+    *,
+    now: float,
+    window: float,
+    count: int,
+    delta: float,
+    seed: int,
+    min_size: int = 8,
+    min_kurtosis: float = 1.9,
+    max_depth: int = 3,
+) -> tuple[
+    npt.NDArray[np.float64],
+    npt.NDArray[np.float64],
+    npt.NDArray[np.float64],
+    npt.NDArray[np.int64],
+    npt.NDArray[np.float64],
+]: ...
+
+class ParticleTracker:
+    def __init__(
+        self,
+        *,
+        seed: int = 0,
+        particles: int = 64,
+        accel_std: float = 0.01,
+        meas_scale: float = 0.15,
+        birth_vel_std: float = 1.0,
+        track_vel_std: float = 0.3,
+        vel_gain: float = 0.5,
+        clutter: float = 1e-9,
+        delta: float = 20.0,
+        min_cluster: int = 8,
+        min_kurtosis: float = 1.9,
+        max_depth: int = 3,
+        gate: float = 1.0,
+        max_angle_deg: float = 10.0,
+        min_speed: float = 0.5,
+        speed_abs: float = 1.0,
+        speed_rel: float = 0.5,
+        appearance_weight: float = 0.3,
+        confirm_hits: int = 2,
+        confirm_window: int = 3,
+        max_age: int = 3,
+        group_iou: float = 0.05,
+        reid_distance: float = 0.35,
+        reid_radius: float = 1.5,
+        size_gain: float = 0.6,
+    ) -> None: ...
+    def step(
+        self,
+        boxes: npt.NDArray[np.float64],
+        scores: npt.NDArray[np.float64],
+        hists: npt.NDArray[np.float64] | None = None,
+        dt: float = 1.0,
+    ) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
+    def tracks(
+        self,
+    ) -> tuple[
+        npt.NDArray[np.int64],
+        npt.NDArray[np.float64],
+        npt.NDArray[np.float64],
+        npt.NDArray[np.float64],
+        npt.NDArray[np.bool_],
+        npt.NDArray[np.int64],
+        npt.NDArray[np.float64],
+    ]: ...
+    def mixture(
+        self,
+    ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
+    @property
+    def steps(self) -> int: ...

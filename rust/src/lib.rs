@@ -21,6 +21,7 @@ pub mod line_of_sight;
 pub mod mean_shift;
 pub mod models;
 pub mod nms;
+pub mod particle;
 pub mod polar;
 pub mod track;
 pub mod tracker;

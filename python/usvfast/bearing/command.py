@@ -39,6 +39,7 @@ from usvfast.bearing.io import (
     write_rmse_csv,
 )
 from usvfast.bearing.sample import BUNDLED_DIR
+from usvfast.bearing.tracks import fuse_tracks, looks_like_mot, track_bearings
 
 
 @dataclass(frozen=True)
@@ -199,6 +200,63 @@ def run_bearing(
     return BearingRun(fusion, reference, rmse, files)
 
 
+@dataclass(frozen=True)
+class TrackBearingRun:
+    """What `run_track_bearing` produced: the fusion per track id, the AIS reference at each
+    track's sample times, each track's RMSE table and the files written."""
+
+    fusions: dict[int, BearingFusion]
+    reference_deg: dict[int, np.ndarray]
+    rmse: dict[int, list[RmseRow]]
+    files: list[Path]
+
+
+def run_track_bearing(
+    tracks_txt: Path | str,
+    ais_csv: Path | str,
+    out_dir: Path | str,
+    *,
+    cameras_json: Path | str | None = None,
+    source: int = VISIBLE,
+    fps: float = 25.0,
+    start_time: float = 0.0,
+    visible_std_deg: float = PAPER_MEASUREMENT_STD_DEG[VISIBLE],
+    thermal_std_deg: float = PAPER_MEASUREMENT_STD_DEG[THERMAL],
+    noise_diff_coeff_deg2: float = PAPER_NOISE_DIFF_COEFF_DEG2,
+) -> TrackBearingRun:
+    """Bearings of an image tracker's tracks.txt (MOTChallenge, `usvfast shore`), one series
+    per track id through eq. (1) with camera `source` of cameras_json (default the paper's),
+    each fused by KF + RTS and compared with AIS; writes `fused_track_ID.csv` per track (the
+    fused_bearing.csv columns) and `rmse_tracks.csv` (track_id,label,rmse_deg,count)."""
+    from usvfast.bearing.io import PAPER_CAMERAS
+
+    cameras = PAPER_CAMERAS if cameras_json is None else read_cameras(cameras_json)
+    if source not in cameras:
+        raise ValueError(f"source: no camera {source} (have {sorted(cameras)})")
+    samples = track_bearings(tracks_txt, cameras[source], fps=fps, start_time=start_time)
+    fusions = fuse_tracks(
+        samples,
+        source=source,
+        measurement_std_deg={VISIBLE: visible_std_deg, THERMAL: thermal_std_deg},
+        noise_diff_coeff_deg2=noise_diff_coeff_deg2,
+    )
+    if not fusions:
+        raise ValueError(f"tracks: no track with two or more boxes in {tracks_txt}")
+    ais = read_ais(ais_csv)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    refs = {t: reference_bearing_deg(f.times, ais.own, ais.target) for t, f in fusions.items()}
+    rmse = {t: bearing_rmse_table(f, refs[t]) for t, f in fusions.items()}
+    files = [write_fusion_csv(out / f"fused_track_{t}.csv", f, refs[t]) for t, f in fusions.items()]
+    rmse_path = out / "rmse_tracks.csv"
+    with rmse_path.open("w", encoding="utf-8") as fh:
+        fh.write("track_id,label,rmse_deg,count\n")
+        for t, rows in rmse.items():
+            fh.writelines(f"{t},{r.label},{r.rmse_deg:.4f},{r.count}\n" for r in rows)
+    files.append(rmse_path)
+    return TrackBearingRun(fusions, refs, rmse, files)
+
+
 def _rmse_table(rmse: list[RmseRow]) -> Table:
     table = Table(title="Bearing RMSE against AIS (Table 1 of Gorad et al. 2023)")
     table.add_column("estimate")
@@ -235,6 +293,49 @@ def _run_and_report(
         console.print(f"wrote {escape(str(path))}", soft_wrap=True)
 
 
+def _tracks_and_report(
+    tracks: Path,
+    ais: Path,
+    out: Path,
+    cameras: Path | None,
+    *,
+    source: int,
+    fps: float,
+    start_time: float,
+    visible_std_deg: float,
+    thermal_std_deg: float,
+    noise_diff_coeff_deg2: float,
+) -> None:
+    console, err = Console(), Console(stderr=True)
+    try:
+        run = run_track_bearing(
+            tracks,
+            ais,
+            out,
+            cameras_json=cameras,
+            source=source,
+            fps=fps,
+            start_time=start_time,
+            visible_std_deg=visible_std_deg,
+            thermal_std_deg=thermal_std_deg,
+            noise_diff_coeff_deg2=noise_diff_coeff_deg2,
+        )
+    except ValueError as exc:
+        err.print(f"[red]error:[/red] {escape(str(exc))}", soft_wrap=True)
+        raise typer.Exit(code=1) from exc
+    table = Table(title="Bearing RMSE against AIS per image track (KF + RTS)")
+    for col in ("track", "samples", "RMSE (deg)", "AIS-covered"):
+        table.add_column(col, justify="right")
+    for t, rows in run.rmse.items():
+        fused = rows[-1]
+        table.add_row(
+            str(t), str(len(run.fusions[t].times)), f"{fused.rmse_deg:.3f}", str(fused.count)
+        )
+    console.print(table)
+    for path in run.files:
+        console.print(f"wrote {escape(str(path))}", soft_wrap=True)
+
+
 def bearing_command(
     samples: Annotated[
         Path,
@@ -260,11 +361,37 @@ def bearing_command(
     noise_diff_coeff_deg2: Annotated[
         float, typer.Option(help="Wiener velocity process noise q, deg²/s³.")
     ] = PAPER_NOISE_DIFF_COEFF_DEG2,
+    tracks_fps: Annotated[
+        float, typer.Option(help="Frame rate of a tracks.txt SAMPLES file (frames/s).")
+    ] = 25.0,
+    tracks_start: Annotated[
+        float, typer.Option(help="UNIX time of frame 1 of a tracks.txt SAMPLES file (s).")
+    ] = 0.0,
+    tracks_source: Annotated[
+        int, typer.Option(help="Camera (source id in --cameras) of a tracks.txt file.")
+    ] = VISIBLE,
 ) -> None:
     """Fuse visible + thermal camera bearings (KF + RTS) and compare them with AIS.
 
     Writes fused_bearing.csv, rmse.csv and bearing.png into --out and prints the RMSE table.
+    SAMPLES may also be an image tracker's tracks.txt (MOTChallenge, `usvfast shore`): then
+    each track id gives one bearing series (box centres through eq. 1 with camera
+    --tracks-source), fused on its own; writes fused_track_ID.csv per track and rmse_tracks.csv.
     """
+    if looks_like_mot(samples):
+        _tracks_and_report(
+            samples,
+            ais,
+            out,
+            cameras,
+            source=tracks_source,
+            fps=tracks_fps,
+            start_time=tracks_start,
+            visible_std_deg=visible_std_deg,
+            thermal_std_deg=thermal_std_deg,
+            noise_diff_coeff_deg2=noise_diff_coeff_deg2,
+        )
+        return
     _run_and_report(
         samples,
         ais,

@@ -29,20 +29,20 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import cv2
-import numpy as np
 from rich.console import Console
 from rich.table import Table
-from scipy.optimize import linear_sum_assignment
 
-from usvfast.metrics import FrameSequence, mot_metrics
 from usvfast.shore.bayes import BayesDetector, BayesDetectorConfig
 from usvfast.shore.boxes import Detections
 from usvfast.shore.cascade import CascadeConfig, train_detector
 from usvfast.shore.horizon import HorizonConfig, HorizonLine, detect_horizon, horizon_keep
 from usvfast.shore.mardct import AnnotatedFrame, load_mardct
-from usvfast.shore.pixel_kalman import AdaptiveTracker
+from usvfast.shore.mot_eval import (  # noqa: F401  (derive_truth_ids: public here too)
+    derive_truth_ids,
+    tracking_rows,
+    truth_detections,
+)
 from usvfast.shore.scores import DetectionCounts
-from usvfast.shore.sort import SortTracker
 
 #: EO thresholds tried when tuning (8-bit levels).
 THRESHOLD_GRID: tuple[float, ...] = (40, 60, 80, 100, 120, 140, 160, 180, 200, 220)
@@ -57,31 +57,6 @@ def default_data() -> Path:
             "data: pass --data DIR (MarDCT training/annotations) or set USVFAST_SHARED_DATA"
         )
     return Path(root) / "mardct" / "training" / "annotations"
-
-
-def derive_truth_ids(frames: Sequence[AnnotatedFrame], gate: float = 2.0) -> list[np.ndarray]:
-    """Identities of the annotated boxes of one video: each frame's boxes are linked to the
-    previous frame's by optimal assignment on centre distance, a pair allowed within `gate`
-    box diagonals; unlinked boxes get new ids (from 1)."""
-    ids: list[np.ndarray] = []
-    prev, prev_ids, next_id = np.zeros((0, 4)), np.zeros(0, np.int64), 1
-    for f in frames:
-        cur = np.full(len(f.boxes), -1, np.int64)
-        if len(prev) and len(f.boxes):
-            pc = prev[:, :2] + prev[:, 2:] / 2
-            cc = f.boxes[:, :2] + f.boxes[:, 2:] / 2
-            d = np.linalg.norm(pc[:, None] - cc[None], axis=2)
-            limit = gate * np.hypot(prev[:, 2], prev[:, 3])[:, None]
-            cost = np.where(d <= limit, d, 1e9)
-            for i, j in zip(*linear_sum_assignment(cost), strict=True):
-                if cost[i, j] < 1e9:
-                    cur[j] = prev_ids[i]
-        for j in np.flatnonzero(cur < 0):
-            cur[j] = next_id
-            next_id += 1
-        ids.append(cur)
-        prev, prev_ids = f.boxes, cur
-    return ids
 
 
 @dataclass
@@ -137,48 +112,6 @@ def f1(c: DetectionCounts) -> float:
     return 2 * c.tp / n if n else 0.0
 
 
-def track(
-    frames: Sequence[AnnotatedFrame], dets: Sequence[Detections], tracker: str
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(frame numbers from 1, ids, boxes) of the reported tracks over the annotated frames."""
-    t = SortTracker() if tracker == "sort" else AdaptiveTracker()
-    fr, ids, boxes = [], [], []
-    for n, (f, d) in enumerate(zip(frames, dets, strict=True), 1):
-        if isinstance(t, SortTracker):
-            image = cv2.imread(str(f.path), cv2.IMREAD_COLOR)
-            i, b, _ = t.step(image, d)
-        else:
-            r = t.step(d)
-            i, b = np.ones(len(r), np.int64), r.boxes
-        fr += [n] * len(i)
-        ids.append(i)
-        boxes.append(b.reshape(-1, 4))
-    return (
-        np.array(fr, np.int64),
-        np.concatenate(ids) if ids else np.zeros(0, np.int64),
-        np.concatenate(boxes) if boxes else np.zeros((0, 4)),
-    )
-
-
-def mot_scores(frames: Sequence[AnnotatedFrame], tracks) -> dict[str, float]:
-    """MOTA, MOTP (mean IoU of matches), IDF1, precision, recall, switches of tracks."""
-    gid = derive_truth_ids(frames)
-    gf = np.concatenate([[n] * len(f.boxes) for n, f in enumerate(frames, 1)]).astype(np.int64)
-    gi = np.concatenate(gid)
-    gb = np.concatenate([f.boxes for f in frames])
-    tf, ti, tb = tracks
-    seq = FrameSequence.from_boxes(gf, gi, gb, tf, ti, tb, iou_threshold=0.5)
-    m = mot_metrics(seq)
-    return {
-        "mota": m.mota,
-        "motp_iou": m.motp_iou,
-        "idf1": m.idf1,
-        "precision": m.precision,
-        "recall": m.recall,
-        "switches": int(m.switches),
-    }
-
-
 def evaluate(
     data: Path,
     grid: Sequence[float] = THRESHOLD_GRID,
@@ -220,9 +153,12 @@ def evaluate(
                     "fp": c.fp,
                     "fn": c.fn,
                 }
-        dets = kept(frames, caches[v], f"t{best:g}", True, hcfg)
         row["tracking"] = {
-            "bayes": {t: mot_scores(frames, track(frames, dets, t)) for t in ("sort", "adaptive")}
+            "truth boxes": tracking_rows(frames, truth_detections(frames)),
+            "bayes": tracking_rows(frames, kept(frames, caches[v], f"t{best:g}", True, hcfg)),
+            "bayes no horizon": tracking_rows(
+                frames, kept(frames, caches[v], f"t{best:g}", False, hcfg)
+            ),
         }
         if cascade:
             t0 = time.perf_counter()
@@ -242,16 +178,14 @@ def evaluate(
                     "fn": c.fn,
                 }
             dets = kept(frames, caches[v], "cascade", True, hcfg)
-            row["tracking"]["cascade"] = {
-                t: mot_scores(frames, track(frames, dets, t)) for t in ("sort", "adaptive")
-            }
+            row["tracking"]["cascade"] = tracking_rows(frames, dets)
         results[v] = row
     return results
 
 
 def print_tables(results: dict, console: Console | None = None) -> None:
     """Tables I–II layout (detection) and Table III layout (tracking)."""
-    console = console or Console()
+    console = console or Console(width=max(Console().width, 170))
     t = Table(title="Detection (MarDCT, leave one video out, IoU ≥ 0.5)")
     for col in ("video", "detector", "horizon", "TPR", "FAR", "TP", "FP", "FN"):
         t.add_column(col)
@@ -276,16 +210,19 @@ def print_tables(results: dict, console: Console | None = None) -> None:
                     str(s["fn"]),
                 )
     console.print(t)
-    m = Table(title="Tracking (horizon filter on; CLEAR MOT with IoU ≥ 0.5)")
+    m = Table(title="Tracking (Table III layout; CLEAR MOT with IoU ≥ 0.5)")
     for col in (
         "video",
-        "detector",
+        "detections",
         "tracker",
         "MOTA",
+        "MOTA log10",
         "MOTP (IoU)",
-        "IDF1",
         "precision",
         "recall",
+        "FP share",
+        "IDF1",
+        "HOTA",
         "IDsw",
     ):
         m.add_column(col)
@@ -296,11 +233,19 @@ def print_tables(results: dict, console: Console | None = None) -> None:
                     v,
                     det,
                     tr,
-                    f"{s['mota']:.3f}",
-                    f"{s['motp_iou']:.3f}",
-                    f"{s['idf1']:.3f}",
-                    f"{s['precision']:.3f}",
-                    f"{s['recall']:.3f}",
+                    *(
+                        f"{s[k]:.3f}"
+                        for k in (
+                            "mota",
+                            "mota_log10",
+                            "motp_iou",
+                            "precision",
+                            "recall",
+                            "fp_share",
+                            "idf1",
+                            "hota",
+                        )
+                    ),
                     str(s["switches"]),
                 )
     console.print(m)

@@ -28,13 +28,14 @@ from usvfast.shore.daynight import DayNightClassifier
 from usvfast.shore.frames import FrameSource
 from usvfast.shore.horizon import HorizonConfig, HorizonLine, detect_horizon, horizon_keep
 from usvfast.shore.mot import mot_rows, write_mot
+from usvfast.shore.particle import ParticleConfig, ParticleTracker
 from usvfast.shore.pixel_kalman import AdaptiveConfig, AdaptiveTracker
 from usvfast.shore.sort import SortConfig, SortTracker
 
 DetectorName = Literal["bayes", "cascade"]
-TrackerName = Literal["sort", "adaptive"]
+TrackerName = Literal["sort", "adaptive", "particle"]
 DETECTORS: tuple[str, ...] = ("bayes", "cascade")
-TRACKERS: tuple[str, ...] = ("sort", "adaptive")
+TRACKERS: tuple[str, ...] = ("sort", "adaptive", "particle")
 
 
 @dataclass
@@ -43,7 +44,8 @@ class ShoreConfig:
     Bloisi et al.'s Haar cascade, from the OpenCV XML file `cascade_model` that
     `usvfast shore-train` writes), `tracker`
     ('sort': Kalman + IoU assignment + colour re-identification; 'adaptive': the same paper's
-    single-vessel adaptive Kalman tracker), `horizon_filter` (drop detections well above the
+    single-vessel adaptive Kalman tracker; 'particle': Bloisi et al.'s two-tier particle
+    filter), `horizon_filter` (drop detections well above the
     horizon line) and the parameters of each part."""
 
     detector: DetectorName = "bayes"
@@ -54,6 +56,7 @@ class ShoreConfig:
     bayes: BayesDetectorConfig = field(default_factory=BayesDetectorConfig)
     sort: SortConfig = field(default_factory=SortConfig)
     adaptive: AdaptiveConfig = field(default_factory=AdaptiveConfig)
+    particle: ParticleConfig = field(default_factory=ParticleConfig)
     cascade: CascadeConfig = field(default_factory=CascadeConfig)
 
     def __post_init__(self) -> None:
@@ -97,9 +100,11 @@ class ShoreChain:
                 raise ValueError(f"cascade_model: {path} is not a file")
             text = path.read_text(encoding="utf-8")
             self.cascade = CascadeDetector(HaarCascade.from_opencv_xml(text), cfg.cascade)
-        self.tracker: SortTracker | AdaptiveTracker = (
+        self.tracker: SortTracker | AdaptiveTracker | ParticleTracker = (
             SortTracker(cfg.sort) if cfg.tracker == "sort" else AdaptiveTracker(cfg.adaptive)
         )
+        if cfg.tracker == "particle":
+            self.tracker = ParticleTracker(cfg.particle)
         self.seconds: Counter[str] = Counter()
 
     def step(self, image: np.ndarray) -> FrameResult:
@@ -122,7 +127,7 @@ class ShoreChain:
         if cfg.horizon_filter:
             kept = raw.subset(horizon_keep(raw, horizon, image.shape[0], cfg.horizon))
         t2 = time.perf_counter()
-        if isinstance(self.tracker, SortTracker):
+        if isinstance(self.tracker, SortTracker | ParticleTracker):
             ids, boxes, scores = self.tracker.step(image, kept)
         else:
             tr = self.tracker.step(kept)

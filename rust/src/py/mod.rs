@@ -10,6 +10,7 @@ mod frames;
 mod geodesy;
 mod kalman;
 mod lidar;
+mod particle;
 mod tracker;
 
 pub use errors::to_py_err;
@@ -40,5 +41,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     camera::register(m)?;
     cascade::register(m)?;
     tracker::register(m)?;
+    particle::register(m)?;
     Ok(())
 }
