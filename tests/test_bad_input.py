@@ -15,6 +15,7 @@ from usvfast.camera import CameraModel, georeference, horizon_line, sensitivity
 from usvfast.camera.calibration import undistort_points
 from usvfast.lidar.evaluation import straight_run
 from usvfast.lidar.pipeline import cluster_detections, prefilter, sensor_to_world, world_to_sensor
+from usvfast.tracking import GNN, MultiMeasurementInitiator, Sensor, StepsSinceUpdate, Tracker
 
 NAN, INF = math.nan, math.inf
 SEG = np.array([[0.0, 0.0, 1.0, 0.0], [0.0, 1.0, 2.0, 1.0]])
@@ -51,7 +52,26 @@ CASES = [
     ("own", lambda: reference_bearing_deg([0.0], None, None)),
     ("image", lambda: lidar.blur(None)),  # used to be a cv2.error
     ("camera", lambda: undistort_points(np.zeros((1, 2)), None)),
+    ("noise_std", lambda: Sensor.position(noise_std=NAN)),  # used to give R = NaN, silently
+    ("noise_std", lambda: Sensor.position(noise_std=-1.0)),
+    ("noise_std", lambda: Sensor.position(noise_std=(1.0, 2.0, 3.0))),
+    ("ndim_state", lambda: Sensor.position(1.0, ndim_state=10**12)),  # used to allocate 16 TB
+    ("min_points", lambda: _tracker(min_points=10**20)),  # used to be an OverflowError
+    ("max_new_tentative", lambda: _tracker(max_new_tentative=2**64)),
 ]
+
+
+def _tracker(**initiator):
+    from usvfast.kalman import constant_velocity_2d
+
+    init = MultiMeasurementInitiator(np.zeros(4), np.eye(4), **initiator)
+    return Tracker(
+        motion_model=constant_velocity_2d(0.1),
+        sensors=[Sensor.position(1.0)],
+        association=GNN(),
+        deleter=StepsSinceUpdate(3),
+        initiator=init,
+    )
 
 
 @pytest.mark.parametrize(("name", "call"), CASES)
