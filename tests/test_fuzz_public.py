@@ -72,7 +72,8 @@ NAN_DOCUMENTED = {
     "sensitivity",
     "water_geometry",  # NaN spacing for the first ray
     "dead_reckon",  # NaN for times before the first report
-    "receive_time",  # NaN when a line has no receive time
+    "line_time",  # NaN when a line has no receive time
+    "clock_time",  # NaN for a line that is not a ZDA/RMC sentence
     "VesselTrack",  # `at()` NaN outside the track; the object holds NaN headings if given
     "clear_mot",  # MOTP is NaN with no match
     "track_quality",

@@ -1,11 +1,12 @@
 """AIS feeds as logs deliver them, and AIS targets as tracks in a local NED plane.
 
-`read_ais_feed` gives every AIS line its receive time (NMEA 4.10 tag block `c:`, a leading
-UNIX time column, or the log's own ZDA/RMC clock; see `usvfast.radar.clock`) and decodes the
-messages with `usvfast.nav.ais.read_ais` (pyais; multi-sentence messages assembled, damaged
-sentences counted). `AisTargets` turns the position reports into per-MMSI states at any time
-by the constant speed and course interpolation of the radar/AIS paper (§1.1), reusing
-`usvfast.nav.ais.dead_reckon`, with a covariance that grows with the age of the report.
+`read_ais_feed` decodes the feed with `usvfast.nav.ais.read_ais` (pyais; multi-sentence
+messages assembled, damaged sentences counted), which gives every AIS line its receive time
+(NMEA 4.10 tag block `c:`, a leading UNIX time column, or the log's own ZDA/RMC clock; see
+`usvfast.nav.linetime`), and requires timed positions. `AisTargets` turns the position
+reports into per-MMSI states at any time by the constant speed and course interpolation of
+the radar/AIS paper (§1.1), reusing `usvfast.nav.ais.dead_reckon`, with a covariance that
+grows with the age of the report.
 
 Example::
 
@@ -25,9 +26,7 @@ from typing import Any
 import numpy as np
 
 from usvfast import geodesy
-from usvfast.nav._damage import iter_lines
 from usvfast.nav.ais import AisLog, AisPositions, dead_reckon, read_ais
-from usvfast.radar.clock import LogClock, tag_block_ok
 
 __all__ = ["AisFeed", "AisStates", "AisTargets", "fix_times", "read_ais_feed"]
 
@@ -55,19 +54,7 @@ def read_ais_feed(source: str | os.PathLike | Iterable[Any]) -> AisFeed:
 
     Raises ValueError when nothing decodes, and when no position report has both a receive
     time and a position (an AIS feed without positions cannot be fused)."""
-    clock = LogClock()
-    pairs: list[tuple[float, bytes]] = []
-    n_bad_tag = 0
-    for raw in iter_lines(source):
-        line = (raw if isinstance(raw, bytes) else str(raw).encode("ascii", "replace")).strip()
-        if not line or line.startswith(b"#"):
-            continue
-        t = clock.time_of(line)
-        if b"!" in line[:200] and not tag_block_ok(line):
-            n_bad_tag += 1
-            continue
-        pairs.append((t, line))
-    log = read_ais(pairs)
+    log = read_ais(source)
     p = log.positions
     timed = np.isfinite(p.time)
     usable = timed & np.isfinite(p.lat_deg) & np.isfinite(p.lon_deg)
@@ -78,7 +65,7 @@ def read_ais_feed(source: str | os.PathLike | Iterable[Any]) -> AisFeed:
             f"{log.n_messages} messages); receive times come from tag blocks (c:), a leading "
             "UNIX time column or the log's ZDA/RMC sentences"
         )
-    return AisFeed(log, int((~timed).sum()), n_bad_tag, clock.n_clock)
+    return AisFeed(log, int((~timed).sum()), log.n_bad_tag, log.n_clock)
 
 
 def fix_times(positions: AisPositions) -> AisPositions:

@@ -31,8 +31,8 @@ import pynmea2
 
 from usvfast._damage import DamageCounter
 from usvfast.nav._damage import iter_lines
+from usvfast.nav.linetime import LogClock, line_time, tag_block_ok
 from usvfast.nav.nmea import KNOT
-from usvfast.radar.clock import LogClock, line_time, tag_block_ok
 
 __all__ = [
     "RadarPlots",
