@@ -155,6 +155,12 @@ class FrameSequence:
             dd = np.linalg.norm(g[:, None, :] - t[None, :, :], axis=2).reshape(len(g), len(t))
             sim.append(np.clip(1.0 - dd / zero, 0.0, None))
             dist.append(np.where(dd <= max_distance, dd, np.nan))
+        return cls._of_groups(allf, groups, dist, sim, "position")
+
+    @classmethod
+    def _of_groups(cls, allf: Any, groups: list, dist: list, sim: list, kind: str) -> FrameSequence:
+        """The sequence of `_group`'s frames and per-frame (truth ids, truth values, track
+        ids, track values) with their distance and similarity matrices."""
         return cls(
             frames=allf,
             truth_ids=[x[0] for x in groups],
@@ -163,7 +169,7 @@ class FrameSequence:
             similarity=sim,
             truth_values=[x[1] for x in groups],
             track_values=[x[3] for x in groups],
-            kind="position",
+            kind=kind,
         )
 
     @classmethod
@@ -194,16 +200,7 @@ class FrameSequence:
             iou = box_iou(g, t)
             sim.append(iou)
             dist.append(np.where(iou >= iou_threshold - 1e-12, 1.0 - iou, np.nan))
-        return cls(
-            frames=allf,
-            truth_ids=[x[0] for x in groups],
-            track_ids=[x[2] for x in groups],
-            distance=dist,
-            similarity=sim,
-            truth_values=[x[1] for x in groups],
-            track_values=[x[3] for x in groups],
-            kind="box",
-        )
+        return cls._of_groups(allf, groups, dist, sim, "box")
 
 
 def frames_from_times(times: Any, *, period: float, start: float | None = None) -> np.ndarray:

@@ -24,10 +24,10 @@ from __future__ import annotations
 import calendar
 import math
 import re
-from functools import reduce
-from operator import xor
 
 import pynmea2
+
+from usvfast.nav._fields import checksum
 
 __all__ = ["LogClock", "clock_time", "line_time", "tag_block_ok"]
 
@@ -53,7 +53,7 @@ def tag_block_ok(line: bytes) -> bool:
     m = _TAG.match(line)
     if m is None:
         return True
-    return reduce(xor, m.group(1), 0) == int(m.group(2), 16)
+    return checksum(m.group(1)) == int(m.group(2), 16)
 
 
 def clock_time(line: bytes) -> float:

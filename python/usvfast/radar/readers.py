@@ -31,6 +31,7 @@ import pynmea2
 
 from usvfast._damage import DamageCounter
 from usvfast.nav._damage import iter_lines
+from usvfast.nav._fields import DAY, day_start, degrees, nearest_day, seconds_of_day
 from usvfast.nav.linetime import LogClock, line_time, tag_block_ok
 from usvfast.nav.nmea import KNOT
 
@@ -229,14 +230,12 @@ def _time_of_day(stamp: _dt.time | None, t_line: float, t_clock: float, date: An
         if math.isfinite(t_clock):
             return t_clock
         raise ValueError("no time")
-    tod = stamp.hour * 3600.0 + stamp.minute * 60.0 + stamp.second + stamp.microsecond * 1e-6
+    tod = seconds_of_day(stamp)
     if math.isfinite(t_clock):
-        day0 = math.floor(t_clock / 86400.0) * 86400.0
-        t = day0 + tod
-        return t + 86400.0 * round((t_clock - t) / 86400.0)
+        return nearest_day(math.floor(t_clock / DAY) * DAY + tod, t_clock)
     if date is None:
         raise ValueError("time of day without a date (no ZDA/RMC in the log and no date=)")
-    return (date - _dt.date(1970, 1, 1)).days * 86400.0 + tod
+    return day_start(date.year, date.month, date.day) + tod
 
 
 def _target_row(msg: Any, t_line: float, t_clock: float, date: Any) -> dict | None:
@@ -261,7 +260,7 @@ def _target_row(msg: Any, t_line: float, t_clock: float, date: Any) -> dict | No
         )
     if msg.target_status == "L":
         return None
-    lat, lon = _deg(msg.lat, msg.lat_dir), _deg(msg.lon, msg.lon_dir)
+    lat, lon = degrees(msg.lat, msg.lat_dir), degrees(msg.lon, msg.lon_dir)
     if not (math.isfinite(lat) and math.isfinite(lon)) or abs(lat) > 90 or abs(lon) > 180:
         raise ValueError("TLL without a valid position")
     return dict(
@@ -271,18 +270,6 @@ def _target_row(msg: Any, t_line: float, t_clock: float, date: Any) -> dict | No
         lon_deg=lon,
         target_number=int(msg.target_number),
     )
-
-
-def _deg(value: str, hemisphere: str) -> float:
-    """NMEA ddmm.mmmm + hemisphere -> signed degrees (NaN when empty)."""
-    if not value:
-        return math.nan
-    v = float(value)
-    d = math.floor(v / 100.0)
-    out = d + (v - 100.0 * d) / 60.0
-    if hemisphere not in ("N", "S", "E", "W"):
-        raise ValueError(f"bad hemisphere {hemisphere!r}")
-    return -out if hemisphere in ("S", "W") else out
 
 
 def plots_from_ned(times: Any, measurements: Iterable[Any]) -> RadarPlots:
