@@ -9,21 +9,26 @@ from __future__ import annotations
 import os
 import warnings
 from importlib import resources
+from pathlib import Path
 
+import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from usvfast.bearing import io as bio
 from usvfast.datasets import load_joyride
+from usvfast.fusion import read_ais_feed
 from usvfast.lidar import VelodynePcapReader
 from usvfast.nav.ais import read_ais
 from usvfast.nav.nmea import read_nmea
+from usvfast.radar import read_radar_csv, read_radar_nmea
 
 from conftest import SHARED_DATA
 
 NMEA = SHARED_DATA / "nmea"
 PCAP = SHARED_DATA / "lidar" / "velodyne_hdl32e.pcap"
+JOYRIDE_MAT = SHARED_DATA / "joyride" / "joyride.mat"
 BUNDLED = resources.files("usvfast") / "data" / "bearing"
 EXAMPLES = int(os.environ.get("USVFAST_FUZZ_EXAMPLES", "40"))
 FUZZ = settings(
@@ -193,5 +198,183 @@ def test_fuzz_joyride(tmp_path):
     def run(m):
         path.write_bytes(mutate(data, *m))
         read_quietly(load_joyride, path)  # a damaged .mat: ValueError or data, nothing else
+
+    run()
+
+
+def test_fuzz_ais_feed(tmp_path):
+    # The fusion's AIS feed on the real mixed log: AIS timed from the log's own ZDA/RMC clock.
+    data = (NMEA / "saab-r4.log").read_bytes()
+    intact = read_quietly(read_ais_feed, NMEA / "saab-r4.log")
+    path = tmp_path / "feed.log"
+    n_lines = sum(1 for _ in data.splitlines())
+
+    @FUZZ
+    @given(mutations(len(data)))
+    def run(m):
+        edits, cut = m
+        path.write_bytes(mutate(data, edits, cut))
+        feed = read_quietly(read_ais_feed, path)
+        if feed is None:
+            return
+        lost = n_lines - kept_lines(data, edits, cut)
+        timed = np.isfinite(feed.log.positions.time).sum()
+        assert timed >= np.isfinite(intact.log.positions.time).sum() - lost
+
+    run()
+
+
+def _joyride_rows(n_scans: int = 150) -> list[tuple[float, float, float]]:
+    jr = load_joyride(SHARED_DATA / "joyride" / "joyride.mat")
+    rows = []
+    for t, scan in list(zip(jr.times, jr.measurements, strict=True))[:n_scans]:
+        rows += [(float(t), float(n), float(e)) for n, e in scan]
+    return rows
+
+
+def test_fuzz_radar_csv(tmp_path):
+    # The real Joyride radar plots as a (time, north, east) CSV.
+    rows = _joyride_rows()
+    data = (
+        "time,north,east\n" + "".join(f"{t:.3f},{n:.2f},{e:.2f}\n" for t, n, e in rows)
+    ).encode()
+    src, path = tmp_path / "plots.csv", tmp_path / "x.csv"
+    src.write_bytes(data)
+    intact = read_quietly(read_radar_csv, src)
+    assert len(intact) == len(rows)
+
+    @FUZZ
+    @given(mutations(len(data)))
+    def run(m):
+        edits, cut = m
+        path.write_bytes(mutate(data, edits, cut))
+        plots = read_quietly(read_radar_csv, path)
+        if plots is None:
+            return
+        # a damaged time (one jumping ahead included) costs its own row, not the rows after it
+        touched = sum(1 for _ in data.splitlines()) - kept_lines(data, edits, cut)
+        assert len(plots) >= len(intact) - touched
+
+    run()
+
+
+def _ttm(number: int, dist_nm: float, bearing: float, hhmmss: str) -> str:
+    import pynmea2
+
+    f = [f"{number:02d}", f"{dist_nm:.4f}", f"{bearing:.1f}", "T", "5.0", "90.0", "T", "0.1"]
+    f += ["1.0", "N", "", "T", "", hhmmss, "A"]
+    return str(pynmea2.TalkerSentence("RA", "TTM", f))
+
+
+def test_fuzz_radar_nmea(tmp_path):
+    # ARPA TTM sentences of the real Joyride plots (range and bearing from the origin), timed by
+    # a ZDA clock every scan, as an ARPA radar's NMEA output would carry them.
+    import datetime as dt
+
+    import pynmea2
+
+    lines = []
+    for t, n, e in _joyride_rows(100):
+        stamp = dt.datetime.fromtimestamp(t, dt.timezone.utc)
+        hhmmss = stamp.strftime("%H%M%S.") + f"{stamp.microsecond // 10000:02d}"
+        zda = [hhmmss, f"{stamp.day:02d}", f"{stamp.month:02d}", str(stamp.year), "00", "00"]
+        lines.append(str(pynmea2.TalkerSentence("GP", "ZDA", zda)))
+        rng, brg = float(np.hypot(n, e)) / 1852.0, float(np.degrees(np.arctan2(e, n))) % 360.0
+        lines.append(_ttm(len(lines) % 99, rng, brg, hhmmss))
+    data = ("\n".join(lines) + "\n").encode()
+    src, path = tmp_path / "arpa.nmea", tmp_path / "x.nmea"
+    src.write_bytes(data)
+    intact = read_quietly(read_radar_nmea, src)
+    assert len(intact) == len(lines) // 2
+
+    @FUZZ
+    @given(mutations(len(data)))
+    def run(m):
+        edits, cut = m
+        path.write_bytes(mutate(data, edits, cut))
+        plots = read_quietly(read_radar_nmea, path)
+        if plots is None:
+            return
+        # a touched line costs its plot, or (a ZDA) the plot timed by it
+        touched = sum(1 for _ in data.splitlines()) - kept_lines(data, edits, cut)
+        assert len(plots) >= len(intact) - touched
+
+    run()
+
+
+@st.composite
+def text_mutations(draw, text: str):
+    """A TOML text with one to three edits: a line deleted, duplicated or changed by a
+    character, or a value replaced by another TOML value."""
+    lines = text.splitlines()
+    for _ in range(draw(st.integers(1, 3))):
+        k = draw(st.integers(0, len(lines) - 1))
+        kind = draw(st.sampled_from(["delete", "duplicate", "char", "value"]))
+        if kind == "delete" and len(lines) > 1:
+            del lines[k]
+        elif kind == "duplicate":
+            lines.insert(k, lines[k])
+        elif kind == "char" and lines[k]:
+            i = draw(st.integers(0, len(lines[k]) - 1))
+            c = draw(st.sampled_from(list('=[]"., 0x\\#\x00é{}')))
+            lines[k] = lines[k][:i] + c + lines[k][i + 1 :]
+        elif "=" in lines[k]:
+            value = draw(
+                st.sampled_from(
+                    ["nan", "inf", "-1", "0", "1e308", '""', '"x"', "[]", "[1, 2]", "{}", "true"]
+                )
+            )
+            lines[k] = lines[k].split("=", 1)[0] + "= " + value
+    return "\n".join(lines) + "\n"
+
+
+@pytest.mark.parametrize(
+    "source",
+    [
+        resources.files("usvfast") / "data" / "harbour" / "recording.toml",
+        resources.files("usvfast") / "pipeline" / "presets" / "thesis.toml",
+    ],
+    ids=["harbour", "thesis-preset"],
+)
+def test_fuzz_pipeline_config(tmp_path, source):
+    # The pipeline's config loader on fuzzed TOML: a ConfigError (a ValueError naming the key)
+    # or a config, never another exception. The folder holds the recording's files.
+    from usvfast.pipeline.config import load_config
+
+    text = source.read_text()
+    folder = Path(str(source)).parent
+    target = tmp_path / "config.toml"
+    for name in ("bag", "camera_info.yaml", "truth.csv"):  # the recording's relative paths
+        if (folder / name).exists():
+            (tmp_path / name).symlink_to(folder / name)
+
+    @FUZZ
+    @given(text_mutations(text))
+    def run(mutated):
+        target.write_text(mutated, encoding="utf-8")
+        try:
+            load_config(target)
+        except ValueError:
+            pass
+
+    run()
+
+
+def test_fuzz_sweep_spec(tmp_path):
+    # The sweep spec loader on the repository's Joyride sweep, fuzzed.
+    from usvfast.sweep.spec import load_spec
+
+    src = Path(__file__).parents[1] / "configs" / "sweep-joyride.toml"
+    text = src.read_text().replace("../tests/data/joyride/joyride.mat", str(JOYRIDE_MAT))
+    path = tmp_path / "spec.toml"
+
+    @FUZZ
+    @given(text_mutations(text))
+    def run(mutated):
+        path.write_text(mutated, encoding="utf-8")
+        try:
+            load_spec(path, tmp_path / "out")
+        except ValueError:
+            pass
 
     run()

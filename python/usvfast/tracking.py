@@ -95,6 +95,7 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from usvfast import _core
 from usvfast._validate import as_float_array
@@ -870,10 +871,10 @@ class Tracker:
 
     def run(
         self,
-        times: Any,
+        times: ArrayLike,
         measurements: Any,
         sensor_ids: Any = None,
-        scan_index: Any = None,
+        scan_index: ArrayLike | None = None,
         covariances: Any = None,
         origins: Any = None,
     ) -> RunResult:
@@ -910,7 +911,7 @@ class Tracker:
         self.sensors = (*self.sensors, sensor)
         return idx
 
-    def add_track(self, state: Any, covariance: Any, time: float) -> int:
+    def add_track(self, state: ArrayLike, covariance: ArrayLike, time: float) -> int:
         """Add a confirmed track (state (ndim,), covariance (ndim, ndim) at `time`); its first
         state is a prior, not an update. Returns its id."""
         with self._exclusive():

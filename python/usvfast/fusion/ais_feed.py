@@ -24,8 +24,10 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from usvfast import geodesy
+from usvfast._validate import as_float_array, instance
 from usvfast.nav.ais import AisLog, AisPositions, dead_reckon, read_ais
 
 __all__ = ["AisFeed", "AisStates", "AisTargets", "fix_times", "read_ais_feed"]
@@ -73,6 +75,7 @@ def fix_times(positions: AisPositions) -> AisPositions:
     time whose UTC second equals the report's `second` field (AIS sends only that second;
     whole-second receive stamps may lag the fix by up to 1 s, transmission slots by a few).
     Reports with second >= 60 (not available) keep their receive time."""
+    instance("positions", positions, AisPositions)
     t_rx = positions.time
     sec = positions.second
     ok = np.isfinite(t_rx) & (sec < 60)
@@ -118,6 +121,10 @@ class AisTargets:
         max_age: float = 120.0,
         use_second: bool = True,
     ) -> None:
+        instance("feed", feed, AisFeed)
+        o = as_float_array("origin", origin, ndim=1)
+        if o.shape != (2,) or abs(o[0]) > 90:
+            raise ValueError(f"origin: expected (lat deg in [-90, 90], lon deg), got {origin!r}")
         for name, v in (("pos_std", pos_std), ("vel_std", vel_std), ("max_age", max_age)):
             if not (math.isfinite(v) and v > 0):
                 raise ValueError(f"{name}: must be finite and > 0, got {v!r}")
@@ -172,7 +179,7 @@ class AisTargets:
         state = np.stack([north, vel[:, 0], east, vel[:, 1]], axis=1)
         return AisStates(mmsi, state, self.covariance(age), age, lat, lon)
 
-    def covariance(self, age: Any) -> np.ndarray:
+    def covariance(self, age: ArrayLike) -> np.ndarray:
         """AIS state covariance (m, 4, 4) for report ages (m,) seconds (see the class)."""
         a = np.asarray(age, dtype=float)
         sp2, sv2, q = self.pos_std**2, self.vel_std**2, self.accel_psd

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from usvfast._core import DimensionError
 from usvfast._validate import as_float_array
@@ -53,7 +54,7 @@ def _rows(prefix: str, frame: Any, ids: Any, values: Any, width: int) -> tuple[n
     return f, i, v
 
 
-def box_iou(a: Any, b: Any) -> np.ndarray:
+def box_iou(a: ArrayLike, b: ArrayLike) -> np.ndarray:
     """IoU of every box of `a` (n, 4) with every box of `b` (m, 4), boxes as (x, y, w, h)
     pixels with (x, y) the top-left corner (MOTChallenge). Returns (n, m) in [0, 1]."""
     a = np.reshape(np.asarray(a, float), (-1, 4))
@@ -203,7 +204,7 @@ class FrameSequence:
         return cls._of_groups(allf, groups, dist, sim, "box")
 
 
-def frames_from_times(times: Any, *, period: float, start: float | None = None) -> np.ndarray:
+def frames_from_times(times: ArrayLike, *, period: float, start: float | None = None) -> np.ndarray:
     """Frame index of each time: round((t − start) / period). times: (N,) seconds; period:
     seconds (> 0); start: seconds (default the smallest time)."""
     t = as_float_array("times", times, ndim=1)

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 from pyais import NMEAMessage
 from pyais.exceptions import AISBaseException
 
@@ -194,7 +195,7 @@ def read_ais(source: str | os.PathLike | Iterable[Any]) -> AisLog:
                     continue
                 frags.clear()
             try:
-                d = msg.decode().asdict()
+                d: dict[str, Any] = msg.decode().asdict()
             except (AISBaseException, ValueError, IndexError, KeyError, TypeError):
                 n_damaged += 1
                 continue
@@ -310,7 +311,7 @@ def _merge_static(s: StaticData, d: dict) -> None:
 
 
 def dead_reckon(
-    positions: AisPositions, mmsi: int, times: Any, *, max_age: float = math.inf
+    positions: AisPositions, mmsi: int, times: ArrayLike, *, max_age: float = math.inf
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Positions of one target at `times` (UNIX s, any shape) by dead reckoning from its
     latest report at or before each time: straight line at the reported speed over ground

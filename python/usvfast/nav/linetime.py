@@ -24,9 +24,11 @@ from __future__ import annotations
 import calendar
 import math
 import re
+from typing import Any
 
 import pynmea2
 
+from usvfast._validate import instance
 from usvfast.nav._fields import checksum
 
 __all__ = ["LogClock", "clock_time", "line_time", "tag_block_ok"]
@@ -39,6 +41,7 @@ _TAG = re.compile(rb"^\s*\\([^\\*]*)\*([0-9A-Fa-f]{2})\\")
 def line_time(line: bytes) -> float:
     """The line's own receive time, UNIX s: its tag block `c:` (milliseconds above 1e11) or a
     leading time column before a `!`, `$` or tag block; NaN when it has none."""
+    instance("line", line, bytes)
     m = _TAG_TIME.match(line)
     if m is not None:
         t = float(m.group(1))
@@ -50,6 +53,7 @@ def line_time(line: bytes) -> float:
 def tag_block_ok(line: bytes) -> bool:
     """False when `line` starts with an NMEA 4.10 tag block whose checksum is wrong (a line
     without a tag block, or with one without a checksum, is OK)."""
+    instance("line", line, bytes)
     m = _TAG.match(line)
     if m is None:
         return True
@@ -59,12 +63,13 @@ def tag_block_ok(line: bytes) -> bool:
 def clock_time(line: bytes) -> float:
     """UNIX time of a `$--ZDA` or `$--RMC` sentence (date and time of day; pynmea2 with the
     checksum required), NaN for any other line or an unusable one."""
+    instance("line", line, bytes)
     start = line.find(b"$")
     if start < 0 or line[start + 3 : start + 6] not in (b"ZDA", b"RMC"):
         return math.nan
     try:
         msg = pynmea2.parse(line[start:].decode("ascii"), check=True)
-        stamp = msg.datetime  # type: ignore[attr-defined]  # ZDA and RMC carry date + time
+        stamp: Any = msg.datetime  # pyright: ignore[reportAttributeAccessIssue]  # ZDA, RMC
     except (pynmea2.ParseError, UnicodeDecodeError, ValueError, TypeError, AttributeError):
         return math.nan
     if stamp is None:

@@ -34,6 +34,7 @@ from rich.console import Console
 from rich.table import Table
 from scipy.optimize import linear_sum_assignment
 
+from usvfast._files import read_image
 from usvfast.metrics import FrameSequence, mot_metrics
 from usvfast.shore.bayes import BayesDetector, BayesDetectorConfig
 from usvfast.shore.boxes import Detections
@@ -99,9 +100,7 @@ def run_detectors(
     cache = FrameCache(raw={k: [] for k in settings})
     detectors = {k: BayesDetector(c) for k, c in settings.items()}
     for f in frames:
-        image = cv2.imread(str(f.path), cv2.IMREAD_COLOR)
-        if image is None:
-            raise ValueError(f"data: cannot read {f.path}")
+        image = read_image(f.path, cv2.IMREAD_COLOR)
         first = next(iter(detectors.values()))
         infrared = first.classifier.classify(image) == "ir"
         cache.horizon.append(detect_horizon(image, infrared=infrared, config=horizon_cfg))
@@ -117,7 +116,7 @@ def kept(
     out = []
     for f, det, hz in zip(frames, cache.raw[key], cache.horizon, strict=True):
         if use_horizon:
-            h = cv2.imread(str(f.path), cv2.IMREAD_UNCHANGED).shape[0]
+            h = read_image(f.path, cv2.IMREAD_UNCHANGED).shape[0]
             det = det.subset(horizon_keep(det, hz, h, cfg))
         out.append(det)
     return out
@@ -145,7 +144,7 @@ def track(
     fr, ids, boxes = [], [], []
     for n, (f, d) in enumerate(zip(frames, dets, strict=True), 1):
         if isinstance(t, SortTracker):
-            image = cv2.imread(str(f.path), cv2.IMREAD_COLOR)
+            image = read_image(f.path, cv2.IMREAD_COLOR)
             i, b, _ = t.step(image, d)
         else:
             r = t.step(d)
@@ -230,7 +229,7 @@ def evaluate(
             row["cascade_train_s"] = time.perf_counter() - t0
             row["cascade_stages"] = len(report["stages"])
             caches[v].raw["cascade"] = [
-                detector.detect(cv2.imread(str(f.path), cv2.IMREAD_COLOR)) for f in frames
+                detector.detect(read_image(f.path, cv2.IMREAD_COLOR)) for f in frames
             ]
             for use_h in (False, True):
                 c = count(frames, kept(frames, caches[v], "cascade", use_h, hcfg))
@@ -309,7 +308,7 @@ def print_tables(results: dict, console: Console | None = None) -> None:
 def main(argv: Sequence[str] | None = None) -> None:
     """Command-line entry point (module doc)."""
     p = argparse.ArgumentParser(
-        prog="python -m usvfast.shore.evaluate", description=__doc__.split("\n")[0]
+        prog="python -m usvfast.shore.evaluate", description=(__doc__ or "").partition("\n")[0]
     )
     p.add_argument("--data", type=Path, default=None, help="MarDCT training/annotations folder")
     p.add_argument("--json", type=Path, default=None, help="Write the results as JSON here")
