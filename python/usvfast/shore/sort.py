@@ -53,7 +53,8 @@ def box_to_z(box: np.ndarray) -> np.ndarray:
         raise ValueError(f"box: expected (k, 4) boxes, got shape {box.shape}")
     b = np.asarray(box, dtype=float).reshape(-1, 4)
     w, h = b[:, 2], b[:, 3]
-    z = np.column_stack([b[:, 0] + w / 2, b[:, 1] + h / 2, w * h, w / np.maximum(h, 1e-9)])
+    with np.errstate(over="ignore", invalid="ignore"):  # an overflow is refused just below
+        z = np.column_stack([b[:, 0] + w / 2, b[:, 1] + h / 2, w * h, w / np.maximum(h, 1e-9)])
     return finite_result("z", z, "box")
 
 
