@@ -98,6 +98,23 @@ def kept_lines(data: bytes, edits, cut) -> int:
     return sum(1 for k, (a, b) in enumerate(lines) if k not in touched and b <= end - 2)
 
 
+def fuzz_line_reader(path, data: bytes, reader, count, want: int) -> None:
+    """Byte-mutate `data` into `path` and read it: `reader` returns, warns or raises
+    ValueError, and keeps `count(result) >= want - (lines the edits touched or cut)`."""
+    n_lines = sum(1 for _ in data.splitlines())
+
+    @FUZZ
+    @given(mutations(len(data)))
+    def run(m):
+        edits, cut = m
+        path.write_bytes(mutate(data, edits, cut))
+        got = read_quietly(reader, path)
+        if got is not None:
+            assert count(got) >= want - (n_lines - kept_lines(data, edits, cut))
+
+    run()
+
+
 @pytest.mark.parametrize("name", ["saab-r4.log", "sirfstarv-nmea.log", "ublox-zed-f9p-nmea.log"])
 def test_fuzz_nmea(tmp_path_factory, name):
     data = (NMEA / name).read_bytes()
@@ -123,21 +140,10 @@ def test_fuzz_nmea(tmp_path_factory, name):
 def test_fuzz_ais(tmp_path):
     data = (NMEA / "sample.aivdm").read_bytes()
     intact = read_quietly(read_ais, NMEA / "sample.aivdm")
-    path = tmp_path / "x.aivdm"
-
-    @FUZZ
-    @given(mutations(len(data)))
-    def run(m):
-        edits, cut = m
-        path.write_bytes(mutate(data, edits, cut))
-        log = read_quietly(read_ais, path)
-        if log is None:
-            return
-        lost_lines = sum(1 for _ in data.splitlines()) - kept_lines(data, edits, cut)
-        # a multi-part message spans up to 3 lines: a touched line costs at most one message
-        assert log.n_messages >= intact.n_messages - lost_lines
-
-    run()
+    # a multi-part message spans up to 3 lines: a touched line costs at most one message
+    fuzz_line_reader(
+        tmp_path / "x.aivdm", data, read_ais, lambda g: g.n_messages, intact.n_messages
+    )
 
 
 @pytest.mark.parametrize(
@@ -145,24 +151,12 @@ def test_fuzz_ais(tmp_path):
 )
 def test_fuzz_csv(tmp_path, name, reader):
     data = (BUNDLED / name).read_bytes()
-    intact = read_quietly(reader, BUNDLED / name)
-    path = tmp_path / name
 
     def rows(r):
         return len(r.times) if hasattr(r, "times") else len(r.own.times) + len(r.target.times)
 
-    @FUZZ
-    @given(mutations(len(data)))
-    def run(m):
-        edits, cut = m
-        path.write_bytes(mutate(data, edits, cut))
-        got = read_quietly(reader, path)
-        if got is None:
-            return
-        touched = sum(1 for _ in data.splitlines()) - kept_lines(data, edits, cut)
-        assert rows(got) >= rows(intact) - touched
-
-    run()
+    intact = rows(read_quietly(reader, BUNDLED / name))
+    fuzz_line_reader(tmp_path / name, data, reader, rows, intact)
 
 
 def test_fuzz_pcap(tmp_path):
@@ -205,23 +199,12 @@ def test_fuzz_joyride(tmp_path):
 def test_fuzz_ais_feed(tmp_path):
     # The fusion's AIS feed on the real mixed log: AIS timed from the log's own ZDA/RMC clock.
     data = (NMEA / "saab-r4.log").read_bytes()
-    intact = read_quietly(read_ais_feed, NMEA / "saab-r4.log")
-    path = tmp_path / "feed.log"
-    n_lines = sum(1 for _ in data.splitlines())
 
-    @FUZZ
-    @given(mutations(len(data)))
-    def run(m):
-        edits, cut = m
-        path.write_bytes(mutate(data, edits, cut))
-        feed = read_quietly(read_ais_feed, path)
-        if feed is None:
-            return
-        lost = n_lines - kept_lines(data, edits, cut)
-        timed = np.isfinite(feed.log.positions.time).sum()
-        assert timed >= np.isfinite(intact.log.positions.time).sum() - lost
+    def timed(feed):
+        return int(np.isfinite(feed.log.positions.time).sum())
 
-    run()
+    intact = timed(read_quietly(read_ais_feed, NMEA / "saab-r4.log"))
+    fuzz_line_reader(tmp_path / "feed.log", data, read_ais_feed, timed, intact)
 
 
 def _joyride_rows(n_scans: int = 150) -> list[tuple[float, float, float]]:
@@ -233,29 +216,14 @@ def _joyride_rows(n_scans: int = 150) -> list[tuple[float, float, float]]:
 
 
 def test_fuzz_radar_csv(tmp_path):
-    # The real Joyride radar plots as a (time, north, east) CSV.
+    # The real Joyride radar plots as a (time, north, east) CSV; a damaged time (one jumping
+    # ahead included) costs its own row, not the rows after it.
     rows = _joyride_rows()
-    data = (
-        "time,north,east\n" + "".join(f"{t:.3f},{n:.2f},{e:.2f}\n" for t, n, e in rows)
-    ).encode()
-    src, path = tmp_path / "plots.csv", tmp_path / "x.csv"
-    src.write_bytes(data)
-    intact = read_quietly(read_radar_csv, src)
-    assert len(intact) == len(rows)
-
-    @FUZZ
-    @given(mutations(len(data)))
-    def run(m):
-        edits, cut = m
-        path.write_bytes(mutate(data, edits, cut))
-        plots = read_quietly(read_radar_csv, path)
-        if plots is None:
-            return
-        # a damaged time (one jumping ahead included) costs its own row, not the rows after it
-        touched = sum(1 for _ in data.splitlines()) - kept_lines(data, edits, cut)
-        assert len(plots) >= len(intact) - touched
-
-    run()
+    body = "".join(f"{t:.3f},{n:.2f},{e:.2f}\n" for t, n, e in rows)
+    data = ("time,north,east\n" + body).encode()
+    (tmp_path / "plots.csv").write_bytes(data)
+    assert len(read_quietly(read_radar_csv, tmp_path / "plots.csv")) == len(rows)
+    fuzz_line_reader(tmp_path / "x.csv", data, read_radar_csv, len, len(rows))
 
 
 def _ttm(number: int, dist_nm: float, bearing: float, hhmmss: str) -> str:
@@ -286,20 +254,8 @@ def test_fuzz_radar_nmea(tmp_path):
     src.write_bytes(data)
     intact = read_quietly(read_radar_nmea, src)
     assert len(intact) == len(lines) // 2
-
-    @FUZZ
-    @given(mutations(len(data)))
-    def run(m):
-        edits, cut = m
-        path.write_bytes(mutate(data, edits, cut))
-        plots = read_quietly(read_radar_nmea, path)
-        if plots is None:
-            return
-        # a touched line costs its plot, or (a ZDA) the plot timed by it
-        touched = sum(1 for _ in data.splitlines()) - kept_lines(data, edits, cut)
-        assert len(plots) >= len(intact) - touched
-
-    run()
+    # a touched line costs its plot, or (a ZDA) the plot timed by it
+    fuzz_line_reader(path, data, read_radar_nmea, len, len(intact))
 
 
 @st.composite
