@@ -290,4 +290,4 @@ def test_fuzz_public_callable(qualname, data):
 def test_fuzz_counts():
     """Prints how many cases the fuzz ran (pytest -s) and checks it reached every callable."""
     print(f"\nfuzz: {sum(COUNTS.values())} cases over {len(COUNTS)} public callables")
-    assert len(PUBLIC) >= 60
+    assert len(PUBLIC) >= 250  # every package above; a module dropping out is noticed
