@@ -30,12 +30,13 @@ dev: $(VENV)/bin/maturin ## Create .venv, build the Rust extension (release) and
 torch: dev ## Install the CPU-usable torch for the YOLO tests and benches (the `yolo` extra)
 	bash .ci/install-torch.sh $(VENV)/bin/python
 
-lint: dev ## cargo fmt/clippy, ruff check/format
+lint: dev ## cargo fmt/clippy, ruff check/format, pyright (static types of python/usvfast)
 	cargo fmt --check
 	cargo clippy --all-targets -- -D warnings
 	cargo clippy --all-targets --features python -- -D warnings
 	ruff check python tests benches
 	ruff format --check python tests benches
+	pyright --pythonpath $(VIRTUAL_ENV)/bin/python
 
 fmt: dev ## Format Rust and Python sources
 	cargo fmt

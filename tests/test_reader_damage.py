@@ -124,3 +124,46 @@ def test_non_regular_files_are_refused(tmp_path, kind, reader):
         path = Path("/dev/zero")
     with pytest.raises(ValueError, match="not a regular file"):
         reader(path)
+
+
+@pytest.mark.parametrize("jump", [1e6, -1e6])  # a damaged digit: far in the future or the past
+def test_one_damaged_radar_time_costs_one_row(tmp_path, jump):
+    # Real Joyride plots as a CSV: one time jumping ahead used to make every later (correct)
+    # row "earlier than the previous" and lose the rest of the file.
+    from usvfast.datasets import load_joyride
+    from usvfast.radar import read_radar_csv
+
+    jr = load_joyride(SHARED_DATA / "joyride" / "joyride.mat")
+    rows = [
+        (t, n, e) for t, m in zip(jr.times[:60], jr.measurements[:60], strict=True) for n, e in m
+    ]
+    text = ["time,north,east"] + [f"{t:.3f},{n:.2f},{e:.2f}" for t, n, e in rows]
+    k = len(rows) // 3
+    t, n, e = rows[k]
+    text[k + 1] = f"{t + jump:.3f},{n:.2f},{e:.2f}"
+    (tmp_path / "p.csv").write_text("\n".join(text) + "\n")
+    got, warned = quiet(read_radar_csv, tmp_path / "p.csv")
+    assert len(got) == len(rows) - 1 and got.n_damaged == 1 and warned
+    want = [round(r[0], 3) for i, r in enumerate(rows) if i != k]
+    np.testing.assert_allclose(got.time, want, rtol=0, atol=1e-6)
+
+
+def test_time_order_keeps_the_longest_earliest_run():
+    # The rows kept = the longest non-decreasing subsequence (earliest among equals), checked
+    # against a brute-force search over every subset.
+    import itertools
+    import random
+
+    from usvfast.radar.readers import _in_time_order
+
+    def brute(t):
+        for size in range(len(t), 0, -1):
+            for c in itertools.combinations(range(len(t)), size):
+                if all(t[c[j]] <= t[c[j + 1]] for j in range(size - 1)):
+                    return list(c)
+        return []
+
+    rng = random.Random(1)
+    for _ in range(500):
+        t = [float(rng.randint(0, 5)) for _ in range(rng.randint(0, 8))]
+        assert _in_time_order(t) == brute(t), t

@@ -12,7 +12,9 @@ from typer.testing import CliRunner
 
 from usvfast.cli import app
 from usvfast.nav._damage import DamagedRecordsWarning
-from usvfast.nav.ais_stream import AisReport, receive_time
+from usvfast.nav.ais_stream import AisReport
+from usvfast.nav.inspect import summarize_ais
+from usvfast.nav.linetime import line_time
 from usvfast.nav.replay import Replay, load_recording
 
 from conftest import SHARED_DATA
@@ -35,11 +37,11 @@ def _tag(t: int) -> str:
 
 
 def test_receive_time_formats():
-    assert receive_time(b"\\s:rx,c:1686909600*00\\!AIVDM,1,1,,A,x,0*00") == 1686909600.0
-    assert receive_time(b"\\c:1686909600500*00\\!AIVDM") == 1686909600.5  # milliseconds
-    assert receive_time(b"1686909600.25 !AIVDM,1,1") == 1686909600.25
-    assert receive_time(b"1686909600;!AIVDM,1,1") == 1686909600.0
-    assert math.isnan(receive_time(b"!AIVDM,1,1,,A,x,0*00"))
+    assert line_time(b"\\s:rx,c:1686909600*00\\!AIVDM,1,1,,A,x,0*00") == 1686909600.0
+    assert line_time(b"\\c:1686909600500*00\\!AIVDM") == 1686909600.5  # milliseconds
+    assert line_time(b"1686909600.25 !AIVDM,1,1") == 1686909600.25
+    assert line_time(b"1686909600;!AIVDM,1,1") == 1686909600.0
+    assert math.isnan(line_time(b"!AIVDM,1,1,,A,x,0*00"))
 
 
 def test_ais_stream_in_replay(tmp_path):
@@ -74,6 +76,24 @@ def test_ais_stream_in_replay(tmp_path):
     assert cells[3] == str(len(want)) and cells[-1] == "2"
 
 
-def test_untimed_ais_file_is_reported():
-    res = CliRunner().invoke(app, ["inspect", str(NMEA_DATA / "sample.aivdm")])
-    assert res.exit_code == 1 and "no receive times" in res.output
+def test_untimed_ais_file_is_decoded_and_summarised():
+    # GPSD's sample has no receive times: inspect still decodes it; pyais is the reference.
+    path = NMEA_DATA / "sample.aivdm"
+    want: dict[int, int] = {}
+    lat, mmsis = [], set()
+    with pyais.FileReaderStream(str(path)) as stream:
+        for msg in stream:
+            d = msg.decode().asdict()
+            want[d["msg_type"]] = want.get(d["msg_type"], 0) + 1
+            if d["msg_type"] in (1, 2, 3, 18, 19, 27, 5, 24):
+                mmsis.add(d["mmsi"])
+            if d["msg_type"] in (1, 2, 3, 18, 19, 27) and d.get("lat") not in (None, 91.0):
+                lat.append(d["lat"])
+    c = summarize_ais(path)
+    assert c.by_type == dict(sorted(want.items())) and c.messages == sum(want.values())
+    assert len(c.by_type) == 27 and c.mmsis == len(mmsis) and c.timed == 0
+    assert c.with_position == len(lat) and c.lat_range == (min(lat), max(lat))
+    res = CliRunner().invoke(app, ["inspect", str(path)])
+    assert res.exit_code == 0, res.output
+    assert f"{c.messages} messages" in res.output and "no receive times" in res.output
+    assert "long-range position report" in res.output

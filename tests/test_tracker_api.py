@@ -300,8 +300,10 @@ def test_bad_input_is_rejected_with_named_errors():
             deleter=T.StepsSinceUpdate(3),
             initiator=T.MultiMeasurementInitiator(np.zeros(4), np.eye(4)),
         )
+    with pytest.raises(NonFiniteError, match="noise_std"):
+        T.Sensor.position(np.nan)
     with pytest.raises(NonFiniteError, match="measurement_noise"):
-        T.Sensor.position(np.nan) and code57_with(T.Sensor.position(np.nan))
+        code57_with(T.Sensor(np.eye(2, 4), np.full((2, 2), np.nan)))
     with pytest.raises(DimensionError, match="prior_state"):
         T.Tracker(
             motion_model=constant_velocity_2d(0.1),

@@ -411,7 +411,7 @@ def open_bag(path: Path, typestore: Any) -> Iterator[Any]:
         reason = f"{type(exc).__name__}: {exc}"
     if reason is None:
         try:
-            reader.salvage = None
+            reader.salvage = None  # pyright: ignore[reportAttributeAccessIssue]
             yield reader
         finally:
             reader.close()
@@ -436,7 +436,7 @@ def open_bag(path: Path, typestore: Any) -> Iterator[Any]:
         reader = AnyReader([fixed], default_typestore=typestore)
         reader.open()
         try:
-            reader.salvage = salvage
+            reader.salvage = salvage  # pyright: ignore[reportAttributeAccessIssue]
             yield reader
         finally:
             reader.close()

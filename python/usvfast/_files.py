@@ -12,7 +12,7 @@ import os
 import stat
 from collections.abc import Iterator
 from pathlib import Path
-from typing import BinaryIO
+from typing import Any, BinaryIO
 
 #: Longest line a text reader accepts (NMEA sentences are <= 82 bytes, CSV rows a few hundred).
 MAX_LINE_BYTES = 64 * 1024
@@ -64,3 +64,14 @@ def bounded_lines(fh: BinaryIO, limit: int = MAX_LINE_BYTES) -> Iterator[bytes]:
             if not line:
                 break
         yield OVERLONG_LINE
+
+
+def read_image(path: str | os.PathLike[str], flags: int | None = None) -> Any:
+    """The image at `path` decoded by OpenCV (`cv2.imread` with `flags`, default colour BGR),
+    or ValueError naming the file when OpenCV cannot read it (instead of a None passed on)."""
+    import cv2
+
+    image = cv2.imread(str(path), cv2.IMREAD_COLOR if flags is None else flags)
+    if image is None:
+        raise ValueError(f"path: OpenCV cannot read an image from {path}")
+    return image

@@ -118,3 +118,16 @@ def finite_result(name: str, value: np.ndarray, inputs: str) -> np.ndarray:
     if not np.all(np.isfinite(value)):
         raise ValueError(f"{inputs}: out of the representable range ({name} is not finite)")
     return value
+
+
+def image(name: str, value: Any) -> np.ndarray:
+    """`value` when it is an 8- or 16-bit image array (h, w) or (h, w, c), c in 1, 3, 4, with
+    pixels, else TypeError (not an image) or ValueError (no pixel) naming `name`."""
+    if not isinstance(value, np.ndarray) or value.dtype not in (np.uint8, np.uint16):
+        got = value.dtype if isinstance(value, np.ndarray) else type(value).__name__
+        raise TypeError(f"{name}: expected a uint8 or uint16 image array, got {got}")
+    if not (value.ndim == 2 or (value.ndim == 3 and value.shape[2] in (1, 3, 4))):
+        raise TypeError(f"{name}: expected an (h, w) or (h, w, 3) image, got shape {value.shape}")
+    if value.size == 0:
+        raise ValueError(f"{name}: the image has no pixel (shape {value.shape})")
+    return value

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from usvfast import _core, geodesy
 from usvfast._angles import wrap_2pi, wrap_pi
@@ -57,7 +58,7 @@ def rotation_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
     )
 
 
-def euler_angles(rotation: Any) -> tuple[float, float, float]:
+def euler_angles(rotation: ArrayLike) -> tuple[float, float, float]:
     """(roll, pitch, yaw) in radians of a (3, 3) rotation, inverse of `rotation_matrix`; pitch
     in [-π/2, π/2]. At gimbal lock (|pitch| = π/2) roll is reported as 0."""
     r = as_float_array("rotation", rotation, ndim=2)
@@ -69,7 +70,7 @@ def euler_angles(rotation: Any) -> tuple[float, float, float]:
     return 0.0, pitch, float(np.arctan2(-r[0, 1], r[1, 1]))
 
 
-def se3(roll: float, pitch: float, yaw: float, translation: Any) -> np.ndarray:
+def se3(roll: float, pitch: float, yaw: float, translation: ArrayLike) -> np.ndarray:
     """The (4, 4) homogeneous transform of eq. 3.10: rotation `rotation_matrix(roll, pitch,
     yaw)`, translation (3,) in metres."""
     t = as_float_array("translation", translation, ndim=1)
@@ -124,12 +125,12 @@ def _per_pose(name: str, value: Any, n: int) -> np.ndarray:
 
 
 def sensor_to_ned(
-    points: Any,
+    points: ArrayLike,
     mount: Mount,
     roll: Any,
     pitch: Any,
     yaw: Any,
-    position_ned: Any,
+    position_ned: ArrayLike,
 ) -> np.ndarray:
     """Points (n, 3) in the sensor frame (metres) → (n, 3) NED metres:
     `p = R(roll, pitch, yaw) (R_mount p_s + lever_arm) + position_ned`.
@@ -161,7 +162,7 @@ def sensor_to_ned(
 
 
 def dual_antenna_heading(
-    aft: Any, fore: Any, baseline_yaw: float = 0.0, ell: Any = None
+    aft: ArrayLike, fore: ArrayLike, baseline_yaw: float = 0.0, ell: Any = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """Heading (radians, clockwise from true north, in [0, 2π)) and baseline length (m) from two
     GNSS antenna positions `aft` and `fore`, each (lat_deg, lon_deg, h) or arrays of shape
@@ -176,7 +177,7 @@ def dual_antenna_heading(
     return heading, np.sqrt(n * n + e * e + d * d)
 
 
-def bearing_range(origin_ne: Any, target_ne: Any) -> tuple[np.ndarray, np.ndarray]:
+def bearing_range(origin_ne: ArrayLike, target_ne: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Bearing (radians clockwise from north, in [0, 2π)) and horizontal range (m) from
     `origin_ne` to `target_ne`, both (..., 2) arrays of (north, east) metres."""
     o = as_float_array("origin_ne", origin_ne)
@@ -187,7 +188,7 @@ def bearing_range(origin_ne: Any, target_ne: Any) -> tuple[np.ndarray, np.ndarra
     return wrap_2pi(np.arctan2(d[..., 1], d[..., 0])), np.hypot(d[..., 0], d[..., 1])
 
 
-def relative_bearing(bearing: Any, heading: Any) -> np.ndarray:
+def relative_bearing(bearing: ArrayLike, heading: ArrayLike) -> np.ndarray:
     """Bearing relative to the bow, wrapped to [-π, π) (positive = starboard), radians."""
     b = as_float_array("bearing", bearing)
     h = as_float_array("heading", heading)

@@ -20,9 +20,10 @@ TypeError for non-numeric input.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from usvfast import _core
 from usvfast._validate import as_float_array, broadcast_shape, finite_result
@@ -47,7 +48,14 @@ WGS84 = (6378137.0, 6378137.0 * (1.0 - 1.0 / 298.257223563))
 Triple = tuple[Any, Any, Any]
 
 
-def _semi_axes(ell: Any) -> tuple[float, float]:
+class EllipsoidLike(Protocol):
+    """An ellipsoid as pymap3d's `Ellipsoid`: semi-axes in metres."""
+
+    semimajor_axis: float
+    semiminor_axis: float
+
+
+def _semi_axes(ell: EllipsoidLike | None) -> tuple[float, float]:
     if ell is None:
         return WGS84
     try:
@@ -92,7 +100,13 @@ def _empty(shape: tuple[int, ...]) -> Triple:
     return np.empty(shape), np.empty(shape), np.empty(shape)
 
 
-def geodetic2ecef(lat: Any, lon: Any, alt: Any, ell: Any = None, deg: bool = True) -> Triple:
+def geodetic2ecef(
+    lat: ArrayLike,
+    lon: ArrayLike,
+    alt: ArrayLike,
+    ell: EllipsoidLike | None = None,
+    deg: bool = True,
+) -> Triple:
     """Geodetic (lat, lon, alt) → ECEF (x, y, z) in metres."""
     shape, cols = _flat({"lat": lat, "lon": lon, "alt": alt})
     if 0 in shape:
@@ -100,7 +114,9 @@ def geodetic2ecef(lat: Any, lon: Any, alt: Any, ell: Any = None, deg: bool = Tru
     return _shaped(shape, _core.geodetic_to_ecef(*cols, ellipsoid=_semi_axes(ell), deg=deg))
 
 
-def ecef2geodetic(x: Any, y: Any, z: Any, ell: Any = None, deg: bool = True) -> Triple:
+def ecef2geodetic(
+    x: ArrayLike, y: ArrayLike, z: ArrayLike, ell: EllipsoidLike | None = None, deg: bool = True
+) -> Triple:
     """ECEF (x, y, z) in metres → geodetic (lat, lon, alt); longitude in (-180°, 180°]."""
     shape, cols = _flat({"x": x, "y": y, "z": z})
     if 0 in shape:
@@ -108,7 +124,9 @@ def ecef2geodetic(x: Any, y: Any, z: Any, ell: Any = None, deg: bool = True) -> 
     return _shaped(shape, _core.ecef_to_geodetic(*cols, ellipsoid=_semi_axes(ell), deg=deg))
 
 
-def _local(core_fn: Any, frame: str, args: dict[str, Any], ell: Any, deg: bool) -> Triple:
+def _local(
+    core_fn: Any, frame: str, args: dict[str, Any], ell: EllipsoidLike | None, deg: bool
+) -> Triple:
     """Origin-relative conversion; local triples are (n, e, d) for NED, (e, n, u) for ENU."""
     shape, cols = _flat(args)
     if 0 in shape:
@@ -118,7 +136,14 @@ def _local(core_fn: Any, frame: str, args: dict[str, Any], ell: Any, deg: bool) 
 
 
 def geodetic2ned(
-    lat: Any, lon: Any, h: Any, lat0: Any, lon0: Any, h0: Any, ell: Any = None, deg: bool = True
+    lat: ArrayLike,
+    lon: ArrayLike,
+    h: ArrayLike,
+    lat0: ArrayLike,
+    lon0: ArrayLike,
+    h0: ArrayLike,
+    ell: EllipsoidLike | None = None,
+    deg: bool = True,
 ) -> Triple:
     """Geodetic points → (north, east, down) in metres at the origin (lat0, lon0, h0)."""
     args = {"lat": lat, "lon": lon, "h": h, "lat0": lat0, "lon0": lon0, "h0": h0}
@@ -126,7 +151,14 @@ def geodetic2ned(
 
 
 def ned2geodetic(
-    n: Any, e: Any, d: Any, lat0: Any, lon0: Any, h0: Any, ell: Any = None, deg: bool = True
+    n: ArrayLike,
+    e: ArrayLike,
+    d: ArrayLike,
+    lat0: ArrayLike,
+    lon0: ArrayLike,
+    h0: ArrayLike,
+    ell: EllipsoidLike | None = None,
+    deg: bool = True,
 ) -> Triple:
     """(north, east, down) in metres at the origin → geodetic (lat, lon, h)."""
     args = {"n": n, "e": e, "d": d, "lat0": lat0, "lon0": lon0, "h0": h0}
@@ -134,7 +166,14 @@ def ned2geodetic(
 
 
 def geodetic2enu(
-    lat: Any, lon: Any, h: Any, lat0: Any, lon0: Any, h0: Any, ell: Any = None, deg: bool = True
+    lat: ArrayLike,
+    lon: ArrayLike,
+    h: ArrayLike,
+    lat0: ArrayLike,
+    lon0: ArrayLike,
+    h0: ArrayLike,
+    ell: EllipsoidLike | None = None,
+    deg: bool = True,
 ) -> Triple:
     """Geodetic points → (east, north, up) in metres at the origin (lat0, lon0, h0)."""
     args = {"lat": lat, "lon": lon, "h": h, "lat0": lat0, "lon0": lon0, "h0": h0}
@@ -142,7 +181,14 @@ def geodetic2enu(
 
 
 def enu2geodetic(
-    e: Any, n: Any, u: Any, lat0: Any, lon0: Any, h0: Any, ell: Any = None, deg: bool = True
+    e: ArrayLike,
+    n: ArrayLike,
+    u: ArrayLike,
+    lat0: ArrayLike,
+    lon0: ArrayLike,
+    h0: ArrayLike,
+    ell: EllipsoidLike | None = None,
+    deg: bool = True,
 ) -> Triple:
     """(east, north, up) in metres at the origin → geodetic (lat, lon, h)."""
     args = {"e": e, "n": n, "u": u, "lat0": lat0, "lon0": lon0, "h0": h0}
@@ -150,7 +196,14 @@ def enu2geodetic(
 
 
 def ecef2ned(
-    x: Any, y: Any, z: Any, lat0: Any, lon0: Any, h0: Any, ell: Any = None, deg: bool = True
+    x: ArrayLike,
+    y: ArrayLike,
+    z: ArrayLike,
+    lat0: ArrayLike,
+    lon0: ArrayLike,
+    h0: ArrayLike,
+    ell: EllipsoidLike | None = None,
+    deg: bool = True,
 ) -> Triple:
     """ECEF points (metres) → (north, east, down) in metres at the origin."""
     args = {"x": x, "y": y, "z": z, "lat0": lat0, "lon0": lon0, "h0": h0}
@@ -158,7 +211,14 @@ def ecef2ned(
 
 
 def ned2ecef(
-    n: Any, e: Any, d: Any, lat0: Any, lon0: Any, h0: Any, ell: Any = None, deg: bool = True
+    n: ArrayLike,
+    e: ArrayLike,
+    d: ArrayLike,
+    lat0: ArrayLike,
+    lon0: ArrayLike,
+    h0: ArrayLike,
+    ell: EllipsoidLike | None = None,
+    deg: bool = True,
 ) -> Triple:
     """(north, east, down) in metres at the origin → ECEF (x, y, z) in metres."""
     args = {"n": n, "e": e, "d": d, "lat0": lat0, "lon0": lon0, "h0": h0}
@@ -166,7 +226,14 @@ def ned2ecef(
 
 
 def ecef2enu(
-    x: Any, y: Any, z: Any, lat0: Any, lon0: Any, h0: Any, ell: Any = None, deg: bool = True
+    x: ArrayLike,
+    y: ArrayLike,
+    z: ArrayLike,
+    lat0: ArrayLike,
+    lon0: ArrayLike,
+    h0: ArrayLike,
+    ell: EllipsoidLike | None = None,
+    deg: bool = True,
 ) -> Triple:
     """ECEF points (metres) → (east, north, up) in metres at the origin."""
     args = {"x": x, "y": y, "z": z, "lat0": lat0, "lon0": lon0, "h0": h0}
@@ -174,7 +241,14 @@ def ecef2enu(
 
 
 def enu2ecef(
-    e1: Any, n1: Any, u1: Any, lat0: Any, lon0: Any, h0: Any, ell: Any = None, deg: bool = True
+    e1: ArrayLike,
+    n1: ArrayLike,
+    u1: ArrayLike,
+    lat0: ArrayLike,
+    lon0: ArrayLike,
+    h0: ArrayLike,
+    ell: EllipsoidLike | None = None,
+    deg: bool = True,
 ) -> Triple:
     """(east, north, up) in metres at the origin → ECEF (x, y, z) in metres."""
     args = {"e1": e1, "n1": n1, "u1": u1, "lat0": lat0, "lon0": lon0, "h0": h0}

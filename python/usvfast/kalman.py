@@ -27,6 +27,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from usvfast import _core
 from usvfast._validate import as_float_array, as_index_array
@@ -170,15 +171,15 @@ class KalmanResult:
 
 
 def kalman_filter(
-    times: Any,
-    measurements: Any,
+    times: ArrayLike,
+    measurements: ArrayLike,
     *,
     motion_model: MotionModel,
-    measurement_matrix: Any,
-    measurement_noise: Any,
-    prior_state: Any,
-    prior_covariance: Any,
-    sensor_index: Any = None,
+    measurement_matrix: ArrayLike,
+    measurement_noise: ArrayLike,
+    prior_state: ArrayLike,
+    prior_covariance: ArrayLike,
+    sensor_index: ArrayLike | None = None,
     prior_time: float | None = None,
     smooth: bool = True,
 ) -> KalmanResult:
@@ -232,7 +233,11 @@ def kalman_filter(
 
 
 def predict_states(
-    states: Any, covariances: Any, *, transition_matrix: Any, process_noise: Any
+    states: ArrayLike,
+    covariances: ArrayLike,
+    *,
+    transition_matrix: ArrayLike,
+    process_noise: ArrayLike,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Predict k independent states with one F and Q in one Rust call (a tracker's step).
 
@@ -251,12 +256,12 @@ def predict_states(
 
 
 def update_states(
-    states: Any,
-    covariances: Any,
-    measurements: Any,
+    states: ArrayLike,
+    covariances: ArrayLike,
+    measurements: ArrayLike,
     *,
-    measurement_matrix: Any,
-    measurement_noise: Any,
+    measurement_matrix: ArrayLike,
+    measurement_noise: ArrayLike,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Update state i of a stack with measurement row i in one Rust call (Joseph form).
 

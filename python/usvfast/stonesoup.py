@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 
 from usvfast import kalman
+from usvfast._validate import instance
 
 
 class UnsupportedComponentError(TypeError):
@@ -152,7 +153,7 @@ def _motion_model(transition_model: Any, where: str) -> tuple[kalman.Component, 
         _require(m, name, *simple, tl.CombinedLinearGaussianTransitionModel)
         if type(m) is tl.CombinedLinearGaussianTransitionModel:
             raise UnsupportedComponentError(f"{name}: nested combined models are not supported")
-        q = float(m.noise_diff_coeff)
+        q = float(m.noise_diff_coeff)  # pyright: ignore[reportAttributeAccessIssue]
         if not np.isfinite(q) or q < 0:
             raise ValueError(f"{name}.noise_diff_coeff: must be finite and >= 0, got {q}")
         out.append(simple[type(m)](q))
@@ -424,6 +425,7 @@ def build_native(
     (list of `usvfast.tracking.Sensor`). initiate_in_gates=False switches on the native
     option that withholds detections inside confirmed tracks' gates from the initiator (no
     duplicate tracks; no longer Stone Soup's behaviour)."""
+    instance("cfg", cfg, StoneSoupConfig)
     from usvfast import tracking as tk
 
     if isinstance(cfg.association, JpdaSpec):
@@ -490,7 +492,7 @@ class _StateFactory:
         self._fast = self._check_fast()
 
     def _fast_new(self, cls: type, props: dict[str, Any]) -> Any:
-        obj = cls.__new__(cls)
+        obj = cls.__new__(cls)  # pyright: ignore[reportCallIssue]
         obj.__dict__.update({f"_property_{k}": v for k, v in props.items()})
         return obj
 
@@ -619,6 +621,7 @@ class _DropInTracker:
     def __next__(self):
         if self.detector_iter is None:
             iter(self)
+        assert self.detector_iter is not None  # set by __iter__
         time, detections = next(self.detector_iter)
         return self._step(time, detections)
 
@@ -841,11 +844,15 @@ class _DropInTracker:
         if upd:
             det = int(hist["detection"][j])
             scan_dets = self._scan_dets[scan]
+            if scan_dets is None:
+                raise RuntimeError(
+                    f"usvfast.stonesoup: detections of scan {scan} (track {tid}) were released"
+                )
             if self.hypotheses:
                 from stonesoup.types.hypothesis import SingleHypothesis
 
                 if j == 0 and det >= 0:
-                    hyp = SingleHypothesis(None, scan_dets[det])
+                    hyp = SingleHypothesis(None, scan_dets[det])  # pyright: ignore[reportArgumentType]  # (no prediction)
                 else:
                     pred = None
                     if j > 0:

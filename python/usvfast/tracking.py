@@ -95,6 +95,7 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from usvfast import _core
 from usvfast._validate import as_float_array
@@ -180,7 +181,7 @@ class Sensor:
         with alpha, beta, kappa). New tracks start at the inverse of the detection with
         covariance J⁺ R J⁺ᵀ on the positions (Stone Soup's `SimpleMeasurementInitiator`).
         """
-        ndim_state = _non_negative_int("ndim_state", ndim_state)
+        ndim_state = _non_negative_int("ndim_state", ndim_state, _MAX_NDIM)
         mp = tuple(_non_negative_int("mapping", i) for i in mapping)
         if len(mp) != 2 or mp[0] == mp[1] or max(mp) >= ndim_state:
             raise ValueError(
@@ -223,11 +224,18 @@ class Sensor:
     ) -> Sensor:
         """A position sensor measuring the `mapping` entries of the state (default [n, e] of
         [n, v_n, e, v_e]) with standard deviation `noise_std` (scalar or one per axis)."""
-        ndim_state = _non_negative_int("ndim_state", ndim_state)
+        ndim_state = _non_negative_int("ndim_state", ndim_state, _MAX_NDIM)
         mapping = [_non_negative_int("mapping", i) for i in mapping]
         if any(i >= ndim_state for i in mapping):
             raise ValueError(f"mapping: indices must be < ndim_state={ndim_state}, got {mapping}")
-        std = np.broadcast_to(np.asarray(noise_std, dtype=float), (len(mapping),))
+        std = as_float_array("noise_std", noise_std)
+        if std.ndim > 1 or std.size not in (1, len(mapping)):
+            raise _core.DimensionError(
+                f"noise_std: expected a scalar or {len(mapping)} values, got shape {std.shape}"
+            )
+        if np.any(std <= 0):
+            raise ValueError(f"noise_std: must be > 0 (R positive definite), got {noise_std!r}")
+        std = np.broadcast_to(std, (len(mapping),))
         h = np.zeros((len(mapping), ndim_state))
         h[np.arange(len(mapping)), list(mapping)] = 1.0
         return cls(h, np.diag(std**2))
@@ -548,13 +556,21 @@ class Existence:
         )
 
 
-def _non_negative_int(name: str, v: Any) -> int:
+#: The largest count the native core takes (a signed 64-bit integer).
+_MAX_COUNT = 2**63 - 1
+#: The largest state dimension a sensor is built for (its H is allocated here).
+_MAX_NDIM = 4096
+
+
+def _non_negative_int(name: str, v: Any, high: int = _MAX_COUNT) -> int:
+    """`v` as an int in [0, `high`], else ValueError naming `name` (so no OverflowError or
+    huge allocation comes from a number too large for the native core)."""
     try:
-        ok = not isinstance(v, bool) and int(v) == v and int(v) >= 0
+        ok = not isinstance(v, bool) and int(v) == v and 0 <= int(v) <= high
     except (TypeError, ValueError, OverflowError):
         ok = False
     if not ok:
-        raise ValueError(f"{name}: must be a non-negative integer, got {v!r}")
+        raise ValueError(f"{name}: must be an integer in [0, {high}], got {v!r}")
     return int(v)
 
 
@@ -855,10 +871,10 @@ class Tracker:
 
     def run(
         self,
-        times: Any,
+        times: ArrayLike,
         measurements: Any,
         sensor_ids: Any = None,
-        scan_index: Any = None,
+        scan_index: ArrayLike | None = None,
         covariances: Any = None,
         origins: Any = None,
     ) -> RunResult:
@@ -895,7 +911,7 @@ class Tracker:
         self.sensors = (*self.sensors, sensor)
         return idx
 
-    def add_track(self, state: Any, covariance: Any, time: float) -> int:
+    def add_track(self, state: ArrayLike, covariance: ArrayLike, time: float) -> int:
         """Add a confirmed track (state (ndim,), covariance (ndim, ndim) at `time`); its first
         state is a prior, not an update. Returns its id."""
         with self._exclusive():

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from typing import Any, cast
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from usvfast._angles import wrap_360_deg, wrap_deg
 from usvfast._core import DimensionError, TimeOrderError
@@ -33,7 +34,7 @@ def _latitudes(name: str, value: Any) -> np.ndarray:
 
 
 def great_circle_bearing_deg(
-    lat1_deg: Any, lon1_deg: Any, lat2_deg: Any, lon2_deg: Any
+    lat1_deg: Any, lon1_deg: ArrayLike, lat2_deg: Any, lon2_deg: ArrayLike
 ) -> np.ndarray:
     """Initial great-circle bearing from point 1 to point 2 (degrees clockwise from true north,
     in (-180°, 180°]), on a sphere; arrays broadcast. Undefined (returns 0°, north) when the
@@ -51,7 +52,7 @@ def great_circle_bearing_deg(
 def relative_bearing_deg(
     own_lat_deg: Any,
     own_lon_deg: Any,
-    own_heading_deg: Any,
+    own_heading_deg: ArrayLike,
     target_lat_deg: Any,
     target_lon_deg: Any,
 ) -> np.ndarray:
@@ -116,7 +117,7 @@ class VesselTrack:
         if np.any(np.diff(t) <= 0):
             raise TimeOrderError("times: must be strictly increasing")
 
-    def at(self, times: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    def at(self, times: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """Latitude, longitude and heading (degrees) at `times` ((k,) UNIX seconds), linear in
         time between the two neighbouring positions (longitude and heading unwrapped, so the
         antimeridian and north are crossed the short way). NaN outside [times[0], times[-1]];

@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from usvfast._angles import wrap_deg as _wrap_deg
 from usvfast._validate import as_float_array
@@ -17,13 +18,13 @@ def float_array(name: str, value: Any) -> np.ndarray:
     return as_float_array(name, value).reshape(np.shape(value))
 
 
-def wrap_deg(angle_deg: Any) -> np.ndarray:
+def wrap_deg(angle_deg: ArrayLike) -> np.ndarray:
     """Angles (degrees, any shape) into (-180°, 180°] (+180° stays, -180° becomes +180°).
     Raises NonFiniteError / TypeError naming `angle_deg` on NaN, inf or non-numbers."""
     return _wrap_deg(float_array("angle_deg", angle_deg))
 
 
-def unwrap_deg(angle_deg: Any) -> np.ndarray:
+def unwrap_deg(angle_deg: ArrayLike) -> np.ndarray:
     """Unwrap a 1-D sequence of angles (degrees): each value moves by a multiple of 360° to
     lie within 180° of the previous unwrapped value, so the sequence has no ±360° jumps.
 
@@ -33,7 +34,7 @@ def unwrap_deg(angle_deg: Any) -> np.ndarray:
     return unwrap_raw_deg(float_array("angle_deg", angle_deg))
 
 
-def unwrap_raw_deg(angle_deg: Any) -> np.ndarray:
+def unwrap_raw_deg(angle_deg: ArrayLike) -> np.ndarray:
     """`unwrap_deg` without the input check, for the package's own arrays (NaN marks a gap)."""
     a = np.asarray(angle_deg, dtype=np.float64)
     if a.size == 0:

@@ -21,6 +21,7 @@ from dataclasses import asdict, dataclass
 from typing import Any, NamedTuple
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from usvfast._validate import broadcast, instance, real
 from usvfast.bearing.angles import float_array
@@ -148,8 +149,8 @@ def _ptz(
 
 
 def pixel_to_bearing(
-    x_px: Any,
-    y_px: Any,
+    x_px: ArrayLike,
+    y_px: ArrayLike,
     camera: BearingCamera,
     *,
     pan_deg: Any = None,
@@ -183,8 +184,8 @@ def pixel_to_bearing(
 
 
 def bearing_to_pixel(
-    bearing_deg: Any,
-    elevation_deg: Any,
+    bearing_deg: ArrayLike,
+    elevation_deg: ArrayLike,
     camera: BearingCamera,
     *,
     pan_deg: Any = None,

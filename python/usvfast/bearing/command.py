@@ -6,7 +6,7 @@ from __future__ import annotations
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import numpy as np
 import typer
@@ -268,7 +268,7 @@ def _rmse_table(rmse: list[RmseRow]) -> Table:
 
 
 def _run_and_report(
-    samples: Path, ais: Path, out: Path, cameras: Path | None, **kwargs: float
+    samples: Path, ais: Path, out: Path, cameras: Path | None, **kwargs: Any
 ) -> None:
     console, err = Console(), Console(stderr=True)
     try:

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from usvfast._angles import wrap_deg
 from usvfast._core import DimensionError, TimeOrderError
@@ -80,9 +81,9 @@ def _source_ids(value: Any, n: int, known: Mapping[int, float]) -> np.ndarray:
 
 def fuse_bearings(
     source: Any,
-    times: Any,
-    bearing_deg: Any,
-    confidence: Any = None,
+    times: ArrayLike,
+    bearing_deg: ArrayLike,
+    confidence: ArrayLike | None = None,
     *,
     measurement_std_deg: Mapping[int, float] = PAPER_MEASUREMENT_STD_DEG,
     noise_diff_coeff_deg2: float = PAPER_NOISE_DIFF_COEFF_DEG2,
@@ -169,7 +170,7 @@ def fuse_bearings(
     )
 
 
-def rmse_deg(estimate_deg: Any, reference_deg: Any) -> tuple[float, int]:
+def rmse_deg(estimate_deg: ArrayLike, reference_deg: ArrayLike) -> tuple[float, int]:
     """Root-mean-square of the wrapped differences estimate − reference (degrees) over the
     pairs where the reference is finite (NaN = no AIS coverage); returns (rmse, count), with
     rmse NaN when count is 0. Arrays must have one shape; the estimate must be finite.
@@ -195,7 +196,7 @@ class RmseRow:
     count: int
 
 
-def bearing_rmse_table(fusion: BearingFusion, reference_deg: Any) -> list[RmseRow]:
+def bearing_rmse_table(fusion: BearingFusion, reference_deg: ArrayLike) -> list[RmseRow]:
     """RMSE against the AIS reference bearing, as in the paper's Table 1.
 
     reference_deg: (n,) AIS bearing at the fusion's sample times (NaN where AIS does not

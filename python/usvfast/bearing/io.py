@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from usvfast._damage import DamageCounter, DamagedRecordsWarning
 from usvfast._files import MAX_LINE_BYTES, OVERLONG_LINE, bounded_lines, regular_file
@@ -347,7 +348,7 @@ FUSION_COLUMNS = (
 )
 
 
-def write_fusion_csv(path: Path | str, fusion: BearingFusion, reference_deg: Any) -> Path:
+def write_fusion_csv(path: Path | str, fusion: BearingFusion, reference_deg: ArrayLike) -> Path:
     """Write the fused bearing per sample: columns `FUSION_COLUMNS` (ais_bearing_deg empty
     where AIS does not cover). Returns the path."""
     path = Path(path)

@@ -296,7 +296,7 @@ def write_encounter(sample: EncounterSample, out_dir: Path | str) -> list[Path]:
 
 def main(argv: list[str] | None = None) -> None:
     """`python -m usvfast.bearing.sample [--seed N] [--out DIR]`: regenerate the sample."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=(__doc__ or "").partition("\n")[0])
     parser.add_argument(
         "--seed", type=int, default=DEFAULT_SEED, help="random seed (default %(default)s)"
     )

@@ -16,6 +16,7 @@ from typing import Any
 import cv2
 import numpy as np
 import yaml
+from numpy.typing import ArrayLike
 
 from usvfast._core import DimensionError
 from usvfast._validate import as_float_array, instance, integer, real
@@ -104,7 +105,7 @@ class CameraModel:
             axis=1,
         )
 
-    def project(self, points: Any) -> np.ndarray:
+    def project(self, points: ArrayLike) -> np.ndarray:
         """Camera-frame points (n, 3) (OpenCV axes, Z > 0) -> distorted pixels (n, 2)."""
         p = as_float_array("points", points, ndim=2).reshape(-1, 1, 3)
         z = np.zeros(3)
@@ -278,7 +279,7 @@ def calibrate(
     else:
         # OpenCV >= 5 moved the fisheye flags to the cv2 namespace.
         ns = cv2.fisheye if hasattr(cv2.fisheye, "CALIB_FIX_SKEW") else cv2
-        flags = ns.CALIB_RECOMPUTE_EXTRINSIC | ns.CALIB_FIX_SKEW
+        flags = ns.CALIB_RECOMPUTE_EXTRINSIC | ns.CALIB_FIX_SKEW  # pyright: ignore[reportAttributeAccessIssue]
         rms, k, d, rvecs, tvecs = cv2.fisheye.calibrate(
             [o.reshape(1, -1, 3) for o in obj_pts],
             [p.reshape(1, -1, 2) for p in img_pts],

@@ -55,9 +55,12 @@ class OnnxDetector(GridDetector):
         except cv2.error as e:
             raise ValueError(f"weights: OpenCV cannot read {path} as ONNX: {_first(e)}") from e
         declared = declared_input_shape(net)
-        fixed = declared is not None and declared[2] is not None and declared[3] is not None
+        # (width, height) the network declares, None for a dynamic or unreported input size
+        fixed_wh: tuple[int, int] | None = None
+        if declared is not None and declared[2] is not None and declared[3] is not None:
+            fixed_wh = (declared[3], declared[2])
         if input_size is None:
-            input_size = (declared[3], declared[2]) if fixed else (640, 640)
+            input_size = fixed_wh or (640, 640)
         super().__init__(
             input_size=input_size,
             layout=layout,
@@ -71,10 +74,9 @@ class OnnxDetector(GridDetector):
         self.weights = path
         self.net = net
         w, h = self.input_size
-        if fixed and (declared[3], declared[2]) != (w, h):
+        if fixed_wh is not None and fixed_wh != (w, h):
             raise ValueError(
-                f"input_size: {path.name} takes (width, height) = ({declared[3]}, {declared[2]}), "
-                f"got {self.input_size}"
+                f"input_size: {path.name} takes (width, height) = {fixed_wh}, got {self.input_size}"
             )
         if declared is not None and declared[1] not in (None, 3):
             raise ValueError(f"weights: {path.name} takes {declared[1]} channels, expected 3")

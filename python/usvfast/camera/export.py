@@ -28,7 +28,7 @@ def export_torchscript(module: Any, path: str | Path, input_size: tuple[int, int
     with warnings.catch_warnings():  # torch >= 2.10 deprecates TorchScript creation
         warnings.simplefilter("ignore", FutureWarning)
         traced = torch.jit.trace(module, _example(input_size))
-        traced.save(str(path))
+        traced.save(str(path))  # pyright: ignore[reportAttributeAccessIssue]
     return Path(path)
 
 

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from typing import Any, Protocol
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from usvfast import _core
 from usvfast._validate import as_float_array, with_methods
@@ -42,7 +43,7 @@ def rotation_zyx(yaw: float, pitch: float, roll: float) -> np.ndarray:
     return rz @ ry @ rx
 
 
-def mount_rotation(mount_ypr_deg: Any = (0.0, 0.0, 0.0)) -> np.ndarray:
+def mount_rotation(mount_ypr_deg: ArrayLike = (0.0, 0.0, 0.0)) -> np.ndarray:
     """Rotation body (FRD) <- camera (OpenCV) of a camera turned by (yaw, pitch, roll) degrees.
 
     (0, 0, 0) looks straight ahead along the bow; positive yaw turns to starboard, positive
@@ -168,16 +169,16 @@ def _pair(name: str, value: Any) -> tuple[float, float]:
 
 
 def georeference(
-    pixels: Any,
+    pixels: ArrayLike,
     camera: Camera,
     *,
     height: Any,
     mount_rotation: Any = None,
-    mount_position: Any = (0.0, 0.0, 0.0),
+    mount_position: ArrayLike = (0.0, 0.0, 0.0),
     roll: Any = 0.0,
     pitch: Any = 0.0,
     heading: Any = None,
-    vessel_ne: Any = None,
+    vessel_ne: ArrayLike | None = None,
     pixel_sigma: Any = 0.0,
     attitude_sigma: Any = 0.0,
     height_sigma: float = 0.0,
@@ -298,7 +299,7 @@ def horizon_line(
     return float(a), float(v0 - a * u0)
 
 
-def box_contact_points(boxes: Any) -> np.ndarray:
+def box_contact_points(boxes: ArrayLike) -> np.ndarray:
     """Water-contact pixel of each box: bottom centre `((x1 + x2) / 2, y2)`; (n, 4) -> (n, 2)."""
     b = as_float_array("boxes", boxes, ndim=2)
     if b.shape[1] != 4:
@@ -307,14 +308,14 @@ def box_contact_points(boxes: Any) -> np.ndarray:
 
 
 def georeference_fov(
-    u: Any,
-    v: Any,
+    u: ArrayLike,
+    v: ArrayLike,
     *,
     image_size: tuple[int, int],
     fov_deg: tuple[float, float],
     height: float,
     mount_ypr_deg: Any = (0.0, 0.0, 0.0),
-    offset: Any = (0.0, 0.0),
+    offset: ArrayLike = (0.0, 0.0),
 ) -> tuple[np.ndarray, np.ndarray]:
     """The thesis's georeferencing (eqs. 3.12–3.17, Code 5.6): pixels -> (forward, starboard) m.
 
@@ -357,7 +358,7 @@ class Sensitivity:
 
 
 def sensitivity(
-    pixels: Any,
+    pixels: ArrayLike,
     camera: Camera,
     *,
     height: Any,

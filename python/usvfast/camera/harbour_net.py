@@ -59,8 +59,8 @@ class HarbourNet(nn.Module):
         for head in (self.head8, self.head16):
             nn.init.zeros_(head.weight)
             with torch.no_grad():
-                head.bias.zero_()
-                head.bias[4:] = prior
+                head.bias.zero_()  # pyright: ignore[reportOptionalMemberAccess]
+                head.bias[4:] = prior  # pyright: ignore[reportOptionalSubscript]
         for s in STRIDES:
             gy, gx = torch.meshgrid(torch.arange(h // s), torch.arange(w // s), indexing="ij")
             centres = (torch.stack([gx, gy]).flatten(1).float() + 0.5) * s  # (2, cells) px
@@ -81,7 +81,8 @@ class HarbourNet(nn.Module):
         p8 = self.head8(self.fuse8(f8 + self.up(f16)))
         p16 = self.head16(f16)
         return torch.cat([p8.flatten(2), p16.flatten(2)], 2), torch.cat(
-            [self.centres8, self.centres16], 1
+            [self.centres8, self.centres16],  # pyright: ignore[reportArgumentType]  # (buffers)
+            1,
         )
 
     def decode(self, raw: torch.Tensor) -> torch.Tensor:
@@ -94,7 +95,7 @@ class HarbourNet(nn.Module):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         w, h = self.input_size
-        if not torch.jit.is_tracing() and tuple(x.shape[-2:]) != (h, w):
+        if not torch.jit.is_tracing() and tuple(x.shape[-2:]) != (h, w):  # pyright: ignore[reportPrivateImportUsage]
             raise ValueError(f"x: expected (N, 3, {h}, {w}), got {tuple(x.shape)}")
         return self.decode(self.raw(x)[0])
 

@@ -2,15 +2,19 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
+from numpy.typing import ArrayLike
 
 from usvfast import _core
 from usvfast._validate import as_float_array, as_index_array
 
 
-def nms(boxes: Any, scores: Any, iou_threshold: float = 0.45, classes: Any = None) -> np.ndarray:
+def nms(
+    boxes: ArrayLike,
+    scores: ArrayLike,
+    iou_threshold: float = 0.45,
+    classes: ArrayLike | None = None,
+) -> np.ndarray:
     """Indices of the boxes kept by greedy NMS, in descending score order (int64, (k,)).
 
     `boxes` (n, 4) `[x1, y1, x2, y2]` pixels with x2 >= x1, y2 >= y1; `scores` (n,);

@@ -156,6 +156,7 @@ def render_frames(seed: int, n: int, duration: float = 60.0) -> list[Frame]:
         image, truth = renderer.render(float(t))
         _, jpg = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
         image = cv2.imdecode(jpg, cv2.IMREAD_COLOR)
+        assert image is not None  # decoding what imencode just wrote
         boxes = np.array([b.xyxy for b in truth], dtype=np.float64).reshape(-1, 4)
         classes = np.array([TRUTH_KINDS.index(b.kind) for b in truth], dtype=np.int64)
         frames.append(Frame(image, boxes, classes))
@@ -231,7 +232,7 @@ def cached(
         arrays: dict[str, np.ndarray] = {"n": np.array(len(frames))}
         for i, f in enumerate(frames):
             arrays.update({f"image{i}": f.image, f"boxes{i}": f.boxes, f"classes{i}": f.classes})
-        np.savez(path, **arrays)
+        np.savez(path, **arrays)  # pyright: ignore[reportArgumentType]  # (arrays by name)
         return frames
 
     return wrapped
@@ -345,7 +346,7 @@ def run(
         "classes": list(config.classes),
         "conf_threshold": config.conf_threshold,
         "iou_threshold": 0.5,
-        "parameters": int(sum(p.numel() for p in net.parameters())),
+        "parameters": int(sum(p.numel() for p in net.parameters())),  # pyright: ignore[reportAttributeAccessIssue]
         "train": {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(config).items()},
         "render_seconds": round(t_render, 1),
         "train_seconds": round(t_train, 1),
@@ -359,7 +360,7 @@ def run(
 
 def main(argv: Sequence[str] | None = None) -> None:
     """Command line: `python -m usvfast.camera.train_demo [--out DIR] [--seed S] [--steps N]`."""
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=(__doc__ or "").partition("\n")[0])
     ap.add_argument("--out", type=Path, default=Path("python/usvfast/data/models"))
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--steps", type=int, default=TrainConfig.steps)

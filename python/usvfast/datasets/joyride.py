@@ -110,7 +110,7 @@ def load_joyride(path: str | PathLike[str]) -> JoyrideRecording:
             and np.all(np.isfinite(target[i]))
             and np.all(np.isfinite(ownship[i]))
         )
-        if not ok:
+        if not ok or plots is None:
             skipped_scans += 1
             continue
         good = np.all(np.isfinite(plots), axis=1)

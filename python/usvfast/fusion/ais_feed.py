@@ -1,11 +1,12 @@
 """AIS feeds as logs deliver them, and AIS targets as tracks in a local NED plane.
 
-`read_ais_feed` gives every AIS line its receive time (NMEA 4.10 tag block `c:`, a leading
-UNIX time column, or the log's own ZDA/RMC clock; see `usvfast.radar.clock`) and decodes the
-messages with `usvfast.nav.ais.read_ais` (pyais; multi-sentence messages assembled, damaged
-sentences counted). `AisTargets` turns the position reports into per-MMSI states at any time
-by the constant speed and course interpolation of the radar/AIS paper (§1.1), reusing
-`usvfast.nav.ais.dead_reckon`, with a covariance that grows with the age of the report.
+`read_ais_feed` decodes the feed with `usvfast.nav.ais.read_ais` (pyais; multi-sentence
+messages assembled, damaged sentences counted), which gives every AIS line its receive time
+(NMEA 4.10 tag block `c:`, a leading UNIX time column, or the log's own ZDA/RMC clock; see
+`usvfast.nav.linetime`), and requires timed positions. `AisTargets` turns the position
+reports into per-MMSI states at any time by the constant speed and course interpolation of
+the radar/AIS paper (§1.1), reusing `usvfast.nav.ais.dead_reckon`, with a covariance that
+grows with the age of the report.
 
 Example::
 
@@ -23,11 +24,11 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from usvfast import geodesy
-from usvfast.nav._damage import iter_lines
+from usvfast._validate import as_float_array, instance
 from usvfast.nav.ais import AisLog, AisPositions, dead_reckon, read_ais
-from usvfast.radar.clock import LogClock, tag_block_ok
 
 __all__ = ["AisFeed", "AisStates", "AisTargets", "fix_times", "read_ais_feed"]
 
@@ -55,19 +56,7 @@ def read_ais_feed(source: str | os.PathLike | Iterable[Any]) -> AisFeed:
 
     Raises ValueError when nothing decodes, and when no position report has both a receive
     time and a position (an AIS feed without positions cannot be fused)."""
-    clock = LogClock()
-    pairs: list[tuple[float, bytes]] = []
-    n_bad_tag = 0
-    for raw in iter_lines(source):
-        line = (raw if isinstance(raw, bytes) else str(raw).encode("ascii", "replace")).strip()
-        if not line or line.startswith(b"#"):
-            continue
-        t = clock.time_of(line)
-        if b"!" in line[:200] and not tag_block_ok(line):
-            n_bad_tag += 1
-            continue
-        pairs.append((t, line))
-    log = read_ais(pairs)
+    log = read_ais(source)
     p = log.positions
     timed = np.isfinite(p.time)
     usable = timed & np.isfinite(p.lat_deg) & np.isfinite(p.lon_deg)
@@ -78,7 +67,7 @@ def read_ais_feed(source: str | os.PathLike | Iterable[Any]) -> AisFeed:
             f"{log.n_messages} messages); receive times come from tag blocks (c:), a leading "
             "UNIX time column or the log's ZDA/RMC sentences"
         )
-    return AisFeed(log, int((~timed).sum()), n_bad_tag, clock.n_clock)
+    return AisFeed(log, int((~timed).sum()), log.n_bad_tag, log.n_clock)
 
 
 def fix_times(positions: AisPositions) -> AisPositions:
@@ -86,6 +75,7 @@ def fix_times(positions: AisPositions) -> AisPositions:
     time whose UTC second equals the report's `second` field (AIS sends only that second;
     whole-second receive stamps may lag the fix by up to 1 s, transmission slots by a few).
     Reports with second >= 60 (not available) keep their receive time."""
+    instance("positions", positions, AisPositions)
     t_rx = positions.time
     sec = positions.second
     ok = np.isfinite(t_rx) & (sec < 60)
@@ -131,6 +121,10 @@ class AisTargets:
         max_age: float = 120.0,
         use_second: bool = True,
     ) -> None:
+        instance("feed", feed, AisFeed)
+        o = as_float_array("origin", origin, ndim=1)
+        if o.shape != (2,) or abs(o[0]) > 90:
+            raise ValueError(f"origin: expected (lat deg in [-90, 90], lon deg), got {origin!r}")
         for name, v in (("pos_std", pos_std), ("vel_std", vel_std), ("max_age", max_age)):
             if not (math.isfinite(v) and v > 0):
                 raise ValueError(f"{name}: must be finite and > 0, got {v!r}")
@@ -185,7 +179,7 @@ class AisTargets:
         state = np.stack([north, vel[:, 0], east, vel[:, 1]], axis=1)
         return AisStates(mmsi, state, self.covariance(age), age, lat, lon)
 
-    def covariance(self, age: Any) -> np.ndarray:
+    def covariance(self, age: ArrayLike) -> np.ndarray:
         """AIS state covariance (m, 4, 4) for report ages (m,) seconds (see the class)."""
         a = np.asarray(age, dtype=float)
         sp2, sv2, q = self.pos_std**2, self.vel_std**2, self.accel_psd

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.optimize import linear_sum_assignment, minimize_scalar
 from scipy.stats import chi2
 
@@ -87,7 +88,7 @@ class JCost:
             dth = abs(math.degrees(math.atan2(math.sin(d), math.cos(d))))
         return (dp, abs(vr - va), dth)
 
-    def cost(self, samples: Any) -> float:
+    def cost(self, samples: ArrayLike) -> float:
         """J / J_set over the window's samples."""
         s = np.asarray(samples, dtype=float)
         j = self.k1 * s[:, 0].mean() + self.k2 * s[:, 1].mean() + self.k3 * s[:, 2].mean()
@@ -154,13 +155,13 @@ class WindowAssociator:
 
     def update(
         self,
-        track_ids: Any,
-        track_states: Any,
-        track_covs: Any,
-        mmsis: Any,
-        ais_states: Any,
-        ais_covs: Any,
-        fresh: Any = None,
+        track_ids: ArrayLike,
+        track_states: ArrayLike,
+        track_covs: ArrayLike,
+        mmsis: ArrayLike,
+        ais_states: ArrayLike,
+        ais_covs: ArrayLike,
+        fresh: ArrayLike | None = None,
     ) -> dict[int, int]:
         """One scan: radar tracks (ids (r,), states (r, 4), covs (r, 4, 4)) and AIS targets
         (mmsi (a,), states (a, 4), covs (a, 4, 4)) at the same time, NED [n, v_n, e, v_e].
@@ -213,7 +214,7 @@ class WindowAssociator:
             for a, t in enumerate(free_t):
                 for b, m in enumerate(free_m):
                     h = self._hist.get((t, m))
-                    if (t, m) in sampled and len(h) == self.window:
+                    if h is not None and (t, m) in sampled and len(h) == self.window:
                         c = self.method.cost(h)
                         if c < 1.0:
                             cost[a, b] = c
@@ -232,7 +233,7 @@ class WindowAssociator:
 
 
 def covariance_intersection(
-    x1: Any, p1: Any, x2: Any, p2: Any, omega: float | None = None
+    x1: ArrayLike, p1: ArrayLike, x2: ArrayLike, p2: ArrayLike, omega: float | None = None
 ) -> tuple[np.ndarray, np.ndarray, float]:
     """Covariance intersection of two estimates with unknown correlation:
     P⁻¹ = ω P1⁻¹ + (1 − ω) P2⁻¹, x = P (ω P1⁻¹ x1 + (1 − ω) P2⁻¹ x2).
@@ -253,7 +254,7 @@ def covariance_intersection(
             return -np.linalg.slogdet(w * i1 + (1.0 - w) * i2)[1]
 
         res = minimize_scalar(logdet, bounds=(0.0, 1.0), method="bounded", options={"xatol": 1e-6})
-        w = float(res.x)
+        w = float(res.x)  # pyright: ignore[reportAttributeAccessIssue]
         for edge in (0.0, 1.0):
             if logdet(edge) < logdet(w):
                 w = edge
@@ -269,7 +270,13 @@ def covariance_intersection(
 
 
 def same_object(
-    position: Any, velocity: Any, t: float, plot: Any, t_plot: float, t_d: float, radius: float
+    position: ArrayLike,
+    velocity: ArrayLike,
+    t: float,
+    plot: ArrayLike,
+    t_plot: float,
+    t_d: float,
+    radius: float,
 ) -> bool:
     """The paper's §1.2 identity test: the track at `position` (n, e m) with `velocity`
     (v_n, v_e m/s) at time `t` (s) and a plot at `t_plot` in (t, t + t_d] lying within

@@ -228,6 +228,7 @@ def _camera_stage(
             f"{_label(res.rows[k])} {proj.range_m[i]:.0f} m {proj.bearing_deg[i]:.0f} deg"
             for i, k in enumerate(idx)
         ]
+        assert frame.image is not None  # frames are read decoded
         img = draw_overlay(frame.image, proj.pixels, labels, boxes)
         cv2.imwrite(str(out / "overlay" / f"{frame.index:06d}.jpg"), img)
         n_frames += 1
@@ -324,13 +325,15 @@ def vts_command(
     own_ship = own_ship or radar_own
     feed = read_ais_feed(ais) if ais is not None else None
     if org is None:
+        if feed is None:
+            raise typer.BadParameter("--origin is needed: no own-ship track or AIS to take it from")
         p = feed.log.positions
         ok = np.isfinite(p.lat_deg) & np.isfinite(p.time)
         org = (float(p.lat_deg[ok][0]), float(p.lon_deg[ok][0]))
     targets = AisTargets(feed, org) if feed is not None else None
     timings["read"] = _time.perf_counter() - t0
     if plots is None:
-        assert targets is not None
+        assert feed is not None  # --radar or --ais was given
         times = np.unique(np.round(feed.log.positions.time[np.isfinite(feed.log.positions.time)]))
         plots = _empty_plots(times)
     test = JCost(j_set=j_set) if method == "j" else Chi2Test()
@@ -343,12 +346,13 @@ def vts_command(
             origin=org,
             method=test,
             window=window,
-            tracker=TrackerConfig(polar=polar, range_std=range_std, bearing_std_deg=bearing_std),
+            tracker=TrackerConfig(polar=polar, range_std=range_std, bearing_std_deg=bearing_std),  # pyright: ignore[reportArgumentType]  # (checked above)
             progress=lambda done, total: bar.update(task, completed=done, total=total),
         )
     timings.update({k: v for k, v in res.timings.items() if k != "read"})
     summary: dict = {}
     if camera is not None:
+        assert calibration is not None  # checked above
         t1 = _time.perf_counter()
         summary |= _camera_stage(
             res,

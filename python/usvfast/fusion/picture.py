@@ -7,10 +7,11 @@ from __future__ import annotations
 
 from collections import defaultdict
 from pathlib import Path
-from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
+from usvfast._validate import image as check_image
 from usvfast.fusion.pipeline import FusedRow, VtsResult
 
 __all__ = ["draw_overlay", "situation_picture"]
@@ -111,10 +112,13 @@ def situation_picture(res: VtsResult, path: str | Path, *, title: str = "") -> P
 
 
 def draw_overlay(
-    image: np.ndarray, pixels: np.ndarray, labels: list[str], boxes: Any = None
+    image: np.ndarray, pixels: np.ndarray, labels: list[str], boxes: ArrayLike | None = None
 ) -> np.ndarray:
     """A copy of `image` (BGR) with detection boxes (n, 4) in grey and targets drawn at
     `pixels` (k, 2) with their label (MMSI, range, bearing); NaN pixels are skipped."""
+    check_image("image", image)
+    if not (isinstance(labels, list | tuple) and all(isinstance(t, str) for t in labels)):
+        raise TypeError(f"labels: expected a list of str, got {type(labels).__name__}")
     import cv2
 
     out = image.copy()

@@ -16,12 +16,14 @@ import math
 import time as _time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import Literal
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from usvfast import geodesy
 from usvfast import tracking as tk
+from usvfast._validate import instance
 from usvfast.fusion.ais_feed import AisTargets
 from usvfast.fusion.associate import (
     Chi2Test,
@@ -52,7 +54,7 @@ class OwnShip:
         if np.any(np.diff(self.time) < 0):
             raise ValueError("own: times must be in order")
 
-    def at(self, t: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def at(self, t: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(north, east, heading_deg) at times `t` (UNIX s), held at the ends."""
         tq = np.asarray(t, dtype=float)
         n = np.interp(tq, self.time, self.north)
@@ -97,7 +99,7 @@ class TrackerConfig:
     prior_velocity_var: float = 100.0
     range_std: float = 10.0
     bearing_std_deg: float = 1.0
-    polar: str = "ekf"
+    polar: Literal["ekf", "ukf", "converted"] = "ekf"
 
 
 def radar_tracker(cfg: TrackerConfig, polar: bool = False) -> tk.Tracker:
@@ -106,11 +108,13 @@ def radar_tracker(cfg: TrackerConfig, polar: bool = False) -> tk.Tracker:
     The polar sensor needs the tracker's default `initiate_in_gates=True`; NED-only
     trackers withhold detections inside confirmed gates from the initiator (no duplicate
     tracks on one target)."""
+    instance("cfg", cfg, TrackerConfig)
     sensors = [tk.Sensor.position(noise_std=cfg.sigma)]
     if polar:
         sensors.append(
             tk.Sensor.bearing_range(
-                noise_std=(np.radians(cfg.bearing_std_deg), cfg.range_std), update=cfg.polar
+                noise_std=(np.radians(cfg.bearing_std_deg), cfg.range_std),
+                update="ukf" if cfg.polar == "ukf" else "ekf",
             )
         )
     return tk.Tracker(
@@ -272,6 +276,15 @@ def run_vts(
     pairs are kept, see `WindowAssociator.update`). tracker: default `TrackerConfig()`;
     method: default `JCost()`. progress(done, total) is called after each scan. Raises
     ValueError when plots are polar without an own ship."""
+    instance("plots", plots, RadarPlots)
+    if ais is not None:
+        instance("ais", ais, AisTargets)
+    if own is not None:
+        instance("own", own, OwnShip)
+    if tracker is not None:
+        instance("tracker", tracker, TrackerConfig)
+    if method is not None:
+        instance("method", method, JCost, Chi2Test)
     t_start = _time.perf_counter()
     timings: dict[str, float] = {}
     cfg = tracker or TrackerConfig()
@@ -283,6 +296,7 @@ def run_vts(
         # Range–bearing rows: z = (true bearing rad, range m) from the own ship.
         meas[polar] = np.column_stack([np.radians(true_bearing[polar]), plots.range_m[polar]])
         plot_cov[polar] = np.diag([np.radians(cfg.bearing_std_deg) ** 2, cfg.range_std**2])
+        assert own is not None  # _plots_ned refuses polar plots without an own ship
         on, oe, _ = own.at(plots.time[polar])
         origins[polar] = np.column_stack([on, oe])
     scan_times, scan_index = plots.scans()
@@ -345,7 +359,7 @@ def run_vts(
             x, p = tracks.states[k], tracks.covariances[k]
             radar_rows.append(_row(t, ident, -1, x, p, "radar"))
             m = pairs.get(ident, -1)
-            if m >= 0 and m in ais_index:
+            if st is not None and m >= 0 and m in ais_index:
                 j = ais_index[m]
                 xf, pf, _ = covariance_intersection(x, p, st.state[j], st.cov[j])
                 rows.append(_row(t, ident, m, xf, pf, "radar+ais"))

@@ -21,9 +21,9 @@ from __future__ import annotations
 
 import math
 from collections import defaultdict
-from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from usvfast._validate import as_float_array
 
@@ -34,7 +34,9 @@ def _wrap(a: np.ndarray) -> np.ndarray:
     return np.arctan2(np.sin(a), np.cos(a))
 
 
-def rotation_from_velocities(v_camera: Any, v_vts: Any, weights: Any = None) -> tuple[float, float]:
+def rotation_from_velocities(
+    v_camera: ArrayLike, v_vts: ArrayLike, weights: ArrayLike | None = None
+) -> tuple[float, float]:
     """Least-squares θ (rad) with v_vts ≈ R(θ) v_camera for paired vectors (n, 2), and the
     spread (rad): the RMS of the per-pair angles about θ weighted by |v_C||v_R|·w. Raises
     ValueError on shape mismatch, no pair, or all-zero vectors."""
@@ -93,7 +95,9 @@ class RotationCalibrator:
         )
         self._mismatch: dict[tuple[int, int], int] = defaultdict(int)
 
-    def add(self, camera_ids: Any, v_camera: Any, vts_ids: Any, v_vts: Any) -> None:
+    def add(
+        self, camera_ids: ArrayLike, v_camera: ArrayLike, vts_ids: ArrayLike, v_vts: ArrayLike
+    ) -> None:
         """One time step of both trackers' velocities (see the class)."""
         ci = [int(i) for i in np.asarray(camera_ids).ravel()]
         vi = [int(j) for j in np.asarray(vts_ids).ravel()]
@@ -124,7 +128,7 @@ class RotationCalibrator:
         mean = math.atan2(np.sin(ang).mean(), np.cos(ang).mean())
         if np.max(np.abs(_wrap(ang - mean))) > self.angle_tol:
             return False
-        return theta is None or abs(_wrap(np.array(mean - theta))) <= self.angle_tol
+        return theta is None or bool(abs(_wrap(np.array(mean - theta))) <= self.angle_tol)
 
     def candidates(self) -> dict[int, list[int]]:
         """{camera id: VTS ids still possible}, after the θ of the unique matches is applied."""

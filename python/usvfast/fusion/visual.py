@@ -21,9 +21,10 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.optimize import linear_sum_assignment
 
-from usvfast._validate import as_float_array
+from usvfast._validate import as_float_array, instance
 from usvfast.camera.georef import mount_rotation as _mount_rotation
 from usvfast.camera.georef import rotation_zyx
 
@@ -71,16 +72,16 @@ class Projection:
 
 
 def project_targets(
-    targets_ne: Any,
+    targets_ne: ArrayLike,
     camera: Any,
     *,
-    own_ne: Any,
+    own_ne: ArrayLike,
     heading: float,
     height: float,
     roll: float = 0.0,
     pitch: float = 0.0,
-    mount_rotation: Any = None,
-    mount_position: Any = (0.0, 0.0, 0.0),
+    mount_rotation: ArrayLike | None = None,
+    mount_position: ArrayLike = (0.0, 0.0, 0.0),
     aim_height: float = 0.0,
     target_height: float = 0.0,
 ) -> Projection:
@@ -134,7 +135,7 @@ def project_targets(
     return Projection(pixels, rays, rng, brg, reason)
 
 
-def detection_rays(camera: Any, boxes: Any) -> np.ndarray:
+def detection_rays(camera: Any, boxes: ArrayLike) -> np.ndarray:
     """Unit rays (n, 3) in the camera frame through the centres of boxes (n, 4) x1, y1, x2,
     y2 (original image pixels; distortion removed by `camera.normalized`)."""
     b = as_float_array("boxes", boxes, ndim=2)
@@ -147,11 +148,12 @@ def detection_rays(camera: Any, boxes: Any) -> np.ndarray:
 
 
 def match_detections(
-    projection: Projection, camera: Any, boxes: Any, *, gamma_max_deg: float = 2.0
+    projection: Projection, camera: Any, boxes: ArrayLike, *, gamma_max_deg: float = 2.0
 ) -> tuple[list[tuple[int, int]], np.ndarray]:
     """Match visible targets to detection boxes (n, 4) by the angle γ between their rays:
     pairs (target index, box index) with γ < gamma_max_deg, one-to-one by minimum total γ.
     Returns (pairs, γ (k, n) degrees; NaN for targets that are not visible)."""
+    instance("projection", projection, Projection)
     if not (math.isfinite(gamma_max_deg) and gamma_max_deg > 0):
         raise ValueError(f"gamma_max_deg: must be > 0, got {gamma_max_deg!r}")
     b = as_float_array("boxes", boxes).reshape(-1, 4)

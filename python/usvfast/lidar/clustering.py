@@ -16,6 +16,7 @@ import warnings
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from usvfast import _core
 from usvfast._validate import as_float_array
@@ -36,10 +37,10 @@ def _int(name: str, value: Any, minimum: int) -> int:
 
 
 def mean_shift(
-    points: Any,
+    points: ArrayLike,
     *,
     bandwidth: float = 2.0,
-    seeds: Any = None,
+    seeds: ArrayLike | None = None,
     bin_seeding: bool = False,
     min_bin_freq: int = 1,
     cluster_all: bool = True,

@@ -23,6 +23,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -371,9 +372,10 @@ def lidar_typestore(ros1: bool = False):
 _PC2_DTYPES = {1: "i1", 2: "u1", 3: "<i2", 4: "<u2", 5: "<i4", 6: "<u4", 7: "<f4", 8: "<f8"}
 
 
-def pointcloud2_to_points(msg: object) -> tuple[float, np.ndarray]:
+def pointcloud2_to_points(msg: Any) -> tuple[float, np.ndarray]:
     """Convert a sensor_msgs/PointCloud2 message to (stamp s, (n,) `POINT_DTYPE`).
 
+    `msg`: any object with PointCloud2's fields (rosbags, rclpy or rospy messages alike).
     Needs float fields x, y, z; takes intensity, ring and a per-point time when present
     (`time`/`t`/`timestamp`/`time_stamp`: float seconds relative to the header stamp, or
     integer nanoseconds for `t`; absolute float seconds are made relative). Points with a
@@ -446,11 +448,12 @@ def points_to_pointcloud2(stamp: float, points: np.ndarray, frame_id: str, types
     pc2 = typestore.types["sensor_msgs/msg/PointCloud2"]
     pf = typestore.types["sensor_msgs/msg/PointField"]
     packed = np.ascontiguousarray(points, dtype=POINT_DTYPE)
-    offsets = [POINT_DTYPE.fields[n][1] for n in POINT_DTYPE.names]
+    names = POINT_DTYPE.names or ()
+    offsets = [(POINT_DTYPE.fields or {})[n][1] for n in names]
     kinds = [7, 7, 7, 7, 4, 7]
     fields = [
         pf(name=n, offset=o, datatype=k, count=1)
-        for n, o, k in zip(POINT_DTYPE.names, offsets, kinds, strict=True)
+        for n, o, k in zip(names, offsets, kinds, strict=True)
     ]
     return pc2(
         header=make_header(typestore, stamp, frame_id),

@@ -19,13 +19,14 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.stats import chi2
 
 from usvfast._core import DimensionError, NotPositiveDefiniteError
 from usvfast._validate import as_float_array
 
 
-def chi2_band(dof: Any, n: int = 1, confidence: float = 0.95) -> tuple[float, float]:
+def chi2_band(dof: ArrayLike, n: int = 1, confidence: float = 0.95) -> tuple[float, float]:
     """Two-sided `confidence` band of the average of `n` χ² samples whose degrees of freedom
     sum to `dof` × n (dof: an int, or an array of each sample's dof with n = its length)."""
     if not 0 < confidence < 1:
@@ -43,7 +44,7 @@ def chi2_band(dof: Any, n: int = 1, confidence: float = 0.95) -> tuple[float, fl
     return float(lo), float(hi)
 
 
-def nees(errors: Any, covariances: Any) -> np.ndarray:
+def nees(errors: ArrayLike, covariances: ArrayLike) -> np.ndarray:
     """ε_k = e_kᵀ P_k⁻¹ e_k for every row. errors: (N, d); covariances: (N, d, d), positive
     definite. Returns (N,). Raises DimensionError on shapes, NotPositiveDefiniteError naming
     `covariances` when one is not positive definite."""
@@ -82,7 +83,9 @@ class Consistency:
         return asdict(self)
 
 
-def average_consistency(values: Any, dof: Any, confidence: float = 0.95) -> Consistency | None:
+def average_consistency(
+    values: ArrayLike, dof: ArrayLike, confidence: float = 0.95
+) -> Consistency | None:
     """Mean of the NEES or NIS `values` (N,) and its χ² band; dof: an int or (N,) per sample.
     None when there are no values."""
     v = as_float_array("values", values, ndim=1)

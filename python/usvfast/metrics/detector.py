@@ -18,6 +18,7 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from usvfast._core import DimensionError
 from usvfast._validate import instance
@@ -45,7 +46,7 @@ class DetectorScore:
         return asdict(self)
 
 
-def longest_run(flags: Any) -> int:
+def longest_run(flags: ArrayLike) -> int:
     """Length of the longest run of True in a 1-D boolean array."""
     f = np.asarray(flags, bool)
     if not f.any():
@@ -59,10 +60,10 @@ def detector_scores(
     detections: Detections,
     *,
     sensor: str = "lidar",
-    frame_times: Any = None,
+    frame_times: ArrayLike | None = None,
     period: float = 0.1,
     gate: float = 1.0,
-    visible: Any = None,
+    visible: ArrayLike | None = None,
     max_frames: int | None = None,
     exclude_kinds: tuple[str, ...] = EXCLUDED_KINDS,
 ) -> list[DetectorScore]:

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from usvfast._core import DimensionError
 from usvfast._validate import as_float_array
@@ -53,7 +54,7 @@ def _rows(prefix: str, frame: Any, ids: Any, values: Any, width: int) -> tuple[n
     return f, i, v
 
 
-def box_iou(a: Any, b: Any) -> np.ndarray:
+def box_iou(a: ArrayLike, b: ArrayLike) -> np.ndarray:
     """IoU of every box of `a` (n, 4) with every box of `b` (m, 4), boxes as (x, y, w, h)
     pixels with (x, y) the top-left corner (MOTChallenge). Returns (n, m) in [0, 1]."""
     a = np.reshape(np.asarray(a, float), (-1, 4))
@@ -155,6 +156,12 @@ class FrameSequence:
             dd = np.linalg.norm(g[:, None, :] - t[None, :, :], axis=2).reshape(len(g), len(t))
             sim.append(np.clip(1.0 - dd / zero, 0.0, None))
             dist.append(np.where(dd <= max_distance, dd, np.nan))
+        return cls._of_groups(allf, groups, dist, sim, "position")
+
+    @classmethod
+    def _of_groups(cls, allf: Any, groups: list, dist: list, sim: list, kind: str) -> FrameSequence:
+        """The sequence of `_group`'s frames and per-frame (truth ids, truth values, track
+        ids, track values) with their distance and similarity matrices."""
         return cls(
             frames=allf,
             truth_ids=[x[0] for x in groups],
@@ -163,7 +170,7 @@ class FrameSequence:
             similarity=sim,
             truth_values=[x[1] for x in groups],
             track_values=[x[3] for x in groups],
-            kind="position",
+            kind=kind,
         )
 
     @classmethod
@@ -194,19 +201,10 @@ class FrameSequence:
             iou = box_iou(g, t)
             sim.append(iou)
             dist.append(np.where(iou >= iou_threshold - 1e-12, 1.0 - iou, np.nan))
-        return cls(
-            frames=allf,
-            truth_ids=[x[0] for x in groups],
-            track_ids=[x[2] for x in groups],
-            distance=dist,
-            similarity=sim,
-            truth_values=[x[1] for x in groups],
-            track_values=[x[3] for x in groups],
-            kind="box",
-        )
+        return cls._of_groups(allf, groups, dist, sim, "box")
 
 
-def frames_from_times(times: Any, *, period: float, start: float | None = None) -> np.ndarray:
+def frames_from_times(times: ArrayLike, *, period: float, start: float | None = None) -> np.ndarray:
     """Frame index of each time: round((t − start) / period). times: (N,) seconds; period:
     seconds (> 0); start: seconds (default the smallest time)."""
     t = as_float_array("times", times, ndim=1)

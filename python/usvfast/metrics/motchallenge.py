@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from usvfast._core import DimensionError
 from usvfast._validate import as_float_array
@@ -69,7 +70,7 @@ def read_motchallenge(path: str | Path, *, min_conf: float | None = None) -> Mot
 
 
 def write_motchallenge(
-    path: str | Path, frame: Any, ids: Any, boxes: Any, conf: Any = None
+    path: str | Path, frame: ArrayLike, ids: ArrayLike, boxes: Any, conf: ArrayLike | None = None
 ) -> None:
     """Write boxes as `frame,id,x,y,w,h,conf,-1,-1,-1` lines sorted by frame then id.
     frame, ids: (N,) integers (detections use id −1); boxes: (N, 4) pixels; conf: (N,) or

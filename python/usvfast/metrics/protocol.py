@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from usvfast._core import DimensionError
 from usvfast._validate import instance
@@ -61,7 +62,7 @@ class Matches:
     nees: np.ndarray
 
 
-def truth_at(truth: Truth, object_id: int, times: Any, window: float = 1.0) -> np.ndarray:
+def truth_at(truth: Truth, object_id: int, times: ArrayLike, window: float = 1.0) -> np.ndarray:
     """Position (n, 2) of one object at `times` (n,) s: linear interpolation between its
     samples when both neighbours lie within `window` s, else its nearest sample within
     `window`, else NaN."""
@@ -320,7 +321,7 @@ def thesis_metrics(
     tracks: Tracks,
     *,
     innovations: Innovations | None = None,
-    visible: Any = None,
+    visible: ArrayLike | None = None,
     window: float = 1.0,
     cap: float = 5.0,
     min_visible: float = 5.0,

@@ -3,11 +3,12 @@ decoded by pyais, plus dead-reckoned target positions at arbitrary times.
 
 Multi-fragment messages are assembled here (by fragment count, sequence id and channel);
 sentences with a bad checksum, undecodable payloads and orphan fragments are skipped and
-counted. AIS payloads carry only the UTC second of the report, so absolute times come from
-the caller: pass `(unix_time, line)` pairs (receive times), or plain lines. Plain lines of a
-mixed NMEA log are timed from the log's own ZDA/RMC clock (the latest one before the AIS
-sentence, or the first one for reports before it) and the report's UTC second; with no
-clock in the log, times are NaN.
+counted. AIS payloads carry only the UTC second of the report, so each line needs a receive
+time (`usvfast.nav.linetime`): the caller's, passing `(unix_time, line)` pairs; else the line's
+own NMEA 4.10 tag block `c:` (a tag block with a wrong checksum skips the line, counted in
+`n_bad_tag`) or leading UNIX time column; else the log's own ZDA/RMC clock (the latest one
+before the AIS sentence, or the first one for reports before it) with the report's UTC second.
+With none of these, times are NaN.
 
 Example::
 
@@ -18,17 +19,16 @@ Example::
 
 from __future__ import annotations
 
-import datetime as dt
 import math
 import os
 import re
 import warnings
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-import pynmea2
+from numpy.typing import ArrayLike
 from pyais import NMEAMessage
 from pyais.exceptions import AISBaseException
 
@@ -37,6 +37,7 @@ from usvfast._damage import DamagedRecordsWarning
 from usvfast._files import OVERLONG_LINE
 from usvfast._validate import as_float_array, instance
 from usvfast.nav._damage import iter_lines
+from usvfast.nav.linetime import LogClock, line_time, tag_block_ok
 from usvfast.nav.nmea import KNOT
 
 __all__ = ["AisLog", "AisPositions", "StaticData", "dead_reckon", "read_ais"]
@@ -103,7 +104,9 @@ class AisLog:
     """What `read_ais` found: positions, static data by MMSI, and counts — n_sentences (AIS
     sentences seen), n_messages (decoded messages), n_damaged (bad checksum / undecodable),
     n_incomplete (fragments whose message never completed), n_other (decoded messages of
-    other types), n_ignored (non-AIS lines)."""
+    other types), n_ignored (non-AIS lines), n_bad_tag (lines skipped for a wrong tag-block
+    checksum), n_clock (ZDA/RMC sentences of the log that set its clock), by_type (decoded
+    messages by AIS message type)."""
 
     positions: AisPositions
     static: dict[int, StaticData]
@@ -113,6 +116,9 @@ class AisLog:
     n_incomplete: int
     n_other: int
     n_ignored: int
+    n_bad_tag: int = 0
+    n_clock: int = 0
+    by_type: dict[int, int] = field(default_factory=dict)
 
 
 def _nan_if(value: Any, *sentinels: float) -> float:
@@ -124,14 +130,15 @@ def _nan_if(value: Any, *sentinels: float) -> float:
 
 def read_ais(source: str | os.PathLike | Iterable[Any]) -> AisLog:
     """Read AIS sentences from a path or an iterable of lines (str/bytes) or (time, line)
-    pairs; non-AIS lines are counted and skipped. Raises ValueError when no AIS message could
-    be decoded at all."""
+    pairs, timed as the module docstring says; non-AIS lines are counted and skipped. Raises
+    ValueError when no AIS message could be decoded at all."""
     rows: list[tuple] = []
     static: dict[int, StaticData] = {}
     pending: dict[tuple, list[NMEAMessage]] = {}
-    n_sentences = n_messages = n_damaged = n_incomplete = n_other = n_ignored = 0
+    n_sentences = n_messages = n_damaged = n_incomplete = n_other = n_ignored = n_bad_tag = 0
+    by_type: dict[int, int] = {}
     pending_msgs: list[tuple[float, NMEAMessage]] = []
-    clock = math.nan  # the log's own UTC clock (ZDA/RMC) when AIS lines carry no time
+    clock = LogClock()  # the log's own UTC clock (ZDA/RMC) when AIS lines carry no time
     before_clock: list[int] = []
     for item in iter_lines(source):
         t, raw = item if isinstance(item, tuple) else (math.nan, item)
@@ -142,15 +149,18 @@ def read_ais(source: str | os.PathLike | Iterable[Any]) -> AisLog:
         if line == OVERLONG_LINE.strip():
             n_damaged += 1
             continue
-        if line[:1] == b"$" and line[3:6] in (b"ZDA", b"RMC"):
-            clock = _clock_time(line, clock)
-            if before_clock and not math.isnan(clock):
-                for i in before_clock:  # the first clock of the log times what came before
-                    rows[i] = (_ais_time(clock, rows[i][9]), *rows[i][1:])
-                before_clock.clear()
+        if math.isnan(t):
+            t = line_time(line)
+        if math.isnan(t) and math.isfinite(clock.time_of(line)) and before_clock:
+            for i in before_clock:  # the first clock of the log times what came before
+                rows[i] = (_ais_time(clock.now, rows[i][9]), *rows[i][1:])
+            before_clock.clear()
         sentences = _split_sentences(line)
         if not sentences:
             n_ignored += int(not line.startswith(b"#"))
+            continue
+        if not tag_block_ok(line):
+            n_bad_tag += 1
             continue
         for sentence in sentences:
             n_sentences += 1
@@ -185,20 +195,21 @@ def read_ais(source: str | os.PathLike | Iterable[Any]) -> AisLog:
                     continue
                 frags.clear()
             try:
-                d = msg.decode().asdict()
+                d: dict[str, Any] = msg.decode().asdict()
             except (AISBaseException, ValueError, IndexError, KeyError, TypeError):
                 n_damaged += 1
                 continue
             n_messages += 1
             kind = int(d["msg_type"])
+            by_type[kind] = by_type.get(kind, 0) + 1
             mmsi = int(d["mmsi"])
             if kind in STATIC_TYPES:
                 _merge_static(static.setdefault(mmsi, StaticData(mmsi)), d)
             if kind in POSITION_TYPES:
                 status = d.get("status")
                 second = int(d["second"]) if d.get("second") is not None else 60
-                if math.isnan(t) and not math.isnan(clock):
-                    t = _ais_time(clock, second)
+                if math.isnan(t) and not math.isnan(clock.now):
+                    t = _ais_time(clock.now, second)
                 elif math.isnan(t):
                     before_clock.append(len(rows))  # heard before the log's first clock
                 rows.append(
@@ -243,6 +254,9 @@ def read_ais(source: str | os.PathLike | Iterable[Any]) -> AisLog:
         n_incomplete=n_incomplete,
         n_other=n_other,
         n_ignored=n_ignored,
+        n_bad_tag=n_bad_tag,
+        n_clock=clock.n_clock,
+        by_type=dict(sorted(by_type.items())),
     )
 
 
@@ -265,20 +279,6 @@ def _split_sentences(line: bytes) -> list[bytes]:
         star = line.find(b"*", a, end)
         out.append(line[a : star + 3] if star >= 0 else line[a:end])
     return out
-
-
-def _clock_time(line: bytes, previous: float) -> float:
-    """UNIX time of a valid ZDA or RMC sentence (date and UTC time), else `previous`."""
-    try:
-        msg = pynmea2.parse(line.decode("ascii"), check=True)
-        stamp = msg.datetime  # ZDA and RMC both carry date + time
-    except (pynmea2.ParseError, UnicodeDecodeError, ValueError, AttributeError, TypeError):
-        return previous
-    if stamp is None:
-        return previous
-    if stamp.tzinfo is None:
-        stamp = stamp.replace(tzinfo=dt.timezone.utc)
-    return stamp.timestamp()
 
 
 def _ais_time(clock: float, second: int) -> float:
@@ -311,7 +311,7 @@ def _merge_static(s: StaticData, d: dict) -> None:
 
 
 def dead_reckon(
-    positions: AisPositions, mmsi: int, times: Any, *, max_age: float = math.inf
+    positions: AisPositions, mmsi: int, times: ArrayLike, *, max_age: float = math.inf
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Positions of one target at `times` (UNIX s, any shape) by dead reckoning from its
     latest report at or before each time: straight line at the reported speed over ground

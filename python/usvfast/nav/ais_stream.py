@@ -1,20 +1,15 @@
 """AIS logs as a recording stream (type `ais`): receive times per line, decoded by
 `usvfast.nav.ais.read_ais`, one item per position report.
 
-AIS payloads carry only the UTC second, so each line needs a receive time. Two common logger
-formats are recognised:
-- an NMEA 4.0 tag block with a `c:` (UNIX time) field: `\\s:rx1,c:1686909600*5C\\!AIVDM,...`
-  (seconds; values above 1e11 are taken as milliseconds);
-- a leading UNIX time before the sentence, separated by a space, tab, comma or semicolon:
-  `1686909600.25 !AIVDM,...`.
-Reports from lines without a receive time cannot be placed in time: they are counted as damaged
-(with the reader's own damaged and incomplete sentences).
+AIS payloads carry only the UTC second, so each report needs a receive time: the line's NMEA
+4.0 tag block `c:` field (`\\s:rx1,c:1686909600*5C\\!AIVDM,...`), a leading UNIX time
+(`1686909600.25 !AIVDM,...`) or the log's own ZDA/RMC clock (see `usvfast.nav.linetime`).
+Reports that cannot be placed in time are counted as damaged (with the reader's own damaged
+and incomplete sentences); `usvfast inspect` still summarises a log with no time at all.
 """
 
 from __future__ import annotations
 
-import math
-import re
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,18 +18,6 @@ from typing import Any
 import numpy as np
 
 from usvfast.nav.replay import StreamSpec
-
-_TAG_TIME = re.compile(rb"^\\[^\\]*?\bc:(\d+(?:\.\d+)?)[^\\]*\\")
-_PREFIX_TIME = re.compile(rb"^\s*(\d{9,}(?:\.\d+)?)[\s,;]+(?=[!\\])")
-
-
-def receive_time(line: bytes) -> float:
-    """UNIX receive time of an AIS log line (tag block `c:` or a leading number), NaN if none."""
-    m = _TAG_TIME.match(line) or _PREFIX_TIME.match(line)
-    if m is None:
-        return math.nan
-    t = float(m.group(1))
-    return t / 1000.0 if t > 1e11 else t
 
 
 @dataclass(frozen=True)
@@ -59,14 +42,15 @@ class _AisRecords:
     def __init__(self, path: Path) -> None:
         from usvfast.nav.ais import read_ais
 
-        with path.open("rb") as fh:
-            self.log = read_ais((receive_time(line), line) for line in fh)
+        self.log = read_ais(path)
         p = self.log.positions
         self.timed = np.isfinite(p.time)
-        self.damaged = self.log.n_damaged + self.log.n_incomplete + int((~self.timed).sum())
+        log = self.log
+        self.damaged = log.n_damaged + log.n_incomplete + log.n_bad_tag + int((~self.timed).sum())
         if not np.any(self.timed):
             raise ValueError(
-                f"ais: {path} has no receive times (tag block c: or a leading UNIX time per line)"
+                f"ais: {path} has no receive times (tag block c:, a leading UNIX time per line "
+                "or ZDA/RMC sentences)"
             )
 
     def __iter__(self) -> Iterator[tuple[float, AisReport]]:

@@ -1,7 +1,8 @@
 """`usvfast inspect`: what is in a recording (or a single NMEA/GPX/bag/video file): per stream
 the type, source, item count, time span, mean rate, largest gaps and damaged-record counts,
-and the time span all streams overlap. One pass over each stream, memory constant in the
-number of items (images are not decoded)."""
+and the time span all streams overlap; an AIS log is also decoded and summarised (messages by
+type, MMSIs, positions), with or without receive times. One pass over each stream, memory
+constant in the number of items (images are not decoded)."""
 
 from __future__ import annotations
 
@@ -183,6 +184,123 @@ def recording_for_path(path: Path | str) -> Recording:
     return Recording(p.name, specs)
 
 
+@dataclass(frozen=True)
+class AisContent:
+    """What an AIS log holds, with or without receive times: sentences (AIS sentences seen),
+    messages (decoded), by_type {AIS message type: count}, mmsis (distinct MMSIs of the position
+    and static reports), named (MMSIs
+    with a name from static reports), positions (position reports), with_position (reports
+    with a latitude and longitude), timed (reports with a receive time), own_ship (!AIVDO
+    reports), lat_range/lon_range ((min, max) degrees, None without positions), damaged (bad
+    checksum, undecodable or wrong tag block), incomplete (fragments never completed)."""
+
+    sentences: int
+    messages: int
+    by_type: dict[int, int]
+    mmsis: int
+    named: int
+    positions: int
+    with_position: int
+    timed: int
+    own_ship: int
+    lat_range: tuple[float, float] | None
+    lon_range: tuple[float, float] | None
+    damaged: int
+    incomplete: int
+
+
+def summarize_ais(path: Path | str) -> AisContent:
+    """Decode an AIS log (`usvfast.nav.ais.read_ais`) into an AisContent. Raises ValueError
+    naming the path when nothing decodes."""
+    import numpy as np
+
+    from usvfast.nav.ais import read_ais
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the damage counts are in the summary
+        log = read_ais(path)
+    p = log.positions
+    located = np.isfinite(p.lat_deg) & np.isfinite(p.lon_deg)
+    lat, lon = p.lat_deg[located], p.lon_deg[located]
+    return AisContent(
+        sentences=log.n_sentences,
+        messages=log.n_messages,
+        by_type=dict(log.by_type),
+        mmsis=len(set(p.mmsi.tolist()) | set(log.static)),
+        named=sum(1 for s in log.static.values() if s.name),
+        positions=len(p.time),
+        with_position=int(located.sum()),
+        timed=int(np.isfinite(p.time).sum()),
+        own_ship=int(p.own_ship.sum()),
+        lat_range=(float(lat.min()), float(lat.max())) if lat.size else None,
+        lon_range=(float(lon.min()), float(lon.max())) if lon.size else None,
+        damaged=log.n_damaged + log.n_bad_tag,
+        incomplete=log.n_incomplete,
+    )
+
+
+#: Names of the AIS message types (ITU-R M.1371) for the summary table.
+AIS_TYPE_NAMES = {
+    1: "position report class A",
+    2: "position report class A (assigned)",
+    3: "position report class A (interrogated)",
+    4: "base station report",
+    5: "static and voyage data",
+    6: "binary addressed",
+    7: "binary acknowledge",
+    8: "binary broadcast",
+    9: "SAR aircraft position",
+    10: "UTC/date inquiry",
+    11: "UTC/date response",
+    12: "addressed safety",
+    13: "safety acknowledge",
+    14: "safety broadcast",
+    15: "interrogation",
+    16: "assignment mode command",
+    17: "DGNSS broadcast",
+    18: "position report class B",
+    19: "extended position report class B",
+    20: "data link management",
+    21: "aid-to-navigation report",
+    22: "channel management",
+    23: "group assignment",
+    24: "static data report",
+    25: "single slot binary",
+    26: "multiple slot binary",
+    27: "long-range position report",
+}
+
+
+def render_ais(name: str, c: AisContent, console: Console) -> None:
+    """Print an AisContent: messages by type, then MMSIs, positions and their extent."""
+    table = Table(title=escape(f"AIS: {name}"))
+    table.add_column("type", justify="right")
+    table.add_column("message", justify="left")
+    table.add_column("count", justify="right")
+    for kind, count in c.by_type.items():
+        table.add_row(str(kind), AIS_TYPE_NAMES.get(kind, "-"), str(count))
+    console.print(table)
+    lines = [
+        f"{c.messages} messages from {c.sentences} sentences ({c.damaged} damaged, "
+        f"{c.incomplete} incomplete fragments); {c.mmsis} MMSIs with positions or static "
+        f"data ({c.named} named)",
+        f"{c.positions} position reports ({c.own_ship} own ship), {c.with_position} with a "
+        f"position, {c.timed} with a receive time",
+    ]
+    if c.lat_range is not None and c.lon_range is not None:
+        lines.append(
+            f"positions: latitude {c.lat_range[0]:.5f} to {c.lat_range[1]:.5f}°, "
+            f"longitude {c.lon_range[0]:.5f} to {c.lon_range[1]:.5f}°"
+        )
+    if c.positions and not c.timed:
+        lines.append(
+            "no receive times: the reports cannot be placed in time (tag block c:, a leading "
+            "UNIX time per line or ZDA/RMC sentences give them)"
+        )
+    for line in lines:
+        console.print(line, soft_wrap=True)
+
+
 def _utc(t: float) -> str:
     if not math.isfinite(t):
         return "-"
@@ -249,6 +367,16 @@ def inspect_command(
 ) -> None:
     """Show the streams of a recording: counts, time spans, rates, gaps, damage, overlap."""
     console = Console(width=200)
+    if path.suffix.lower() in AIS_SUFFIXES and path.exists():
+        # An AIS log is decoded and summarised even when it has no receive times.
+        try:
+            content = summarize_ais(path)
+        except ValueError as exc:
+            console.print(f"[red]error:[/red] {escape(str(exc))}", soft_wrap=True)
+            raise typer.Exit(1) from None
+        render_ais(path.name, content, console)
+        if not content.timed:
+            return
     try:
         recording = recording_for_path(path)
     except ValueError as exc:

@@ -28,8 +28,6 @@ import os
 import warnings
 from collections.abc import Iterable
 from dataclasses import dataclass, field
-from functools import reduce
-from operator import xor
 from typing import Any
 
 import numpy as np
@@ -37,6 +35,7 @@ import pynmea2
 
 from usvfast._damage import DamagedRecordsWarning
 from usvfast.nav._damage import iter_lines
+from usvfast.nav._fields import DAY, checksum, day_start, degrees, nearest_day, seconds_of_day
 
 __all__ = [
     "DamagedRecordsWarning",
@@ -49,7 +48,6 @@ __all__ = [
 ]
 
 KNOT = 1852.0 / 3600.0  # m/s
-DAY = 86400.0
 HALF_DAY = 43200.0
 _POSITION_TYPES = {"GGA": 0, "RMC": 1, "GLL": 2}  # priority when several share one time
 _WANTED = {"GGA", "RMC", "GLL", "ZDA", "VTG", "HDT", "THS", "ROT"}
@@ -132,47 +130,13 @@ class NmeaLog:
 
 def _checksum_ok(body: str, given: str) -> bool:
     try:
-        return reduce(xor, body.encode("ascii"), 0) == int(given, 16)
+        return checksum(body.encode("ascii")) == int(given, 16)
     except (ValueError, UnicodeEncodeError):
         return False
 
 
-def _deg(value: str, hemisphere: str) -> float:
-    """ddmm.mmmm + N/S/E/W → signed degrees; NaN when empty."""
-    if not value:
-        return math.nan
-    v = float(value)
-    d = math.floor(v / 100.0)
-    out = d + (v - 100.0 * d) / 60.0
-    if hemisphere in ("S", "W"):
-        return -out
-    if hemisphere not in ("N", "E"):
-        raise ValueError(f"bad hemisphere {hemisphere!r}")
-    return out
-
-
 def _float(value: str) -> float:
     return float(value) if value else math.nan
-
-
-def _tod(value: str) -> float:
-    """hhmmss(.ss) → seconds of day."""
-    if len(value) < 6:
-        raise ValueError(f"bad time {value!r}")
-    h, m, s = int(value[0:2]), int(value[2:4]), float(value[4:])
-    if h > 23 or m > 59 or s >= 61:
-        raise ValueError(f"bad time {value!r}")
-    return h * 3600.0 + m * 60.0 + s
-
-
-def _day(year: int, month: int, day: int) -> float:
-    """UNIX seconds of 00:00 UTC on that date."""
-    return (_dt.date(year, month, day) - _dt.date(1970, 1, 1)).days * DAY
-
-
-def _near(candidate: float, reference: float) -> float:
-    """Shift `candidate` by whole days to within half a day of `reference` (midnight rollover)."""
-    return candidate + DAY * round((reference - candidate) / DAY)
 
 
 def read_nmea(
@@ -253,11 +217,11 @@ def _event(kind: str, talker: str, line: str, body: str) -> tuple:
         return (
             "GGA",
             talker,
-            _tod(d[0]),
+            seconds_of_day(d[0]),
             None,
             (
-                _deg(d[1], d[2]),
-                _deg(d[3], d[4]),
+                degrees(d[1], d[2]),
+                degrees(d[3], d[4]),
                 _float(d[8]),
                 int(d[5]) if d[5] else 0,
                 int(d[6]) if d[6] else -1,
@@ -273,21 +237,27 @@ def _event(kind: str, talker: str, line: str, body: str) -> tuple:
         day = None
         if len(ddmmyy) == 6:
             yy = int(ddmmyy[4:6])
-            day = _day(2000 + yy if yy < 80 else 1900 + yy, int(ddmmyy[2:4]), int(ddmmyy[0:2]))
+            day = day_start(2000 + yy if yy < 80 else 1900 + yy, int(ddmmyy[2:4]), int(ddmmyy[0:2]))
         return (
             "RMC",
             talker,
-            _tod(d[0]),
+            seconds_of_day(d[0]),
             day,
-            (_deg(d[2], d[3]), _deg(d[4], d[5]), quality, _float(d[6]) * KNOT, _float(d[7])),
+            (degrees(d[2], d[3]), degrees(d[4], d[5]), quality, _float(d[6]) * KNOT, _float(d[7])),
         )
     if kind == "GLL":
         status = d[5] if len(d) > 5 else "A"
         mode = d[6] if len(d) > 6 and d[6] else ("A" if status == "A" else "N")
         quality = _MODE_QUALITY.get(mode, 1) if status == "A" else 0
-        return ("GLL", talker, _tod(d[4]), None, (_deg(d[0], d[1]), _deg(d[2], d[3]), quality))
+        return (
+            "GLL",
+            talker,
+            seconds_of_day(d[4]),
+            None,
+            (degrees(d[0], d[1]), degrees(d[2], d[3]), quality),
+        )
     if kind == "ZDA":
-        return ("ZDA", talker, _tod(d[0]), _day(int(d[3]), int(d[2]), int(d[1])), ())
+        return ("ZDA", talker, seconds_of_day(d[0]), day_start(int(d[3]), int(d[2]), int(d[1])), ())
     if kind == "VTG":
         # true course, T, magnetic, M, knots, N, km/h, K, mode
         knots, kmh = _float(d[4]), _float(d[6]) if len(d) > 6 else math.nan
@@ -329,7 +299,7 @@ def _assemble(
             )
         else:
             anchor_i = first_tod
-            anchor_t = _day(date.year, date.month, date.day) + events[first_tod][2]
+            anchor_t = day_start(date.year, date.month, date.day) + events[first_tod][2]
     else:
         anchor_i = first_dated
         anchor_t = events[first_dated][3] + events[first_dated][2]
@@ -338,13 +308,15 @@ def _assemble(
         for i in range(anchor_i - 1, -1, -1):  # backwards from the anchor
             tod = events[i][2]
             if tod is not None:
-                last = _near(last - last % DAY + tod, last)
+                last = nearest_day(last - last % DAY + tod, last)
             times[i] = last if tod is not None else math.nan
         last = anchor_t
         for i in range(anchor_i, len(events)):
             e = events[i]
             if e[2] is not None:
-                last = e[3] + e[2] if e[3] is not None else _near(last - last % DAY + e[2], last)
+                last = (
+                    e[3] + e[2] if e[3] is not None else nearest_day(last - last % DAY + e[2], last)
+                )
                 times[i] = last
     # Time-less sentences take the time of the latest timed sentence before them.
     n_untimed = 0

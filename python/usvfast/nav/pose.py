@@ -21,6 +21,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from usvfast._angles import wrap_2pi, wrap_180_deg, wrap_pi
 from usvfast._core import DimensionError, TimeOrderError
@@ -237,7 +238,7 @@ class PoseTrack:
             heading_offset=heading_offset,
         )
 
-    def at(self, times: Any) -> Pose:
+    def at(self, times: ArrayLike) -> Pose:
         """Pose at reference times (UNIX s, (m,) or scalar). Raises PoseGapError when any
         channel present does not cover a time."""
         t = as_float_array("times", times).reshape(-1)

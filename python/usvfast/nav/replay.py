@@ -37,7 +37,7 @@ import heapq
 import math
 import sys
 import warnings
-from collections.abc import Callable, Iterable, Iterator, Mapping
+from collections.abc import Callable, Generator, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from itertools import count
 from pathlib import Path
@@ -52,7 +52,7 @@ from usvfast.nav._damage import DamagedRecordsWarning
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover - Python 3.10
-    import tomli as tomllib
+    import tomli as tomllib  # pyright: ignore[reportMissingImports]  # (Python 3.10 only)
 
 
 class RecordingError(ValueError):
@@ -576,7 +576,7 @@ class Replay:
         self.decode = decode
         self.counts: dict[str, StreamCounts] = {s.id: StreamCounts() for s in chosen}
 
-    def _stream(self, k: int, spec: StreamSpec) -> Iterator[tuple[float, int, int, Any]]:
+    def _stream(self, k: int, spec: StreamSpec) -> Generator[tuple[float, int, int, Any]]:
         counts = self.counts[spec.id]
         source = open_stream(spec, self.decode)
         window = self.recording.reorder_window
@@ -607,7 +607,7 @@ class Replay:
         finally:
             counts.damaged = int(getattr(source, "damaged", 0))
 
-    def __iter__(self) -> Iterator[ReplayItem]:
+    def __iter__(self) -> Generator[ReplayItem]:
         gens = [self._stream(k, s) for k, s in enumerate(self.specs)]
         try:
             # (time, stream, seq) is unique: tuples never compare the data.

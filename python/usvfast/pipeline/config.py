@@ -29,6 +29,7 @@ from typing import Any
 
 import yaml
 
+from usvfast._validate import instance
 from usvfast.frames import Mount
 from usvfast.nav.replay import STREAM_TYPES, Recording, RecordingError, StreamSpec, _stream
 from usvfast.pipeline import streams as _streams  # noqa: F401  (registers lidar, video_times)
@@ -36,7 +37,7 @@ from usvfast.pipeline import streams as _streams  # noqa: F401  (registers lidar
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover - Python 3.10
-    import tomli as tomllib
+    import tomli as tomllib  # pyright: ignore[reportMissingImports]  # (Python 3.10 only)
 
 __all__ = [
     "SCHEMA",
@@ -442,6 +443,11 @@ def _build(data: dict[str, Any], file: Path) -> PipelineConfig:
 def apply_overrides(data: dict[str, Any], overrides: dict[str, Any] | None) -> dict[str, Any]:
     """A copy of the parsed config with dotted-key overrides applied, e.g.
     {"tracker.prob_detect": 0.9, "lidar.radius": 12.0} (tables are created as needed)."""
+    if not isinstance(data, dict) or not (overrides is None or isinstance(overrides, dict)):
+        raise ConfigError(
+            f"data, overrides: expected dicts, got {type(data).__name__}, "
+            f"{type(overrides).__name__}"
+        )
     out = copy.deepcopy(data)
     for key, value in (overrides or {}).items():
         if not isinstance(key, str) or not key:
@@ -474,4 +480,7 @@ def load_config(path: Path | str, overrides: dict[str, Any] | None = None) -> Pi
 def config_from_dict(data: dict[str, Any], base: Path | str = ".") -> PipelineConfig:
     """Validate a config given as a dict (the parsed TOML); relative paths are taken from
     `base` (a directory)."""
+    if not isinstance(data, dict):
+        raise ConfigError(f"data: expected a dict (the parsed TOML), got {type(data).__name__}")
+    instance("base", base, str, Path)
     return _build(copy.deepcopy(data), Path(base) / "<config>")

@@ -134,7 +134,7 @@ class Pipeline:
         """
         t = float(message.time)
         stream = message.stream
-        data = getattr(message, "data", None)
+        data: Any = getattr(message, "data", None)
         if stream not in self.counts:
             raise ConfigError(
                 f"message.stream: {stream!r} is not a stream of the config "
@@ -256,9 +256,10 @@ class Pipeline:
                 frames_hz=cfg.outputs["frames_hz"] if cfg.outputs["animation"] else 0.0,
                 frame_width=cfg.outputs["frame_width"],
             )
-        first = last = None
+        first: float | None = None
+        last = 0.0
         span = self._nav.end - self._nav.start
-        it = iter(replay)
+        it = replay.__iter__()
         try:
             while True:
                 t0 = time.perf_counter()

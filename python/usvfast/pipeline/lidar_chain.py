@@ -88,12 +88,15 @@ class LidarChain:
         height = settings.get("mount_height")
         # The detector's frame starts at the reference point's height: its mount_height is
         # the reference point's height above the water.
-        if water is None and height is None:
-            raise ValueError(
-                "lidar.waterline_height: missing; give the vessel reference point's height "
-                "above the water (or lidar.mount_height, the sensor's)"
-            )
-        ref_height = float(water) if water is not None else float(height) + float(lever[2])
+        if water is None:
+            if height is None:
+                raise ValueError(
+                    "lidar.waterline_height: missing; give the vessel reference point's height "
+                    "above the water (or lidar.mount_height, the sensor's)"
+                )
+            ref_height = float(height) + float(lever[2])
+        else:
+            ref_height = float(water)
         kw = {k: v for k, v in settings.items() if k in _DETECTOR_KEYS and v is not None}
         kw["mount_height"] = ref_height
         self.config = LidarConfig(

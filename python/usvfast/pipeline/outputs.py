@@ -14,6 +14,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -62,7 +63,7 @@ class OutputWriter:
             self.frames = self._csv("camera_frames/camera_frames.csv", ["time", "file"])
         self.rows = {"tracks": 0, "detections": 0, "nav": 0, "innovations": 0, "frames": 0}
 
-    def _csv(self, name: str, columns: list[str]) -> Any:
+    def _csv(self, name: str, columns: Sequence[str]) -> Any:
         fh = open(self.out / name, "w", newline="")
         self._files.append(fh)
         w = csv.writer(fh)

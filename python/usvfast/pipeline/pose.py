@@ -23,6 +23,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from usvfast import geodesy
 from usvfast.nav.pose import Channel, PoseGapError
@@ -64,7 +65,7 @@ class VesselPose:
         return np.array([self.north, self.east, self.heading])
 
 
-def imu_roll_pitch(orientation_xyzw: Any) -> tuple[np.ndarray, np.ndarray]:
+def imu_roll_pitch(orientation_xyzw: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Roll and pitch (rad, FRD body in NED) from REP-103 quaternions (n, 4) x, y, z, w of
     the body FLU in ENU. Returns two (n,) arrays."""
     q = np.asarray(orientation_xyzw, dtype=np.float64).reshape(-1, 4)
@@ -150,8 +151,8 @@ class NavTrack:
                 f"navigation stream(s) {names}"
             )
         t_fix, lat, lon = fixes[0]
-        origin = config.origin or (float(lat[0]), float(lon[0]), 0.0)
-        n, e, _ = geodesy.geodetic2ned(lat, lon, np.zeros_like(lat), *origin)
+        lat0, lon0, h0 = config.origin or (float(lat[0]), float(lon[0]), 0.0)
+        n, e, _ = geodesy.geodetic2ned(lat, lon, np.zeros_like(lat), lat0, lon0, h0)
         t_head, head = headings[0]
         order = np.argsort(t_head, kind="stable")
         t_head, head = t_head[order], head[order]
@@ -183,7 +184,7 @@ class NavTrack:
                 0.0,
                 gap,
             )
-        return cls(origin, position, heading, attitude, damaged)
+        return cls((lat0, lon0, h0), position, heading, attitude, damaged)
 
     def pose_at(self, t: float) -> VesselPose | None:
         """The pose at UNIX time t, or None when the GNSS does not cover t (a gap). Without
@@ -223,7 +224,7 @@ def _interp(
     return values[i] + f * d
 
 
-def _read_nav(spec: Any) -> tuple[np.ndarray, ...]:
+def _read_nav(spec: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
     """(fix times, lat, lon, heading times, headings rad, damaged) of one navigation stream."""
     from usvfast.nav.nmea import read_nmea
 
@@ -284,7 +285,7 @@ def parse_sentence(sentence: str) -> tuple[str, tuple[float, ...]] | None:
     import pynmea2
 
     try:
-        msg = pynmea2.parse(sentence.strip(), check=True)
+        msg: Any = pynmea2.parse(sentence.strip(), check=True)
     except (pynmea2.ParseError, ValueError, AttributeError):
         return None
     kind = type(msg).__name__
@@ -323,7 +324,7 @@ class LivePose:
     def __init__(
         self,
         origin: tuple[float, float, float] | None = None,
-        lever_arm: Any = (0.0, 0.0, 0.0),
+        lever_arm: ArrayLike = (0.0, 0.0, 0.0),
         max_gap: float = 2.0,
     ) -> None:
         self.origin = origin

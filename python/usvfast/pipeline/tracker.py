@@ -212,6 +212,7 @@ class StoneSoupTracker(_Base):
         def by_time(seconds: float | None, steps: int) -> Any:
             if s["deletion"] == "steps":
                 return UpdateTimeStepsDeleter(time_steps_since_update=steps)
+            assert seconds is not None  # a time deleter always has its seconds
             return UpdateTimeDeleter(timedelta(seconds=seconds))
 
         deleter: Any = by_time(s["delete_after_s"], s["delete_steps"])
@@ -299,10 +300,10 @@ class StoneSoupTracker(_Base):
         pp = np.array([np.asarray(tr.covar, float) for tr in order]).reshape(-1, 4, 4)
         rows = np.full(len(order), -1, dtype=np.int64)
         for i, tr in enumerate(order):
-            st = tr.state
-            if not isinstance(st, Update) or st.timestamp != ts:
+            st: Any = tr.state  # Stone Soup's State; an Update carries its hypothesis
+            if not isinstance(st, Update) or tr.timestamp != ts:
                 continue
-            hyp = st.hypothesis
+            hyp: Any = st.hypothesis
             if hasattr(hyp, "measurement"):  # a single hypothesis (GNN, the initiator)
                 best = hyp if hyp else None
             else:  # JPDA: the most probable detection of the mixture

@@ -18,6 +18,7 @@ Example::
 
 from __future__ import annotations
 
+import bisect
 import csv
 import datetime as _dt
 import math
@@ -28,11 +29,13 @@ from typing import Any
 
 import numpy as np
 import pynmea2
+from numpy.typing import ArrayLike
 
 from usvfast._damage import DamageCounter
 from usvfast.nav._damage import iter_lines
+from usvfast.nav._fields import DAY, day_start, degrees, nearest_day, seconds_of_day
+from usvfast.nav.linetime import LogClock, line_time, tag_block_ok
 from usvfast.nav.nmea import KNOT
-from usvfast.radar.clock import LogClock, line_time, tag_block_ok
 
 __all__ = [
     "RadarPlots",
@@ -102,21 +105,44 @@ _COLUMNS = (
 _NAN_ROW = {c: math.nan for c in _COLUMNS} | {"bearing_true": True, "target_number": -1}
 
 
+def _in_time_order(times: list[float]) -> list[int]:
+    """Indices of the longest run of `times` in non-decreasing order (a longest
+    non-decreasing subsequence, O(n log n)), the earliest rows among equally long runs: the
+    fewest rows dropped to restore time order, so one damaged time, early or late, costs its
+    own row and not the rows after it."""
+    # longest[i]: the longest non-decreasing run starting at row i (from the end, backwards)
+    longest = [0] * len(times)
+    tails: list[float] = []
+    for i in range(len(times) - 1, -1, -1):
+        k = bisect.bisect_right(tails, -times[i])
+        if k == len(tails):
+            tails.append(-times[i])
+        else:
+            tails[k] = -times[i]
+        longest[i] = k + 1
+    out: list[int] = []
+    need, last = len(tails), -math.inf
+    for i, t in enumerate(times):
+        if need and longest[i] == need and t >= last:
+            out.append(i)
+            need, last = need - 1, t
+    return out
+
+
 def _build(rows: list[dict], counter: DamageCounter, **counts: int) -> RadarPlots:
-    """Rows in time order -> RadarPlots; rows earlier than the previous kept row are skipped."""
+    """Rows in time order -> RadarPlots; the fewest rows out of time order are skipped."""
+    keep = set(_in_time_order([r["time"] for r in rows]))
     kept: list[dict] = []
-    last = -math.inf
-    for r in rows:
-        if r["time"] < last:
-            counter.add(f"time {r['time']:.3f} before the previous plot ({last:.3f})")
+    for i, r in enumerate(rows):
+        if i not in keep:
+            counter.add(f"time {r['time']:.3f} out of time order")
             continue
         kept.append(r)
-        last = r["time"]
     arrays: dict[str, np.ndarray] = {}
     for c in _COLUMNS:
         dtype = np.bool_ if c == "bearing_true" else np.int64 if c == "target_number" else float
         arrays[c] = np.array([r[c] for r in kept], dtype=dtype)
-    return RadarPlots(**arrays, n_damaged=counter.count, **counts)
+    return RadarPlots(**arrays, n_damaged=counter.count, **counts)  # pyright: ignore[reportArgumentType]  # (arrays by field name)
 
 
 def read_radar_csv(path: str | os.PathLike) -> RadarPlots:
@@ -229,18 +255,17 @@ def _time_of_day(stamp: _dt.time | None, t_line: float, t_clock: float, date: An
         if math.isfinite(t_clock):
             return t_clock
         raise ValueError("no time")
-    tod = stamp.hour * 3600.0 + stamp.minute * 60.0 + stamp.second + stamp.microsecond * 1e-6
+    tod = seconds_of_day(stamp)
     if math.isfinite(t_clock):
-        day0 = math.floor(t_clock / 86400.0) * 86400.0
-        t = day0 + tod
-        return t + 86400.0 * round((t_clock - t) / 86400.0)
+        return nearest_day(math.floor(t_clock / DAY) * DAY + tod, t_clock)
     if date is None:
         raise ValueError("time of day without a date (no ZDA/RMC in the log and no date=)")
-    return (date - _dt.date(1970, 1, 1)).days * 86400.0 + tod
+    return day_start(date.year, date.month, date.day) + tod
 
 
-def _target_row(msg: Any, t_line: float, t_clock: float, date: Any) -> dict | None:
-    if isinstance(msg, pynmea2.types.talker.TTM):
+def _target_row(sentence: Any, t_line: float, t_clock: float, date: Any) -> dict | None:
+    msg: Any = sentence  # pynmea2 fields are typed by the sentence's field table, not here
+    if type(sentence).__name__ == "TTM":
         if msg.status == "L":
             return None
         unit = _DIST_UNITS[msg.dist_unit or "N"]
@@ -261,7 +286,7 @@ def _target_row(msg: Any, t_line: float, t_clock: float, date: Any) -> dict | No
         )
     if msg.target_status == "L":
         return None
-    lat, lon = _deg(msg.lat, msg.lat_dir), _deg(msg.lon, msg.lon_dir)
+    lat, lon = degrees(msg.lat, msg.lat_dir), degrees(msg.lon, msg.lon_dir)
     if not (math.isfinite(lat) and math.isfinite(lon)) or abs(lat) > 90 or abs(lon) > 180:
         raise ValueError("TLL without a valid position")
     return dict(
@@ -273,19 +298,7 @@ def _target_row(msg: Any, t_line: float, t_clock: float, date: Any) -> dict | No
     )
 
 
-def _deg(value: str, hemisphere: str) -> float:
-    """NMEA ddmm.mmmm + hemisphere -> signed degrees (NaN when empty)."""
-    if not value:
-        return math.nan
-    v = float(value)
-    d = math.floor(v / 100.0)
-    out = d + (v - 100.0 * d) / 60.0
-    if hemisphere not in ("N", "S", "E", "W"):
-        raise ValueError(f"bad hemisphere {hemisphere!r}")
-    return -out if hemisphere in ("S", "W") else out
-
-
-def plots_from_ned(times: Any, measurements: Iterable[Any]) -> RadarPlots:
+def plots_from_ned(times: ArrayLike, measurements: Iterable[Any]) -> RadarPlots:
     """Plots already in NED (e.g. `load_joyride(...).times, .measurements`): scan i at times[i]
     (UNIX s) holds the (k_i, 2) array (north, east) of metres."""
     rows: list[dict] = []

@@ -18,6 +18,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Ellipse, Polygon
 from scipy.stats import chi2
 
+from usvfast._validate import as_float_array, instance
 from usvfast.metrics.consistency import chi2_band
 from usvfast.metrics.protocol import Matches
 from usvfast.metrics.tables import Detections, Innovations, Nav, Tracks, Truth
@@ -34,6 +35,7 @@ WALL_COLOR = "#8c8c8c"
 
 def track_colors(ids: np.ndarray) -> dict[int, Any]:
     """A distinct colour per track id (tab20 cycled, in id order)."""
+    ids = as_float_array("ids", ids).ravel()
     from matplotlib import colormaps
 
     cmap = colormaps["tab20"]
@@ -43,6 +45,12 @@ def track_colors(ids: np.ndarray) -> dict[int, Any]:
 def ellipse(mean_ne: np.ndarray, cov_ne: np.ndarray, n_sigma: float = 2.0, **kw: Any) -> Ellipse:
     """The `n_sigma` ellipse of a NED position covariance (2, 2) m², in map axes (x = east,
     y = north)."""
+    mean_ne = as_float_array("mean_ne", mean_ne, ndim=1)
+    cov_ne = as_float_array("cov_ne", cov_ne, ndim=2)
+    if mean_ne.shape != (2,) or cov_ne.shape != (2, 2):
+        raise ValueError(
+            f"mean_ne, cov_ne: expected (2,) and (2, 2), got {mean_ne.shape}, {cov_ne.shape}"
+        )
     # covariance in plot axes (east, north)
     c = np.array([[cov_ne[1, 1], cov_ne[0, 1]], [cov_ne[0, 1], cov_ne[0, 0]]])
     vals, vecs = np.linalg.eigh(c)
@@ -54,6 +62,9 @@ def ellipse(mean_ne: np.ndarray, cov_ne: np.ndarray, n_sigma: float = 2.0, **kw:
 
 def draw_scene(ax: Axes, scene: dict[str, Any] | None) -> list[Any]:
     """Harbour walls (grey, polygons filled) and moored boats (brown outlines); legend handles."""
+    instance("ax", ax, Axes)
+    if scene is not None:
+        instance("scene", scene, dict)
     handles: list[Any] = []
     if not scene:
         return handles
@@ -86,13 +97,21 @@ def map_extent(
     """The points a map frames: tracks, detections, the USV path, and the truth within `near`
     m of the USV path (all of it without a path), so that far-away objects that were never
     in view do not shrink the action to a corner."""
+    for name, v, kind in (
+        ("tracks", tracks, Tracks),
+        ("detections", detections, Detections),
+        ("nav", nav, Nav),
+        ("truth", truth, Truth),
+    ):
+        if v is not None:
+            instance(name, v, kind)
     parts = [tracks.positions]
     if detections is not None and len(detections.time):
         parts.append(detections.positions)
     if nav is not None and len(nav.time):
         parts.append(nav.positions)
         if truth is not None and len(truth.time):
-            from scipy.spatial import cKDTree
+            from scipy.spatial import cKDTree  # pyright: ignore[reportAttributeAccessIssue]
 
             d, _ = cKDTree(nav.positions).query(truth.positions)
             parts.append(truth.positions[d <= near])
@@ -104,12 +123,13 @@ def map_extent(
 def fit_limits(ax: Axes, parts: list[np.ndarray], margin: float = 5.0) -> None:
     """Map axes limits around `parts` (arrays of (n, 2) NED points; 0.5–99.5 percentiles plus
     `margin` m), widened so that equal metres fill the axes box."""
+    instance("ax", ax, Axes)
     pts = np.concatenate([p.reshape(-1, 2) for p in parts if len(p)] or [np.zeros((1, 2))])
     pts = pts[np.all(np.isfinite(pts), axis=1)]
     lo, hi = np.percentile(pts, 0.5, axis=0) - margin, np.percentile(pts, 99.5, axis=0) + margin
     # widen the shorter side so that equal metres fill the axes box
     pos = ax.get_position()
-    fw, fh = ax.figure.get_size_inches()
+    fw, fh = ax.figure.get_size_inches()  # pyright: ignore[reportAttributeAccessIssue]
     ratio = (pos.width * fw) / max(pos.height * fh, 1e-9)  # box width / height
     mid, half = (lo + hi) / 2, (hi - lo) / 2  # (north, east)
     if half[1] < half[0] * ratio:
@@ -123,6 +143,9 @@ def fit_limits(ax: Axes, parts: list[np.ndarray], margin: float = 5.0) -> None:
 
 def draw_usv(ax: Axes, nav: Nav | None, upto: float | None = None) -> list[Any]:
     """USV path (black) and a heading arrow at its last pose; legend handles."""
+    instance("ax", ax, Axes)
+    if nav is not None:
+        instance("nav", nav, Nav)
     if nav is None or len(nav.time) == 0:
         return []
     sel = np.ones(len(nav.time), bool) if upto is None else nav.time <= upto
@@ -144,6 +167,9 @@ def draw_usv(ax: Axes, nav: Nav | None, upto: float | None = None) -> list[Any]:
 
 def draw_truth(ax: Axes, truth: Truth | None, upto: float | None = None, label: bool = True):
     """Truth paths (green dashed) with object labels; legend handles."""
+    instance("ax", ax, Axes)
+    if truth is not None:
+        instance("truth", truth, Truth)
     if truth is None or len(truth.time) == 0:
         return []
     kinds = truth.kinds()
@@ -179,6 +205,9 @@ def draw_detections(
     size: float = 9.0,
 ) -> list[Any]:
     """Detections by sensor (LiDAR blue dots, camera orange crosses); legend handles."""
+    instance("ax", ax, Axes)
+    if det is not None:
+        instance("det", det, Detections)
     if det is None or len(det.time) == 0:
         return []
     handles = []
@@ -210,6 +239,8 @@ def draw_tracks(
 ) -> list[Any]:
     """Track lines coloured by id, 2σ covariance ellipses along them (semi-transparent, as
     the thesis's Fig. 6.1), the id at each track's last point; legend handles."""
+    instance("ax", ax, Axes)
+    instance("tracks", tracks, Tracks)
     has_cov = np.all(np.isfinite(tracks.covariances.reshape(len(tracks.time), 4)), axis=1)
     placed: list[np.ndarray] = []
     for tid in np.unique(tracks.track_id):
@@ -273,6 +304,7 @@ def map_figure(
     origin: tuple[float, float, float] | None = None,
 ) -> Figure:
     """The run's map (module doc): harbour, USV path, detections, truth, tracks."""
+    instance("tracks", tracks, Tracks)
     fig = Figure(figsize=(9, 8), dpi=110)
     ax = fig.add_subplot(1, 1, 1)
     handles = draw_scene(ax, scene)
@@ -299,6 +331,7 @@ def nis_figure(innovations: Innovations, confidence: float = 0.95, title: str = 
     """NIS of every track update over time, by sensor, with the per-update χ² band, a moving
     ANIS and the ANIS band of the whole run (the thesis's Fig. 6.5); right: the NIS histogram
     against the χ² density."""
+    instance("innovations", innovations, Innovations)
     fig = Figure(figsize=(11, 4.8), dpi=110)
     ax, hx = fig.subplots(1, 2, gridspec_kw={"width_ratios": [2.6, 1]})
     t0 = float(innovations.time.min()) if len(innovations.time) else 0.0
@@ -364,6 +397,7 @@ def errors_figure(
     """Per-object position error |track − truth| (m) over time (top) and NEES (bottom, log,
     with the one-sample χ²(2) band); one colour per target object, labelled by `names` (the
     truth file's ids) when given."""
+    instance("matches", matches, Matches)
     from matplotlib import colormaps
 
     def label(oid: int) -> str:

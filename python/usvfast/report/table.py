@@ -9,6 +9,8 @@ from typing import Any
 from rich.console import Console
 from rich.table import Table
 
+from usvfast._validate import instance
+
 
 def _f(v: Any, fmt: str = "{:.3f}") -> str:
     if v is None or (isinstance(v, float) and math.isnan(v)):
@@ -25,6 +27,7 @@ def _band(c: dict[str, Any] | None) -> str:
 
 def summary_tables(metrics: dict[str, Any]) -> list[Table]:
     """The run table and the per-object table of a `metrics.json` dict."""
+    instance("metrics", metrics, dict)
     th = metrics.get("thesis", {})
     run = Table(title="Tracking metrics (thesis §4.3, matching §7.3.1)", show_lines=False)
     run.add_column("metric")

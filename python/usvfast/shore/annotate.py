@@ -6,13 +6,15 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from usvfast._validate import image as check_image
 from usvfast.shore.horizon import HorizonLine
 
 
 def id_colour(track_id: int) -> tuple[int, int, int]:
     """A stable BGR colour of a track id."""
     rng = np.random.default_rng(track_id * 7919 + 13)
-    return tuple(int(v) for v in rng.integers(64, 256, 3))
+    b, g, r = (int(v) for v in rng.integers(64, 256, 3))
+    return b, g, r
 
 
 def draw_frame(
@@ -25,6 +27,9 @@ def draw_frame(
 ) -> np.ndarray:
     """A copy of `image` (BGR) with detections (k, 4), tracks (ids (t,), boxes (t, 4)),
     the horizon and a text label in the top-left corner."""
+    check_image("image", image)
+    if not isinstance(label, str):
+        raise TypeError(f"label: expected str, got {type(label).__name__}")
     out = image.copy()
     w = out.shape[1]
     if horizon is not None:

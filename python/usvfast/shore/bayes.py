@@ -19,6 +19,7 @@ import cv2
 import numpy as np
 from scipy.cluster.hierarchy import fcluster, linkage
 
+from usvfast._validate import instance
 from usvfast.shore.boxes import Detections
 from usvfast.shore.daynight import DayNightClassifier, FrameClass
 
@@ -35,11 +36,11 @@ def make_keypoint_detector(kind: KeypointDetector, max_keypoints: int = 500) -> 
             raise ValueError("keypoints: 'star' needs opencv-contrib (cv2.xfeatures2d); use 'sift'")
         return xf.StarDetector_create()
     if kind == "sift":
-        return cv2.SIFT_create(nfeatures=max_keypoints)
+        return cv2.SIFT_create(nfeatures=max_keypoints)  # pyright: ignore[reportAttributeAccessIssue]
     if kind == "orb":
-        return cv2.ORB_create(nfeatures=max_keypoints)
+        return cv2.ORB_create(nfeatures=max_keypoints)  # pyright: ignore[reportAttributeAccessIssue]
     if kind == "fast":
-        return cv2.FastFeatureDetector_create()
+        return cv2.FastFeatureDetector_create()  # pyright: ignore[reportAttributeAccessIssue]
     raise ValueError(f"keypoints: expected 'sift', 'star', 'orb' or 'fast', got {kind!r}")
 
 
@@ -79,6 +80,10 @@ class BayesDetector:
         config: BayesDetectorConfig | None = None,
         classifier: DayNightClassifier | None = None,
     ) -> None:
+        if config is not None:
+            instance("config", config, BayesDetectorConfig)
+        if classifier is not None:
+            instance("classifier", classifier, DayNightClassifier)
         self.config = config or BayesDetectorConfig()
         self.classifier = classifier or DayNightClassifier.default()
         self.kernel = np.ones((self.config.morph_kernel,) * 2, np.uint8)

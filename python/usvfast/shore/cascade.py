@@ -20,6 +20,7 @@ import cv2
 import numpy as np
 
 from usvfast._core import HaarCascade
+from usvfast._files import read_image
 from usvfast.shore.boxes import Detections, iou_matrix
 from usvfast.shore.horizon import detect_horizon
 from usvfast.shore.mardct import AnnotatedFrame
@@ -76,7 +77,7 @@ def positives(frames: Sequence[AnnotatedFrame], cfg: CascadeConfig) -> np.ndarra
     """(p, 30, 60) uint8 windows of every annotated boat and of its mirror image."""
     out = []
     for f in frames:
-        gray = preprocess(cv2.imread(str(f.path), cv2.IMREAD_COLOR), cfg)
+        gray = preprocess(read_image(f.path, cv2.IMREAD_COLOR), cfg)
         for b in f.boxes:
             win = crop_window(gray, b)
             if win is not None:
@@ -91,7 +92,7 @@ def negative_pool(frames: Sequence[AnnotatedFrame], cfg: CascadeConfig) -> np.nd
     per_frame = max(cfg.pool_size // max(len(frames), 1), 1)
     out = []
     for f in frames:
-        gray = preprocess(cv2.imread(str(f.path), cv2.IMREAD_COLOR), cfg)
+        gray = preprocess(read_image(f.path, cv2.IMREAD_COLOR), cfg)
         h, w = gray.shape
         got, tries = 0, 0
         centres = f.boxes[:, :2] + f.boxes[:, 2:] / 2
@@ -180,7 +181,7 @@ def false_windows(
     out: list[np.ndarray] = []
     for k in rng.permutation(len(frames)):
         f = frames[k]
-        image = cv2.imread(str(f.path), cv2.IMREAD_COLOR)
+        image = read_image(f.path, cv2.IMREAD_COLOR)
         gray = preprocess(image, detector.config)
         raw = detector.raw_windows(image)
         if len(raw) and len(f.boxes):

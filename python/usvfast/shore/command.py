@@ -35,7 +35,10 @@ def shore_command(
     detections.txt (MOTChallenge), an annotated video and summary.json into OUT."""
     try:
         config = ShoreConfig(
-            detector=detector, tracker=tracker, horizon_filter=horizon_filter, cascade_model=model
+            detector=detector,  # pyright: ignore[reportArgumentType]  # (ShoreConfig checks it)
+            tracker=tracker,  # pyright: ignore[reportArgumentType]
+            horizon_filter=horizon_filter,
+            cascade_model=model,
         )
         s = run_shore(
             input_path, out, config, video=video, progress=progress, max_frames=max_frames

@@ -22,6 +22,9 @@ from typing import Literal
 import cv2
 import numpy as np
 
+from usvfast._validate import as_float_array
+from usvfast._validate import image as check_image
+
 FrameClass = Literal["eo", "ir"]
 CLASSES: tuple[FrameClass, FrameClass] = ("eo", "ir")
 
@@ -33,6 +36,7 @@ MIN_SIGMA = 1.0
 def frame_features(image: np.ndarray) -> np.ndarray:
     """(3,) features of a BGR or grey uint8 frame: intensity mean and standard deviation
     (eq. 2, over all pixels) and mean chroma, 8-bit levels."""
+    check_image("image", image)
     if image.ndim == 2:
         gray, chroma = image.astype(float), 0.0
     elif image.ndim == 3 and image.shape[2] == 3:
@@ -48,6 +52,11 @@ def frame_features(image: np.ndarray) -> np.ndarray:
 
 def gaussian_density(x: np.ndarray, mu: np.ndarray, sigma: np.ndarray) -> np.ndarray:
     """f(x) = exp(−(x − μ)² / 2σ²) / sqrt(2πσ²)  (eq. 3), elementwise."""
+    x = as_float_array("x", x)
+    mu = as_float_array("mu", mu)
+    sigma = as_float_array("sigma", sigma)
+    if np.any(sigma <= 0):
+        raise ValueError("sigma: must be > 0")
     return np.exp(-((x - mu) ** 2) / (2 * sigma**2)) / np.sqrt(2 * np.pi * sigma**2)
 
 

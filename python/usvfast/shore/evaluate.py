@@ -32,6 +32,7 @@ import cv2
 from rich.console import Console
 from rich.table import Table
 
+from usvfast._files import read_image
 from usvfast.shore.bayes import BayesDetector, BayesDetectorConfig
 from usvfast.shore.boxes import Detections
 from usvfast.shore.cascade import CascadeConfig, train_detector
@@ -74,9 +75,7 @@ def run_detectors(
     cache = FrameCache(raw={k: [] for k in settings})
     detectors = {k: BayesDetector(c) for k, c in settings.items()}
     for f in frames:
-        image = cv2.imread(str(f.path), cv2.IMREAD_COLOR)
-        if image is None:
-            raise ValueError(f"data: cannot read {f.path}")
+        image = read_image(f.path, cv2.IMREAD_COLOR)
         first = next(iter(detectors.values()))
         infrared = first.classifier.classify(image) == "ir"
         cache.horizon.append(detect_horizon(image, infrared=infrared, config=horizon_cfg))
@@ -92,7 +91,7 @@ def kept(
     out = []
     for f, det, hz in zip(frames, cache.raw[key], cache.horizon, strict=True):
         if use_horizon:
-            h = cv2.imread(str(f.path), cv2.IMREAD_UNCHANGED).shape[0]
+            h = read_image(f.path, cv2.IMREAD_UNCHANGED).shape[0]
             det = det.subset(horizon_keep(det, hz, h, cfg))
         out.append(det)
     return out
@@ -166,7 +165,7 @@ def evaluate(
             row["cascade_train_s"] = time.perf_counter() - t0
             row["cascade_stages"] = len(report["stages"])
             caches[v].raw["cascade"] = [
-                detector.detect(cv2.imread(str(f.path), cv2.IMREAD_COLOR)) for f in frames
+                detector.detect(read_image(f.path, cv2.IMREAD_COLOR)) for f in frames
             ]
             for use_h in (False, True):
                 c = count(frames, kept(frames, caches[v], "cascade", use_h, hcfg))
@@ -254,7 +253,7 @@ def print_tables(results: dict, console: Console | None = None) -> None:
 def main(argv: Sequence[str] | None = None) -> None:
     """Command-line entry point (module doc)."""
     p = argparse.ArgumentParser(
-        prog="python -m usvfast.shore.evaluate", description=__doc__.split("\n")[0]
+        prog="python -m usvfast.shore.evaluate", description=(__doc__ or "").partition("\n")[0]
     )
     p.add_argument("--data", type=Path, default=None, help="MarDCT training/annotations folder")
     p.add_argument("--json", type=Path, default=None, help="Write the results as JSON here")

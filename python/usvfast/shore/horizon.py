@@ -16,6 +16,8 @@ from typing import Literal
 import cv2
 import numpy as np
 
+from usvfast._validate import image as check_image
+from usvfast._validate import instance
 from usvfast.shore.boxes import Detections
 
 HorizonKind = Literal["water-sky", "water-coast"]
@@ -81,7 +83,8 @@ class HorizonLine:
 
 def normalise_ir(gray: np.ndarray) -> np.ndarray:
     """Scale and shift an IR frame to the full 0–255 range (min–max normalisation)."""
-    return cv2.normalize(gray, None, 0, 255, cv2.NORM_MINMAX)
+    check_image("gray", gray)
+    return cv2.normalize(gray, None, 0, 255, cv2.NORM_MINMAX)  # pyright: ignore[reportCallIssue, reportArgumentType]
 
 
 def _pairs_differ(
@@ -122,6 +125,9 @@ def detect_horizon(
     largest share of differing pairs wins (ties: the strongest Hough line). The band above it
     is examined for texture: water–coast when its edge density exceeds `coast_edge_density`.
     """
+    check_image("image", image)
+    if config is not None:
+        instance("config", config, HorizonConfig)
     cfg = config or HorizonConfig()
     if image.ndim == 3:
         gray = cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
@@ -167,6 +173,10 @@ def horizon_keep(
 ) -> np.ndarray:
     """Boolean mask (k,) of the detections to keep: those whose bottom edge is not more than
     `drop_margin` × height above the line at the box centre (all kept without a line)."""
+    instance("detections", detections, Detections)
+    if horizon is not None:
+        instance("horizon", horizon, HorizonLine)
+    instance("config", config, HorizonConfig)
     if horizon is None or len(detections) == 0:
         return np.ones(len(detections), dtype=bool)
     b = detections.boxes

@@ -94,7 +94,7 @@ class ShoreChain:
         self.classifier = classifier or DayNightClassifier.default()
         self.detector = BayesDetector(cfg.bayes, self.classifier)
         self.cascade: CascadeDetector | None = None
-        if cfg.detector == "cascade":
+        if cfg.detector == "cascade" and cfg.cascade_model is not None:  # (post_init: given)
             path = Path(cfg.cascade_model)
             if not path.is_file():
                 raise ValueError(f"cascade_model: {path} is not a file")
@@ -162,11 +162,11 @@ class ShoreSummary:
 
 
 def _open_writer(path: Path, size: tuple[int, int], fps: float) -> tuple[cv2.VideoWriter, Path]:
-    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), fps, size)
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), fps, size)  # pyright: ignore[reportAttributeAccessIssue]
     if writer.isOpened():
         return writer, path
     alt = path.with_suffix(".avi")
-    return cv2.VideoWriter(str(alt), cv2.VideoWriter_fourcc(*"MJPG"), fps, size), alt
+    return cv2.VideoWriter(str(alt), cv2.VideoWriter_fourcc(*"MJPG"), fps, size), alt  # pyright: ignore[reportAttributeAccessIssue]
 
 
 def run_shore(

@@ -74,20 +74,22 @@ class AdaptiveTracker:
                 return Detections()
             self._start(cand)
             return Detections(cand[None], np.ones(1), np.array([-1]))
+        prev = self.prev_box
+        assert self.p is not None and prev is not None  # set with x by _start
         # X' = F X, P' = F P Fᵀ + Q  (eq. 10, prediction)
         xs, ps = predict_states(
             self.x[None], self.p[None], transition_matrix=self.f, process_noise=self.q
         )
-        self.x, self.p = xs[0], ps[0]
+        x, p = self.x, self.p = xs[0], ps[0]
         accepted = cand is not None and (
             self._accept(cand) or self.rejections >= self.config.max_rejections
         )
-        if accepted:
+        if cand is not None and accepted:
             centre = cand[:2] + cand[2:] / 2
             # K = P' Hᵀ (H P' Hᵀ + R)⁻¹, X = X' + K (Z − H X')  (eq. 10, update)
             xs, ps, _ = update_states(
-                self.x[None],
-                self.p[None],
+                x[None],
+                p[None],
                 centre[None],
                 measurement_matrix=self.h,
                 measurement_noise=self.r,
@@ -100,8 +102,8 @@ class AdaptiveTracker:
         if cand is not None:
             self.rejections += 1
         self.last_predicted = True
-        w, h = self.prev_box[2:]
-        box = np.array([self.x[0] - w / 2, self.x[1] - h / 2, w, h])
+        w, h = prev[2:]
+        box = np.array([x[0] - w / 2, x[1] - h / 2, w, h])
         return Detections(box[None], np.full(1, 0.5), np.array([-1]))
 
     def _start(self, box: np.ndarray) -> None:

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from usvfast import _core
+from usvfast._validate import as_float_array, finite_result, instance
 from usvfast.kalman import LinearModel, predict_states, update_states
 from usvfast.shore.appearance import box_histogram, histogram_distance
 from usvfast.shore.boxes import Detections, iou_matrix
@@ -47,13 +48,21 @@ class SortConfig:
 
 def box_to_z(box: np.ndarray) -> np.ndarray:
     """(k, 4) x, y, w, h -> (k, 4) u, v, s, r."""
+    box = as_float_array("box", box)
+    if box.size % 4:
+        raise ValueError(f"box: expected (k, 4) boxes, got shape {box.shape}")
     b = np.asarray(box, dtype=float).reshape(-1, 4)
     w, h = b[:, 2], b[:, 3]
-    return np.column_stack([b[:, 0] + w / 2, b[:, 1] + h / 2, w * h, w / np.maximum(h, 1e-9)])
+    with np.errstate(over="ignore", invalid="ignore"):  # an overflow is refused just below
+        z = np.column_stack([b[:, 0] + w / 2, b[:, 1] + h / 2, w * h, w / np.maximum(h, 1e-9)])
+    return finite_result("z", z, "box")
 
 
 def state_to_box(x: np.ndarray) -> np.ndarray:
     """(k, ≥4) states u, v, s, r, ... -> (k, 4) x, y, w, h (w = sqrt(s r), h = s / w)."""
+    x = as_float_array("x", x)
+    if x.ndim != 2 or x.shape[1] < 4:
+        raise ValueError(f"x: expected (k, >= 4) states, got shape {x.shape}")
     x = np.asarray(x, dtype=float).reshape(len(x), -1)
     s = np.maximum(x[:, 2], 1e-9)
     r = np.maximum(x[:, 3], 1e-9)
@@ -77,6 +86,8 @@ class SortTracker:
     tracks of this frame as (ids (k,), boxes (k, 4) x, y, w, h px, scores (k,))."""
 
     def __init__(self, config: SortConfig | None = None) -> None:
+        if config is not None:
+            instance("config", config, SortConfig)
         self.config = c = config or SortConfig()
         f = np.eye(7)
         f[0, 4] = f[1, 5] = f[2, 6] = 1.0  # u += u̇, v += v̇, s += ṡ per frame
@@ -157,8 +168,9 @@ class SortTracker:
                 t.hits += 1
                 t.time_since_update = 0
                 t.score = float(detections.scores[j])
-                if hists[j] is not None:
-                    t.hist = hists[j] if t.hist is None else 0.7 * t.hist + 0.3 * hists[j]
+                h = hists[j]
+                if h is not None:
+                    t.hist = h if t.hist is None else 0.7 * t.hist + 0.3 * h
         matched_d = {j for _, j in matches}
         new = [j for j in range(len(boxes)) if j not in matched_d]
         if new:

@@ -393,7 +393,7 @@ class HarbourRenderer:
             n, e, yaw = (float(v) for v in m.motion.pose(np.asarray(t)))
             for b in m.bodies:
                 placed = place_body(b, n, e, yaw)
-                bodies.append((placed.shape, placed))
+                bodies.append((placed.box, placed))
         for shape, body in bodies:
             idx = self._candidates(pose, shape)
             if idx is None:

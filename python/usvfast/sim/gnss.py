@@ -21,6 +21,7 @@ magnetic offset (use the GNSS heading, not the IMU yaw).
 from __future__ import annotations
 
 import datetime as _dt
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,6 +29,7 @@ import pynmea2
 from scipy.spatial.transform import Rotation
 
 from usvfast import geodesy
+from usvfast._validate import instance
 from usvfast.sim.scene import World
 
 KNOT = 1852.0 / 3600.0  # m/s
@@ -138,6 +140,13 @@ def simulate_gnss(
     """GGA + RMC + HDT sentences of the USV's antenna at `lever_arm` (body FRD, m) over
     [start, start + duration] UNIX s, in receive order, and the per-epoch truth (of the
     antenna). Deterministic given `seed`."""
+    instance("world", world, World)
+    if errors is not None:
+        instance("errors", errors, GnssErrors)
+    if not (math.isfinite(start) and math.isfinite(duration) and 0 <= duration <= 1e6):
+        raise ValueError(
+            f"start, duration: expected finite, 0 <= duration <= 1e6 s, got {start}, {duration}"
+        )
     errors = errors or GnssErrors()
     rng = np.random.default_rng([seed, 4])
     k = np.arange(int(np.floor(duration * errors.rate + 1e-9)) + 1)
@@ -249,6 +258,13 @@ def simulate_imu(
 ) -> ImuSamples:
     """IMU samples over [start, start + duration] at `rate` Hz (orientation of the wave
     roll/pitch and the heading + `yaw_offset_deg`, noise `attitude_sigma_deg`)."""
+    instance("world", world, World)
+    if not (math.isfinite(start) and math.isfinite(duration) and 0 <= duration <= 1e6):
+        raise ValueError(
+            f"start, duration: expected finite, 0 <= duration <= 1e6 s, got {start}, {duration}"
+        )
+    if not (math.isfinite(rate) and 0 < rate <= 1e4):
+        raise ValueError(f"rate: expected 0 < rate <= 1e4 Hz, got {rate}")
     if not rate > 0:
         raise ValueError(f"rate: expected > 0 Hz, got {rate}")
     rng = np.random.default_rng([seed, 5])

@@ -11,16 +11,24 @@ a numpy Generator, when the object is built).
 from __future__ import annotations
 
 import itertools
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+
+from usvfast._validate import as_float_array
 
 
 def chaikin(points: np.ndarray, iterations: int = 4, closed: bool = False) -> np.ndarray:
     """Corner-cutting smoothing of a polyline (k, 2) (Chaikin): each pass replaces every edge
     by its 1/4 and 3/4 points, so corners become arcs of a few metres. Open polylines keep
     their end points."""
+    points = as_float_array("points", points, ndim=2)
+    if points.shape[1] != 2 or len(points) < 2:
+        raise ValueError(f"points: expected (k >= 2, 2), got shape {points.shape}")
+    if not 0 <= iterations <= 10:
+        raise ValueError(f"iterations: expected 0..10, got {iterations}")
     p = np.asarray(points, dtype=np.float64)
     for _ in range(iterations):
         a = p if closed else p[:-1]
@@ -48,6 +56,14 @@ class PathMotion:
     wobble_period: float = 20.0
 
     def __post_init__(self) -> None:
+        v = as_float_array("vertices", self.vertices, ndim=2)
+        if v.shape[1] != 2 or len(v) < 2:
+            raise ValueError(f"vertices: expected (k >= 2, 2) points, got shape {v.shape}")
+        for name in ("speed", "start", "speed_wobble", "wobble_period"):
+            if not math.isfinite(float(getattr(self, name))):
+                raise ValueError(f"{name}: must be finite")
+        if not self.wobble_period > 0:
+            raise ValueError("wobble_period: must be > 0")
         v = np.asarray(self.vertices, dtype=np.float64)
         if self.closed:
             v = np.vstack([v, v[:1]])
@@ -182,6 +198,12 @@ class DriftMotion:
 
 def point_segment_distance(p: np.ndarray, polyline: np.ndarray) -> float:
     """Smallest distance (m) from point `p` (2,) to a polyline (k, 2)."""
+    p = as_float_array("p", p)
+    polyline = as_float_array("polyline", polyline, ndim=2)
+    if p.shape != (2,) or polyline.shape[1:] != (2,) or len(polyline) < 2:
+        raise ValueError(
+            f"p, polyline: expected (2,) and (k >= 2, 2), got {p.shape}, {polyline.shape}"
+        )
     best = np.inf
     for a, b in itertools.pairwise(np.asarray(polyline, dtype=np.float64)):
         d = b - a

@@ -180,7 +180,7 @@ class _Sim:
                     for t, row in zip(scan.packet_times, scan.packets, strict=True)
                 ]
                 header = make_header(store, scan.stamp, "velodyne")
-                return scan_t(header=header, packets=packets)
+                return scan_t(header=header, packets=packets)  # pyright: ignore[reportArgumentType]
 
             yield _Msg(scan.stamp + 0.004, TOPICS["lidar"][0], build)
 
@@ -275,7 +275,7 @@ def _writer(path: Path, level: int):
     from rosbags.rosbag2.enums import CompressionFormat, CompressionMode
 
     try:
-        from compression import zstd  # Python >= 3.14
+        from compression import zstd  # Python >= 3.14  # pyright: ignore[reportMissingImports]
     except ImportError:
         from backports import zstd  # rosbags' own dependency before 3.14
 
@@ -352,11 +352,11 @@ def write_scene(world: World, path: Path, duration: float) -> None:
             {
                 "id": world.truth_ids()[b.object_id],
                 "name": b.object_id,
-                "north": round(float(b.shape.center[0]), 4),
-                "east": round(float(b.shape.center[1]), 4),
-                "length": round(float(b.shape.length), 4),
-                "width": round(float(b.shape.width), 4),
-                "heading_deg": round(float(np.degrees(b.shape.yaw)), 4),
+                "north": round(float(b.box.center[0]), 4),
+                "east": round(float(b.box.center[1]), 4),
+                "length": round(float(b.box.length), 4),
+                "width": round(float(b.box.width), 4),
+                "heading_deg": round(float(np.degrees(b.box.yaw)), 4),
             }
             for b in world.moored
         ],
@@ -500,7 +500,7 @@ class _D1Writer:
         self.folder = folder
         self._pcap_fh = open(folder / "lidar.pcap", "wb")
         self.pcap = dpkt.pcap.Writer(self._pcap_fh, snaplen=1600, linktype=dpkt.pcap.DLT_EN10MB)
-        fourcc = cv2.VideoWriter_fourcc(*"mp4v")
+        fourcc = cv2.VideoWriter_fourcc(*"mp4v")  # pyright: ignore[reportAttributeAccessIssue]
         self.video = cv2.VideoWriter(str(folder / "camera.mp4"), fourcc, fps, size)
         if not self.video.isOpened():  # pragma: no cover - OpenCV builds without a writer
             raise RuntimeError("OpenCV cannot write mp4 (mp4v) video here")
@@ -513,7 +513,7 @@ class _D1Writer:
     def _udp(self, payload: bytes, port: int) -> bytes:
         dpkt = self.dpkt
         udp = dpkt.udp.UDP(sport=port, dport=port, data=payload)
-        udp.ulen = len(udp)
+        udp.ulen = len(udp)  # pyright: ignore[reportAttributeAccessIssue]
         ip = dpkt.ip.IP(
             src=bytes([192, 168, 1, 201]),
             dst=bytes([255, 255, 255, 255]),

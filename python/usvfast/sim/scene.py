@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from usvfast._validate import instance
 from usvfast.lidar.simulator import BOAT, Box, Wall, harbour_scene
 from usvfast.sim.motion import DriftMotion, PathMotion, Waves, chaikin, point_segment_distance
 
@@ -67,6 +68,14 @@ class Body:
     kind: str
     colour: tuple[int, int, int]
     reflectivity: float
+
+    @property
+    def box(self) -> Box:
+        """The shape of a body that is a Box (movers' bodies, moored hulls); TypeError for a
+        wall."""
+        if not isinstance(self.shape, Box):
+            raise TypeError(f"body {self.object_id!r}: expected a Box shape, got a Wall")
+        return self.shape
 
 
 @dataclass
@@ -129,7 +138,7 @@ class World:
             n, e, _ = m.motion.pose(t)
             out.append((m.object_id, m.kind, n, e))
         for b in self.moored:
-            c = b.shape.center
+            c = b.box.center
             out.append((b.object_id, b.kind, np.full(t.shape, c[0]), np.full(t.shape, c[1])))
         return out
 
@@ -137,7 +146,8 @@ class World:
 def place_body(body: Body, north: float, east: float, yaw: float) -> Body:
     """A mover's body (a Box in the mover's frame) moved to (north, east) m with heading
     `yaw` rad."""
-    s = body.shape
+    instance("body", body, Body)
+    s = body.box
     c, si = np.cos(yaw), np.sin(yaw)
     x, y = s.center
     centre = (north + c * x - si * y, east + si * x + c * y)
@@ -148,7 +158,8 @@ def place_body(body: Body, north: float, east: float, yaw: float) -> Body:
 def _colour(rng: np.random.Generator, choices: list[tuple[int, int, int]]) -> tuple[int, int, int]:
     base = np.asarray(choices[int(rng.integers(len(choices)))], dtype=np.float64)
     jitter = rng.uniform(0.85, 1.1)
-    return tuple(int(v) for v in np.clip(base * jitter, 0, 255))
+    b, g, r = (int(v) for v in np.clip(base * jitter, 0, 255))
+    return b, g, r
 
 
 def _structure(rng: np.random.Generator, boats: int) -> tuple[list[Body], list[Body], list]:
@@ -262,7 +273,7 @@ def _clearance(p: np.ndarray, walls: list[np.ndarray], moored: list[Body]) -> fl
     minus half its width)."""
     d = min(point_segment_distance(p, w) for w in walls)
     for b in moored:
-        s = b.shape
+        s = b.box
         c, si = np.cos(s.yaw), np.sin(s.yaw)
         half = 0.5 * s.length * np.array([c, si])
         line = np.array([np.asarray(s.center) - half, np.asarray(s.center) + half])

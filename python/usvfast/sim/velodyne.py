@@ -81,6 +81,11 @@ def decoded_azimuths(block_azimuths: np.ndarray) -> np.ndarray:
     2.304 + firing · 55.296) / 110.592 µs, rounded to the nearest count. The same float32
     arithmetic here gives the same counts.
     """
+    b = np.asarray(block_azimuths)
+    if b.dtype.kind not in "iu" or b.ndim != 2 or b.shape[1] != 12:
+        raise ValueError(
+            f"block_azimuths: expected (p, 12) integer counts, got {b.dtype} {b.shape}"
+        )
     az = np.asarray(block_azimuths, dtype=np.int64)
     f32 = np.float32
     step = np.mod(az[:, -1] - az[:, 0], 36000).astype(f32) / f32(11.0)

@@ -10,7 +10,12 @@ first use, so `import usvfast.sweep` (and the CLI) works without the `cluster` e
 """
 
 from importlib import import_module
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # for type checkers and editors; at run time they load on first use
+    from usvfast.sweep.jobs import run_job
+    from usvfast.sweep.run import SweepResult, run_sweep
+    from usvfast.sweep.spec import Job, SweepSpec, load_spec
 
 _EXPORTS = {
     "Job": "usvfast.sweep.spec",
@@ -20,7 +25,7 @@ _EXPORTS = {
     "SweepResult": "usvfast.sweep.run",
     "run_sweep": "usvfast.sweep.run",
 }
-__all__ = sorted(_EXPORTS)
+__all__ = ["Job", "SweepResult", "SweepSpec", "load_spec", "run_job", "run_sweep"]
 
 
 def __getattr__(name: str) -> Any:

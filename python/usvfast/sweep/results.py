@@ -50,7 +50,7 @@ class ResultsStore:
         self._next += 1
         self._buffer.clear()
 
-    def table(self) -> pd.DataFrame:
+    def table(self) -> Any:
         frames = [pd.read_parquet(p) for p in self._part_files()]
         if self._buffer:
             frames.append(pd.DataFrame(self._buffer))

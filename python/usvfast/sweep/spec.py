@@ -160,7 +160,7 @@ def _search(path: Path, search: dict) -> list[dict[str, Value]]:
         bounds.append((name, lo, hi, log))
     d = len(bounds)
     if method == "lhs":
-        u = qmc.LatinHypercube(d=d, seed=seed).random(budget)
+        u = qmc.LatinHypercube(d=d, seed=seed).random(budget)  # pyright: ignore[reportCallIssue]
     else:
         u = np.random.default_rng(seed).random((budget, d))
     points = []

@@ -4,21 +4,31 @@ plots, and the Pareto front of accuracy against speed."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
+
+from usvfast._validate import instance, integer
 
 SPEED_COLUMNS = ("metric.ms_per_scan", "wall_s")
 
 
 def param_columns(table: pd.DataFrame) -> list[str]:
+    """The `param.*` columns of a sweep table."""
+    instance("table", table, pd.DataFrame)
     return [c for c in table.columns if c.startswith("param.")]
 
 
 def best_rows(table: pd.DataFrame, metric: str, maximize: bool = False, n: int = 5):
     """The `n` best successful jobs per recording by `metric` (column `metric.<metric>`)."""
+    instance("table", table, pd.DataFrame)
+    instance("metric", metric, str)
+    n = integer("n", n, low=0)
     col = f"metric.{metric}"
-    ok = table[(table["status"] == "ok") & table.get(col, pd.Series(dtype=float)).notna()]
+    # pandas' stubs type a boolean-masked frame loosely: the frames here are Any
+    frame: Any = table
+    ok: Any = frame[(frame["status"] == "ok") & frame.get(col, pd.Series(dtype=float)).notna()]
     if col not in ok:
         return ok.head(0)
     ranked = ok.sort_values(col, ascending=not maximize)
@@ -47,7 +57,7 @@ def write_plots(table: pd.DataFrame, out_dir: Path, metric: str, maximize: bool 
     import matplotlib.pyplot as plt
 
     col = f"metric.{metric}"
-    ok = table[(table["status"] == "ok")]
+    ok: Any = table[(table["status"] == "ok")]
     if col not in ok or ok[col].notna().sum() == 0:
         return []
     ok = ok[ok[col].notna()]
@@ -59,7 +69,7 @@ def write_plots(table: pd.DataFrame, out_dir: Path, metric: str, maximize: bool 
         fig, ax = plt.subplots(figsize=(6, 4), constrained_layout=True)
         for rec, g in ok.groupby("recording"):
             line = g.groupby(p)[col].agg(agg)
-            ax.plot(line.index, line.values, marker="o", label=Path(rec).name)
+            ax.plot(line.index, line.values, marker="o", label=Path(str(rec)).name)
         ax.set_xlabel(p.removeprefix("param."))
         ax.set_ylabel(f"{metric} ({agg} over the other parameters)")
         ax.set_title(f"{metric} vs {p.removeprefix('param.')}")
