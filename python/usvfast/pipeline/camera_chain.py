@@ -180,6 +180,21 @@ class CameraChain:
             positions, covs, det.scores[keep], det.boxes[keep], len(det.boxes), rejected
         )
 
+    def coverage(self) -> tuple[float, float, float]:
+        """(range m, horizontal field of view deg, axis yaw deg clockwise from the heading):
+        max_range (40 m when unset) and the angle between the rays through the left and
+        right image edges at the principal point's row (lens distortion undone)."""
+        w, h = self.camera.image_size
+        cy = float(h) / 2.0
+        matrix = getattr(self.camera, "camera_matrix", None)
+        if matrix is not None:
+            cy = float(np.asarray(matrix)[1, 2])
+        norm, _ = self.camera.normalized(np.array([[-0.5, cy], [float(w) - 0.5, cy]]))
+        fov = math.degrees(math.atan(abs(norm[0, 0])) + math.atan(abs(norm[1, 0])))
+        yaw = math.degrees(math.atan2(self.rotation[1, 2], self.rotation[0, 2]))
+        rng = self.settings.get("max_range")
+        return (float(rng) if rng is not None else 40.0, fov, yaw)
+
     def _georeference(self, boxes: np.ndarray, pose: VesselPose, which: str = "contact") -> Any:
         """Georeference the boxes' water-contact points (`which` "contact": bottom centre;
         "left" / "right": bottom corners). Box coordinates count pixel edges (pixel i spans
