@@ -68,12 +68,12 @@ def epoch_sentences(t: float, xdr: bool) -> list[str]:
     import datetime as dt
 
     lat, lon = antenna_latlon(t)
-    n, e, h, roll, pitch = motion(t)
+    _, _, h, roll, pitch = motion(t)
     day = dt.datetime.fromtimestamp(t, dt.timezone.utc).strftime("%d%m%y")
     la, lh = ddmm(lat, True)
     lo, loh = ddmm(lon, False)
     out = [
-        nmea("GP", "GGA", [hms(t), la, lh, lo, loh, "4", "12", "0.8", "10.0", "M", "40.0", "M", "", ""]),
+        nmea("GP", "GGA", [hms(t), la, lh, lo, loh, "4", "12", "0.8", "10", "M", "40", "M", "", ""]),
         nmea("GP", "RMC", [hms(t), "A", la, lh, lo, loh, "0.97", "20.0", day, "", "", "A"]),
         nmea("GP", "HDT", [f"{math.degrees(h) % 360:.3f}", "T"]),
     ]  # fmt: skip
@@ -87,11 +87,13 @@ def epoch_sentences(t: float, xdr: bool) -> list[str]:
 
 
 def test_attitude_sentences_parse_and_refuse_damage():
-    pashr = nmea("P", "ASHR", ["120000.00", "90.0", "T", "-1.50", "+2.25", "0", "0", "0", "0", "1", "0"])  # fmt: skip
+    fields = ["120000.00", "90.0", "T", "-1.50", "+2.25", "0", "0", "0", "0", "1", "0"]
+    pashr = nmea("P", "ASHR", fields)
     assert type(pynmea2.parse(pashr)).__name__ == "ASHRATT"
     roll, pitch = attitude_from_sentence(pashr)
     assert math.degrees(roll) == pytest.approx(-1.5) and math.degrees(pitch) == pytest.approx(2.25)
-    xdr = nmea("II", "XDR", ["A", "2.0", "D", "PTCH", "C", "20.1", "C", "AIR", "A", "-0.5", "D", "ROLL"])  # fmt: skip
+    fields = ["A", "2.0", "D", "PTCH", "C", "20.1", "C", "AIR", "A", "-0.5", "D", "ROLL"]
+    xdr = nmea("II", "XDR", fields)
     roll, pitch = attitude_from_sentence(xdr)
     assert math.degrees(roll) == pytest.approx(-0.5) and math.degrees(pitch) == pytest.approx(2.0)
     assert parse_sentence(xdr) == ("attitude", attitude_from_sentence(xdr))
@@ -99,7 +101,7 @@ def test_attitude_sentences_parse_and_refuse_damage():
     assert attitude_from_sentence(bad) is None
     assert attitude_from_sentence(nmea("II", "XDR", ["A", "2.0", "D", "PITCH"])) is None
     assert attitude_from_sentence(nmea("GP", "HDT", ["10.0", "T"])) is None
-    t, r, p, damaged = read_attitude_sentences([pashr, bad, "garbage"], reference=T0)
+    t, _, _, damaged = read_attitude_sentences([pashr, bad, "garbage"], reference=T0)
     assert t.size == 1 and damaged == 1
     with pytest.raises(ValueError, match="reference"):
         read_attitude_sentences([pashr], reference=math.nan)
@@ -257,7 +259,7 @@ path = "bag"
 topic = "/heading"
 """
     cfg = load_config(_config(tmp_path, streams, '["fix"]', "heading"))
-    with pytest.raises(NavigationError, match="no heading.*'fix'"):
+    with pytest.raises(NavigationError, match=r"no heading.*'fix'"):
         NavTrack.from_config(cfg)
     cfg = load_config(_config(tmp_path, streams, '["fix", "heading"]', "heading"))
     with pytest.raises(NavigationError, match="attitude stream 'heading': no roll/pitch"):

@@ -1,6 +1,6 @@
 """The vessel pose at each sensor timestamp: GNSS position and heading (with the antenna's
-lever arm removed), roll and pitch from an IMU or NMEA attitude sentences (PASHR, XDR), in the local NED frame
-at the origin.
+lever arm removed), roll and pitch from an IMU or NMEA attitude sentences (PASHR, XDR), in
+the local NED frame at the origin.
 
 Two sources share one result type, `VesselPose`:
 - `NavTrack.from_config` reads the navigation and attitude streams of a recording once (small
