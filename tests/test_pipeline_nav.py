@@ -73,7 +73,7 @@ def epoch_sentences(t: float, xdr: bool) -> list[str]:
     la, lh = ddmm(lat, True)
     lo, loh = ddmm(lon, False)
     out = [
-        nmea("GP", "GGA", [hms(t), la, lh, lo, loh, "4", "12", "0.8", "10", "M", "40", "M", "", ""]),
+        nmea("GP", "GGA", [hms(t), la, lh, lo, loh, "4", "12", "1", "10", "M", "40", "M", "", ""]),
         nmea("GP", "RMC", [hms(t), "A", la, lh, lo, loh, "0.97", "20.0", day, "", "", "A"]),
         nmea("GP", "HDT", [f"{math.degrees(h) % 360:.3f}", "T"]),
     ]  # fmt: skip
