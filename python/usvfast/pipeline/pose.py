@@ -285,7 +285,7 @@ def _stamped_nmea(spec: Any) -> tuple[np.ndarray, ...]:
             continue
         kind, values = parsed
         if kind == "fix":
-            fixes.append((float(m.time), *values))
+            fixes.append((float(m.time), float(values[0]), float(values[1])))
         elif kind == "heading":
             heads.append((float(m.time), math.radians(values[0])))
     f = np.array(fixes, dtype=np.float64).reshape(-1, 3)

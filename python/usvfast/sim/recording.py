@@ -421,12 +421,10 @@ attitude_sigma_deg = 0.05
     "tracker": """\
 # Small floats are hit by the VLP-16 beams in bursts 2-4 s apart (the waves roll and
 # pitch the USV): tentative tracks wait 4.5 s for their second detection. A detection in a
-# confirmed track's gate starts no track (no duplicates from the 10 Hz camera). Floats
-# drift at a few cm/s: prior velocity variance 0.02 (m/s)^2; a track not updated for 5 s
-# is deleted (a coasting track drifts with its velocity error).
+# confirmed track's gate starts no track (no duplicates from the 10 Hz camera). A track
+# not updated for 5 s is deleted (a coasting track drifts with its velocity error).
 initiate_in_gates = false
 init_delete_after_s = 4.5
-prior_velocity_var = 0.02
 delete_after_s = 5.0
 """,
 }
