@@ -110,6 +110,36 @@ def velodyne_packet_problem(payload: bytes, model_id: int | None = None) -> str 
     return None
 
 
+_FLAG_ARRAY = np.array(sorted(_BLOCK_FLAGS), dtype=np.uint16)
+_RETURN_ARRAY = np.array(sorted(_RETURN_MODES), dtype=np.uint8)
+_MODEL_ARRAY = np.array(sorted(_KNOWN_MODEL_IDS), dtype=np.uint8)
+
+
+def _packet_problems(payloads: list[bytes]) -> list[str | None]:
+    """`velodyne_packet_problem(p)` (without the model-id check) of many packets at once: one
+    numpy pass over the packets of full length, the others one by one."""
+    full = [k for k, p in enumerate(payloads) if len(p) == VELODYNE_PACKET_SIZE]
+    out: list[str | None] = [None] * len(payloads)
+    for k in set(range(len(payloads))) - set(full):
+        out[k] = velodyne_packet_problem(payloads[k])
+    if not full:
+        return out
+    raw = np.frombuffer(b"".join(payloads[k] for k in full), dtype=np.uint8)
+    raw = raw.reshape(len(full), VELODYNE_PACKET_SIZE)
+    blocks = raw[:, :1200].copy().view("<u2").reshape(len(full), 12, 50)
+    bad_flag = ~np.isin(blocks[:, :, 0], _FLAG_ARRAY).all(axis=1)
+    bad_azimuth = (blocks[:, :, 1] >= 36000).any(axis=1)
+    bad_factory = ~np.isin(raw[:, 1204], _RETURN_ARRAY) | ~np.isin(raw[:, 1205], _MODEL_ARRAY)
+    for j, k in enumerate(full):
+        if bad_flag[j]:
+            out[k] = "block flag"
+        elif bad_azimuth[j]:
+            out[k] = "azimuth"
+        elif bad_factory[j]:
+            out[k] = "factory bytes"
+    return out
+
+
 def _decoded_to_points(arr: np.ndarray) -> np.ndarray:
     """velodyne-decoder's (n, 8) float32 columns -> (n,) `POINT_DTYPE`."""
     out = np.empty(arr.shape[0], dtype=POINT_DTYPE)
@@ -584,9 +614,11 @@ class BagReader:
 
         packets = []
         model_id = None
-        for pkt in msg.packets:
-            payload = bytes(np.asarray(pkt.data, dtype=np.uint8))
-            problem = velodyne_packet_problem(payload, model_id)
+        payloads = [bytes(np.asarray(pkt.data, dtype=np.uint8)) for pkt in msg.packets]
+        problems = _packet_problems(payloads)
+        for pkt, payload, problem in zip(msg.packets, payloads, problems, strict=True):
+            if problem is None and model_id is not None and payload[1205] != model_id:
+                problem = "model id"
             if problem is not None:
                 stats.damage(problem)
                 continue

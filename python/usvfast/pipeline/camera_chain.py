@@ -162,29 +162,16 @@ class CameraChain:
         positions = np.zeros((0, 2))
         covs = np.zeros((0, 2, 2))
         if ok.any():
-            px = box_contact_points(det.boxes[ok])
+            boxes = det.boxes[ok]
             with tm("camera.georeference"):
-                s = self.settings
-                g = georeference(
-                    px,
-                    self.camera,
-                    height=self.height,
-                    mount_rotation=self.rotation,
-                    mount_position=self.position,
-                    roll=pose.roll,
-                    pitch=pose.pitch,
-                    heading=pose.heading,
-                    vessel_ne=(pose.north, pose.east),
-                    pixel_sigma=s.get("pixel_sigma", 0.0),
-                    attitude_sigma=math.radians(s.get("attitude_sigma_deg", 0.0)),
-                    height_sigma=s.get("height_sigma", 0.0),
-                    heading_sigma=math.radians(s.get("heading_sigma_deg", 0.0)),
-                    min_depression_deg=s.get("min_depression_deg", 0.0),
-                    max_range=s.get("max_range"),
-                )
+                g = self._georeference(boxes, pose)
             reason[ok] = g.reason
             good = g.reason == OK
             positions, covs = g.positions[good], g.covariances[good]
+            depth = float(self.settings.get("object_depth_factor", 0.0))
+            if depth > 0 and good.any():
+                with tm("camera.georeference"):
+                    positions = self._to_centre(boxes[good], positions, pose, depth)
         keep = reason == OK
         rejected: dict[str, int] = {}
         for code in np.unique(reason[~keep]):
@@ -192,3 +179,67 @@ class CameraChain:
         return CameraResult(
             positions, covs, det.scores[keep], det.boxes[keep], len(det.boxes), rejected
         )
+
+    def coverage(self) -> tuple[float, float, float]:
+        """(range m, horizontal field of view deg, axis yaw deg clockwise from the heading):
+        max_range (40 m when unset) and the angle between the rays through the left and
+        right image edges at the principal point's row (lens distortion undone)."""
+        w, h = self.camera.image_size
+        cy = float(h) / 2.0
+        matrix = getattr(self.camera, "camera_matrix", None)
+        if matrix is not None:
+            cy = float(np.asarray(matrix)[1, 2])
+        norm, _ = self.camera.normalized(np.array([[-0.5, cy], [float(w) - 0.5, cy]]))
+        fov = math.degrees(math.atan(abs(norm[0, 0])) + math.atan(abs(norm[1, 0])))
+        yaw = math.degrees(math.atan2(self.rotation[1, 2], self.rotation[0, 2]))
+        rng = self.settings.get("max_range")
+        return (float(rng) if rng is not None else 40.0, fov, yaw)
+
+    def _georeference(self, boxes: np.ndarray, pose: VesselPose, which: str = "contact") -> Any:
+        """Georeference the boxes' water-contact points (`which` "contact": bottom centre;
+        "left" / "right": bottom corners). Box coordinates count pixel edges (pixel i spans
+        [i, i + 1]) while the camera models put pixel centres at integers: the points are
+        moved by -box_pixel_offset in u and v."""
+        s = self.settings
+        offset = float(s.get("box_pixel_offset", 0.5))
+        if which == "contact":
+            px = box_contact_points(boxes)
+        else:
+            px = boxes[:, [0, 3] if which == "left" else [2, 3]].astype(np.float64)
+        px = px - offset
+        sigma = s.get("pixel_sigma_uv")
+        return georeference(
+            px,
+            self.camera,
+            height=self.height,
+            mount_rotation=self.rotation,
+            mount_position=self.position,
+            roll=pose.roll,
+            pitch=pose.pitch,
+            heading=pose.heading,
+            vessel_ne=(pose.north, pose.east),
+            pixel_sigma=tuple(sigma) if sigma is not None else s.get("pixel_sigma", 0.0),
+            attitude_sigma=math.radians(s.get("attitude_sigma_deg", 0.0)),
+            height_sigma=s.get("height_sigma", 0.0),
+            heading_sigma=math.radians(s.get("heading_sigma_deg", 0.0)),
+            min_depression_deg=s.get("min_depression_deg", 0.0),
+            max_range=s.get("max_range"),
+        )
+
+    def _to_centre(
+        self, boxes: np.ndarray, contact: np.ndarray, pose: VesselPose, factor: float
+    ) -> np.ndarray:
+        """The box's bottom edge images the object's near waterline; its centre lies farther
+        along the line of sight by half its depth. With an unknown yaw the depth is on average
+        the width seen across the line of sight (the distance between the georeferenced
+        bottom corners), so the point moves `factor` x that width away from the camera."""
+        left = self._georeference(boxes, pose, "left").positions
+        right = self._georeference(boxes, pose, "right").positions
+        width = np.linalg.norm(right - left, axis=1)
+        lx, ly = float(self.position[0]), float(self.position[1])
+        ch, sh = math.cos(pose.heading), math.sin(pose.heading)
+        cam = np.array([pose.north + ch * lx - sh * ly, pose.east + sh * lx + ch * ly])
+        los = contact - cam
+        rng = np.linalg.norm(los, axis=1, keepdims=True)
+        shift = np.where(np.isfinite(width), factor * width, 0.0)[:, None]
+        return contact + shift * los / np.maximum(rng, 1e-9)

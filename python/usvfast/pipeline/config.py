@@ -79,6 +79,9 @@ _LIDAR = {
     "backend": ("str", "rust"),
     "los_backend": ("str", "rust"),
     "covariance": ("str", "spread"),
+    "surface_offset": ("float", 0.0),
+    "range_std": ("float", 0.1),
+    "cross_range_std": ("float", 0.065),
     "min_cluster_points": ("int", 15),
     "min_position_std": ("float", 0.1),
 }
@@ -89,6 +92,9 @@ _CAMERA = {
     "fov_deg": ("floats:2", None),
     "waterline_height": ("float", None),
     "pixel_sigma": ("float", 2.0),
+    "pixel_sigma_uv": ("floats:2", None),
+    "box_pixel_offset": ("float", 0.5),
+    "object_depth_factor": ("float", 0.0),
     "attitude_sigma_deg": ("float", 0.5),
     "height_sigma": ("float", 0.0),
     "heading_sigma_deg": ("float", 0.0),
@@ -158,7 +164,7 @@ SCHEMA: dict[str, dict[str, tuple[str, Any]]] = {
 _CHOICES = {
     ("lidar", "backend"): ("rust", "sklearn"),
     ("lidar", "los_backend"): ("rust", "numpy"),
-    ("lidar", "covariance"): ("spread", "centroid"),
+    ("lidar", "covariance"): ("spread", "centroid", "model"),
     ("camera", "horizon"): ("attitude", "none", "line"),
     ("detector", "backend"): ("none", "onnx", "torch"),
     ("tracker", "backend"): ("native", "stonesoup"),

@@ -108,6 +108,8 @@ class Pipeline:
             kind, values = parsed
             if kind == "fix":
                 self.live.add_fix(t, *values)
+            elif kind == "attitude":
+                self.live.add_attitude(t, *values)
             else:
                 self.live.add_heading(t, math.radians(values[0]))
         elif isinstance(data, NmeaFix):
@@ -311,7 +313,22 @@ class Pipeline:
         if out is not None:
             Path(out, "summary.json").write_text(json.dumps(self.summary, indent=2))
             if cfg.outputs["report"]:
-                self.summary["metrics"] = _report(Path(out), truth, scene, self.origin)
+                self.summary["metrics"] = _report(
+                    Path(out), truth, scene, self.origin, self.coverage()
+                )
+
+    def coverage(self) -> dict[str, tuple[float, float, float]]:
+        """What each sensor chain sees: {"lidar" | "camera": (range m, horizontal field of
+        view deg, axis yaw deg clockwise from the heading)} (LiDAR: its radius all round;
+        camera: its max_range within the calibrated image width). The report counts an
+        object as a target while it lies within some sensor's coverage."""
+        out: dict[str, tuple[float, float, float]] = {}
+        for chain in self.chains.values():
+            if isinstance(chain, LidarChain):
+                out["lidar"] = (float(chain.config.radius), 360.0, 0.0)
+            elif "camera" not in out:
+                out["camera"] = chain.coverage()
+        return out
 
     def _check_topics(self) -> None:
         from usvfast.pipeline.streams import check_topic
@@ -327,14 +344,19 @@ class Pipeline:
                 raise ConfigError(f"{self.config.path}: stream {spec.id!r}: {exc}") from None
 
 
-def _report(out: Path, truth: Any, scene: Any, origin: Any) -> dict[str, Any]:
+def _report(
+    out: Path, truth: Any, scene: Any, origin: Any, coverage: dict[str, Any] | None = None
+) -> dict[str, Any]:
     """usvfast.report.write_report when it is installed (metrics and pictures), else {}."""
     try:
         from usvfast.report import write_report  # type: ignore[import-not-found]
     except ImportError:
         return {}
     try:
-        return write_report(out, truth=truth, scene=scene, origin=tuple(origin)) or {}
+        return (
+            write_report(out, truth=truth, scene=scene, origin=tuple(origin), coverage=coverage)
+            or {}
+        )
     except (ValueError, TypeError, KeyError, OSError) as exc:
         # The run's files are written; a report failure must not lose them.
         warnings.warn(f"report: not written ({type(exc).__name__}: {exc})", stacklevel=3)

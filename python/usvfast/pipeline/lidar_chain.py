@@ -76,7 +76,8 @@ class LidarChain:
     filter's implementation, the numpy one being the thesis-style reference; `covariance`
     "spread": each detection's R is its cluster's sample covariance, as LidarDetector gives
     it, or "centroid": that divided by the cluster size, the centroid's standard error; both
-    floored at min_position_std²); mount: the
+    floored at min_position_std², or "model": the measurement model of `_measurement_model`
+    (keys surface_offset, range_std, cross_range_std, metres)); mount: the
     stream's mount (None: at the reference point, level); timer: a StageTimer for the
     per-stage times.
     """
@@ -104,6 +105,16 @@ class LidarChain:
         )
         self.timer = timer
         self.covariance = settings.get("covariance", "spread")
+        self.surface_offset = float(settings.get("surface_offset", 0.0))
+        self.range_std = float(settings.get("range_std", 0.1))
+        self.cross_range_std = float(settings.get("cross_range_std", 0.065))
+        for key in ("surface_offset", "range_std", "cross_range_std"):
+            if not getattr(self, key) >= 0:
+                raise ValueError(f"lidar.{key}: expected a number >= 0, got {getattr(self, key)}")
+        if self.covariance == "model" and not (self.range_std > 0 and self.cross_range_std > 0):
+            raise ValueError(
+                "lidar.range_std, lidar.cross_range_std: must be > 0 with covariance = model"
+            )
         self._reach2 = (self.config.radius + self.config.line_margin + 1.0) ** 2
         from usvfast.lidar.line_of_sight import line_of_sight_filter_numpy
 
@@ -148,10 +159,34 @@ class LidarChain:
         if result.cycle is None:
             return None
         dets = result.cycle.detections
-        if self.covariance == "centroid":
+        if self.covariance == "model":
+            self._measurement_model(dets, pose)
+        elif self.covariance == "centroid":
             # The centroid's standard error (spread / n), floored at min_position_std².
             floor = self.config.min_position_std**2
             for d in dets:
                 w, v = np.linalg.eigh(d.covariance / max(d.n_points, 1))
                 d.covariance = (v * np.maximum(w, floor)) @ v.T
         return dets
+
+    def _measurement_model(self, dets: list[LidarDetection], pose: VesselPose) -> None:
+        """Per-detection measurement model, in place. A cluster's points lie on the surface
+        the sensor sees, so their centroid is nearer than the object's centre: it is moved
+        `surface_offset` metres away from the sensor along the horizontal line of sight (for a
+        round object of radius rho the visible-surface centroid lies pi/4 rho short of the
+        centre). Its covariance is diag(range_std², cross_range_std²) in the (line of sight,
+        across) frame: the random error of one cycle's centroid (VLP-16 range noise, beam
+        spread and the de-skewing of the buffered rotations). Errors common to every sensor
+        (the GNSS position and heading biases) are not in it: they do not show in the
+        innovations, only against the truth."""
+        lx, ly = float(self.mount.lever_arm[0]), float(self.mount.lever_arm[1])
+        ch, sh = np.cos(pose.heading), np.sin(pose.heading)
+        sensor = np.array([pose.north + ch * lx - sh * ly, pose.east + sh * lx + ch * ly])
+        var = np.array([self.range_std**2, self.cross_range_std**2])
+        for d in dets:
+            los = np.asarray(d.position, dtype=np.float64) - sensor
+            r = float(np.hypot(los[0], los[1]))
+            u = los / r if r > 1e-9 else np.array([1.0, 0.0])
+            basis = np.array([[u[0], -u[1]], [u[1], u[0]]])  # columns: along, across
+            d.position = np.asarray(d.position, dtype=np.float64) + self.surface_offset * u
+            d.covariance = (basis * var) @ basis.T

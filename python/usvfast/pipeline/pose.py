@@ -1,5 +1,6 @@
 """The vessel pose at each sensor timestamp: GNSS position and heading (with the antenna's
-lever arm removed), roll and pitch from an IMU, in the local NED frame at the origin.
+lever arm removed), roll and pitch from an IMU or NMEA attitude sentences (PASHR, XDR), in
+the local NED frame at the origin.
 
 Two sources share one result type, `VesselPose`:
 - `NavTrack.from_config` reads the navigation and attitude streams of a recording once (small
@@ -174,8 +175,10 @@ class NavTrack:
         attitude = None
         if config.attitude is not None:
             spec = config.recording.stream(config.attitude)
-            t_att, roll, pitch, bad = _read_attitude(spec)
-            damaged[spec.id] = bad
+            t_att, roll, pitch, bad = _read_attitude(spec, float(t_fix[0]))
+            # A navigation stream read again for its attitude: its reader already counted
+            # every damaged line.
+            damaged[spec.id] = max(damaged.get(spec.id, 0), bad)
             attitude = Channel.build(
                 "attitude",
                 t_att + spec.clock_offset,
@@ -243,7 +246,11 @@ def _read_nav(spec: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray
                 fix = read_bag_navsatfix(spec.path, spec.topic)
                 ok = fix.status >= 0
                 return fix.times[ok], fix.lat_deg[ok], fix.lon_deg[ok], empty, empty, fix.skipped
-            res = read_bag_nmea(spec.path, spec.topic)
+            try:
+                res = read_bag_nmea(spec.path, spec.topic)
+            except ValueError:
+                # No time of day in the topic (e.g. HDT only): the message stamps time it.
+                return _stamped_nmea(spec)
             log, bad = res.log, res.skipped_messages
         else:
             raise NavigationError(
@@ -263,24 +270,88 @@ def _read_nav(spec: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray
     return p.time[ok], p.lat_deg[ok], p.lon_deg[ok], h.time, np.radians(h.heading_deg), damaged
 
 
-def _read_attitude(spec: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
-    from usvfast.nav.bags import read_bag_imu
+def _stamped_nmea(spec: Any) -> tuple[np.ndarray, ...]:
+    """`_read_nav`'s result for a bag topic of nmea_msgs/Sentence timed by the message stamps
+    (sentences through `parse_sentence`); damaged = messages or sentences that did not parse."""
+    from usvfast.nav.bags import BagTopic
 
-    if spec.type != "bag":
+    reader = BagTopic(spec.path, spec.topic)
+    fixes: list[tuple[float, float, float]] = []
+    heads: list[tuple[float, float]] = []
+    bad = 0
+    for m in reader:
+        parsed = parse_sentence(m.data) if isinstance(m.data, str) else None
+        if parsed is None:
+            bad += isinstance(m.data, str) and m.data.strip()[:1] in ("$", "!") and not _ok(m.data)
+            continue
+        kind, values = parsed
+        if kind == "fix":
+            fixes.append((float(m.time), float(values[0]), float(values[1])))
+        elif kind == "heading":
+            heads.append((float(m.time), math.radians(values[0])))
+    f = np.array(fixes, dtype=np.float64).reshape(-1, 3)
+    h = np.array(heads, dtype=np.float64).reshape(-1, 2)
+    return f[:, 0], f[:, 1], f[:, 2], h[:, 0], h[:, 1], bad + reader.damaged
+
+
+def _ok(sentence: str) -> bool:
+    """Whether an NMEA sentence parses with a valid checksum (whatever its type)."""
+    import pynmea2
+
+    try:
+        pynmea2.parse(sentence.strip(), check=True)
+    except (pynmea2.ParseError, ValueError, AttributeError, TypeError):
+        return False
+    return True
+
+
+def _read_attitude(spec: Any, reference: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """(times, roll rad, pitch rad, damaged) of the attitude stream: a bag topic of
+    sensor_msgs/Imu or nmea_msgs/Sentence, or an NMEA text log (PASHR / XDR sentences,
+    usvfast.pipeline.attitude; `reference`: a UNIX time on the log's day)."""
+    from usvfast.nav.bags import BagTopic, read_bag_imu
+    from usvfast.pipeline.attitude import read_attitude_sentences
+
+    if spec.type not in ("bag", "nmea"):
         raise NavigationError(
-            f"stream {spec.id!r}: an attitude stream must be a bag topic of sensor_msgs/Imu"
+            f"stream {spec.id!r}: an attitude stream must be a bag topic of sensor_msgs/Imu "
+            "or nmea_msgs/Sentence, or an NMEA log (type = nmea) with PASHR/XDR sentences"
         )
     try:
-        imu = read_bag_imu(spec.path, spec.topic)
+        if spec.type == "nmea":
+            from usvfast._files import bounded_lines, regular_file
+
+            with open(regular_file(spec.path, f"stream {spec.id!r} path"), "rb") as fh:
+                lines = (b.decode("ascii", "replace") for b in bounded_lines(fh))
+                t, roll, pitch, bad = read_attitude_sentences(lines, reference)
+        else:
+            from usvfast.pipeline.streams import check_topic
+
+            msgtype = check_topic(
+                spec.path, spec.topic, ["sensor_msgs/msg/Imu", "nmea_msgs/msg/Sentence"]
+            )
+            if msgtype == "sensor_msgs/msg/Imu":
+                imu = read_bag_imu(spec.path, spec.topic)
+                roll, pitch = imu_roll_pitch(imu.orientation_xyzw)
+                return imu.times, roll, pitch, imu.skipped
+            reader = BagTopic(spec.path, spec.topic)
+            t, roll, pitch, bad = read_attitude_sentences(
+                ((m.time, m.data) for m in reader), reference
+            )
+            bad += reader.damaged
     except ValueError as exc:
         raise NavigationError(f"attitude stream {spec.id!r}: {exc}") from exc
-    roll, pitch = imu_roll_pitch(imu.orientation_xyzw)
-    return imu.times, roll, pitch, imu.skipped
+    if t.size == 0:
+        raise NavigationError(
+            f"attitude stream {spec.id!r}: no roll/pitch (PASHR or XDR PITCH/ROLL sentences)"
+        )
+    return t, roll, pitch, bad
 
 
 def parse_sentence(sentence: str) -> tuple[str, tuple[float, ...]] | None:
     """One NMEA sentence of a live stream -> ("fix", (lat, lon)) for GGA/RMC/GLL with a fix,
-    ("heading", (deg,)) for HDT/THS, None otherwise or when it does not parse (checksum
+    ("heading", (deg,)) for HDT/THS, ("attitude", (roll rad, pitch rad)) for PASHR and XDR
+    PITCH/ROLL, None otherwise or when it does not parse (checksum
     checked). The time is the message's (live streams carry it in the header)."""
     import pynmea2
 
@@ -298,6 +369,11 @@ def parse_sentence(sentence: str) -> tuple[str, tuple[float, ...]] | None:
             return "fix", (float(msg.latitude), float(msg.longitude))
         if kind in ("HDT", "THS"):
             return "heading", (float(msg.heading),)
+        if kind in ("ASHRATT", "XDR"):
+            from usvfast.pipeline.attitude import attitude_from_sentence
+
+            att = attitude_from_sentence(sentence)
+            return None if att is None else ("attitude", att)
     except (TypeError, ValueError):
         return None
     return None

@@ -171,6 +171,11 @@ class StoneSoupTracker(_Base):
 
     def __init__(self, settings: dict[str, Any]) -> None:
         super().__init__(settings)
+        if not settings.get("initiate_in_gates", True):
+            raise ValueError(
+                "tracker.initiate_in_gates: false has no Stone Soup equivalent (its initiator "
+                "sees every detection); set it true to compare the backends"
+            )
         try:
             import stonesoup  # noqa: F401
         except ImportError as exc:  # pragma: no cover - optional dependency

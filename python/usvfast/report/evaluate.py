@@ -145,6 +145,32 @@ def tracks_on_walls(
     return [int(i) for i in ids[near]]
 
 
+def _visible(
+    truth: Truth,
+    nav: Nav,
+    max_range: float,
+    coverage: dict[str, tuple[float, float, float]] | None,
+) -> np.ndarray:
+    """(N,) mask of the truth rows within max_range all round or, with `coverage`, within
+    any sensor's (range, field of view, yaw)."""
+    if not coverage:
+        return in_range(truth, nav, max_range)
+    if not isinstance(coverage, dict):
+        raise TypeError(
+            f"coverage: expected a dict of sensor -> (range, fov, yaw), got {coverage!r}"
+        )
+    out = np.zeros(len(truth.time), bool)
+    for name, spec in coverage.items():
+        try:
+            rng, fov, yaw = (float(v) for v in spec)
+        except (TypeError, ValueError):
+            raise ValueError(
+                f"coverage[{name!r}]: expected (range m, fov deg, yaw deg), got {spec!r}"
+            ) from None
+        out |= in_range(truth, nav, rng, fov, yaw)
+    return out
+
+
 def evaluate_run(
     truth: Truth,
     tracks: Tracks,
@@ -164,14 +190,19 @@ def evaluate_run(
     sensor_fov_deg: dict[str, float] | None = None,
     wall_distance: float = 2.0,
     confidence: float = 0.95,
+    coverage: dict[str, tuple[float, float, float]] | None = None,
 ) -> dict[str, Any]:
     """All metrics of a run (module doc). max_range: metres from the USV within which an
     object is visible (all visible without `nav`); window, cap, min_visible: the thesis's
     protocol (s, m, s); frame_period: seconds between the multi-target frames;
     detector_gate: metres for the Table 6.1 scores; sensor_range / sensor_fov_deg: per sensor
     name, the range (m, default max_range) and horizontal field of view (deg, centred on the
-    heading; default 360) within which a detector is scored; confidence: of the χ² bands."""
-    visible = None if nav is None else in_range(truth, nav, max_range)
+    heading; default 360) within which a detector is scored; confidence: of the χ² bands;
+    coverage: per sensor name, (range m, horizontal field of view deg, axis yaw deg clockwise
+    from the heading): an object is then visible while it lies within some sensor's coverage
+    (instead of within max_range all round), and each detector is scored within its own
+    (unless sensor_range / sensor_fov_deg say otherwise)."""
+    visible = None if nav is None else _visible(truth, nav, max_range, coverage)
     th = thesis_metrics(
         truth,
         tracks,
@@ -191,6 +222,7 @@ def evaluate_run(
             "window_s": window,
             "cap_m": cap,
             "max_range_m": max_range if nav is not None else None,
+            "coverage": {k: list(v) for k, v in (coverage or {}).items()} or None,
             "min_visible_s": min_visible,
             "frame_period_s": frame_period,
             "hota_zero_distance_m": hota_zero_distance,
@@ -220,9 +252,10 @@ def evaluate_run(
             t = np.unique(detections.time[detections.sensor == sensor])
             if len(t) > 1:
                 period = float(np.median(np.diff(t)))
-            rng = (sensor_range or {}).get(sensor, max_range)
-            fov = (sensor_fov_deg or {}).get(sensor, 360.0)
-            seen = None if nav is None else in_range(truth, nav, rng, fov)
+            own = (coverage or {}).get(sensor, (max_range, 360.0, 0.0))
+            rng = (sensor_range or {}).get(sensor, own[0])
+            fov = (sensor_fov_deg or {}).get(sensor, own[1])
+            seen = None if nav is None else in_range(truth, nav, rng, fov, own[2])
             scores = detector_scores(
                 truth,
                 detections,

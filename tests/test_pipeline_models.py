@@ -1,0 +1,142 @@
+"""The pipeline's measurement models: the LiDAR centroid moved to the object's centre with a
+line-of-sight covariance, camera boxes read in pixel-centre coordinates and moved to the
+object's centre (cv2.projectPoints is the peer for where a water point images), the camera's
+coverage (cv2.calibrationMatrixValues for the field of view), coverage-based targets in the
+report, and the Stone Soup backend refusing an option it cannot reproduce."""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+import pytest
+
+from usvfast.camera.calibration import CameraModel
+from usvfast.frames import Mount
+from usvfast.lidar.pipeline import LidarDetection
+from usvfast.metrics.tables import Nav, Truth
+from usvfast.pipeline.camera_chain import CameraChain
+from usvfast.pipeline.config import SCHEMA
+from usvfast.pipeline.lidar_chain import LidarChain
+from usvfast.pipeline.pose import VesselPose
+from usvfast.pipeline.timing import StageTimer
+from usvfast.pipeline.tracker import make_tracker
+from usvfast.report.evaluate import _visible
+
+
+def _defaults(table: str) -> dict:
+    return {k: v for k, (_, v) in SCHEMA[table].items()}
+
+
+def test_lidar_measurement_model_moves_along_the_line_of_sight():
+    settings = {**_defaults("lidar"), "waterline_height": 0.3, "covariance": "model"}
+    settings.update(surface_offset=0.1, range_std=0.1, cross_range_std=0.04)
+    mount = Mount(lever_arm=(0.5, 0.2, -0.6))
+    chain = LidarChain(settings, mount, StageTimer())
+    pose = VesselPose(0.0, 10.0, -3.0, math.radians(60.0))
+    # the sensor in NED: the lever arm (forward 0.5, starboard 0.2) turned by the heading
+    h = pose.heading
+    c, s_ = math.cos(h), math.sin(h)
+    sensor = np.array([10.0 + 0.5 * c - 0.2 * s_, -3.0 + 0.5 * s_ + 0.2 * c])
+    target = sensor + np.array([3.0, 4.0])  # 5 m away
+    det = LidarDetection(0.0, target.copy(), np.eye(2), 30)
+    chain._measurement_model([det], pose)
+    u = np.array([0.6, 0.8])
+    np.testing.assert_allclose(det.position, target + 0.1 * u, atol=1e-12)
+    w, v = np.linalg.eigh(det.covariance)
+    np.testing.assert_allclose(w, [0.04**2, 0.1**2], atol=1e-15)
+    assert abs(abs(v[:, 1] @ u) - 1.0) < 1e-12  # the range axis is the line of sight
+    for key, value in (("range_std", -1.0), ("surface_offset", math.nan)):
+        with pytest.raises(ValueError, match=f"lidar.{key}"):
+            LidarChain({**settings, key: value}, mount, StageTimer())
+    with pytest.raises(ValueError, match="range_std"):
+        LidarChain({**settings, "range_std": 0.0}, mount, StageTimer())
+
+
+def _camera_chain(depth: float) -> tuple[CameraChain, CameraModel]:
+    k = np.array([[300.0, 0.0, 319.5], [0.0, 300.0, 179.5], [0.0, 0.0, 1.0]])
+    model = CameraModel(k, np.array([-0.1, 0.02, 0.0, 0.0, 0.0]), (640, 360))
+    chain = CameraChain.__new__(CameraChain)
+    chain.settings = {
+        **_defaults("camera"),
+        "waterline_height": 0.3,
+        "object_depth_factor": depth,
+        "pixel_sigma_uv": (0.8, 0.3),
+    }
+    chain.camera = model
+    from usvfast.camera.georef import mount_rotation
+
+    chain.rotation = mount_rotation([0.0, 0.0, 0.0])
+    chain.position = np.array([0.0, 0.0, -0.9])
+    chain.height = 1.2
+    chain.timer = StageTimer()
+    return chain, model
+
+
+def _image(model: CameraModel, forward: float, starboard: float) -> np.ndarray:
+    """Pixel (centre convention) of a water point (forward, starboard) m of the camera (level,
+    1.2 m above the water): cv2.projectPoints through the distorted model."""
+    return model.project(np.array([[starboard, 1.2, forward]]))[0]
+
+
+def test_camera_boxes_in_pixel_centre_coordinates_and_the_object_centre():
+    pose = VesselPose(0.0, 0.0, 0.0, 0.0)
+    chain, model = _camera_chain(0.0)
+    for fwd, stb in ((6.0, 0.5), (12.0, -1.5), (18.0, 2.0)):
+        u, v = _image(model, fwd, stb)
+        # a detector box counts pixel edges: the contact pixel centre (u, v) is its bottom
+        # edge at v + 0.5 and its horizontal centre at u + 0.5
+        box = np.array([[u - 5.0 + 0.5, v - 8.0, u + 5.0 + 0.5, v + 0.5]])
+        g = chain._georeference(box, pose)
+        np.testing.assert_allclose(g.positions[0], [fwd, stb], atol=2e-3 * fwd)
+    # the object's centre lies half its seen width beyond the near waterline point
+    chain, model = _camera_chain(0.5)
+    fwd, stb, width = 10.0, 1.0, 0.6
+    ul, vl = _image(model, fwd, stb - width / 2)
+    ur, vr = _image(model, fwd, stb + width / 2)
+    box = np.array([[ul + 0.5, min(vl, vr) - 6.0, ur + 0.5, (vl + vr) / 2 + 0.5]])
+    contact = chain._georeference(box, pose).positions
+    moved = chain._to_centre(box, contact, pose, 0.5)
+    los = contact[0] - chain.position[:2]
+    expected = contact[0] + 0.5 * width * los / np.linalg.norm(los)
+    np.testing.assert_allclose(moved[0], expected, atol=0.02)
+    assert np.linalg.norm(moved[0] - contact[0]) == pytest.approx(0.3, abs=0.02)
+
+
+def test_camera_coverage_is_the_calibrated_field_of_view():
+    chain, model = _camera_chain(0.0)
+    chain.camera = CameraModel(model.camera_matrix, np.zeros(5), (640, 360))
+    rng, fov, yaw = chain.coverage()
+    fovx, *_ = cv2.calibrationMatrixValues(model.camera_matrix, (640, 360), 1.0, 1.0)
+    assert rng == 40.0 and yaw == pytest.approx(0.0, abs=1e-9)
+    assert fov == pytest.approx(fovx, abs=0.2)
+    chain.settings["max_range"] = 15.0
+    from usvfast.camera.georef import mount_rotation
+
+    chain.rotation = mount_rotation([30.0, -5.0, 0.0])  # turned 30 deg to starboard
+    rng, _, yaw = chain.coverage()
+    assert rng == 15.0 and yaw == pytest.approx(30.0, abs=1e-9)
+
+
+def test_targets_are_what_some_sensor_covers():
+    # the USV at the origin heading north; objects ahead at 20 m, astern at 20 m, abeam at 8 m
+    t = np.arange(0.0, 10.0, 0.1)
+    nav = Nav(t, np.zeros((len(t), 2)), np.zeros(len(t)))
+    pos = {0: (20.0, 0.0), 1: (-20.0, 0.0), 2: (0.0, 8.0)}
+    rows = [(ti, k, *p) for ti in t for k, p in pos.items()]
+    a = np.array(rows)
+    truth = Truth(a[:, 0], a[:, 1].astype(np.int64), np.full(len(a), "box"), a[:, 2:4])
+    cov = {"lidar": (10.0, 360.0, 0.0), "camera": (40.0, 90.0, 0.0)}
+    seen = _visible(truth, nav, 40.0, cov)
+    by = {k: seen[truth.object_id == k].all() for k in pos}
+    assert by == {0: True, 1: False, 2: True}
+    assert _visible(truth, nav, 40.0, None).all()  # all round, without coverage
+    with pytest.raises(ValueError, match="coverage"):
+        _visible(truth, nav, 40.0, {"camera": (40.0, 90.0)})
+
+
+def test_stonesoup_backend_refuses_initiate_in_gates_off():
+    settings = {**_defaults("tracker"), "backend": "stonesoup", "initiate_in_gates": False}
+    with pytest.raises(ValueError, match="initiate_in_gates"):
+        make_tracker(settings)
