@@ -127,7 +127,7 @@ def _packet_problems(payloads: list[bytes]) -> list[str | None]:
     raw = np.frombuffer(b"".join(payloads[k] for k in full), dtype=np.uint8)
     raw = raw.reshape(len(full), VELODYNE_PACKET_SIZE)
     blocks = raw[:, :1200].copy().view("<u2").reshape(len(full), 12, 50)
-    bad_flag = ~np.isin(blocks[:, :, 0], _FLAG_ARRAY).all(axis=1)
+    bad_flag = ~np.all(np.isin(blocks[:, :, 0], _FLAG_ARRAY), axis=1)
     bad_azimuth = (blocks[:, :, 1] >= 36000).any(axis=1)
     bad_factory = ~np.isin(raw[:, 1204], _RETURN_ARRAY) | ~np.isin(raw[:, 1205], _MODEL_ARRAY)
     for j, k in enumerate(full):

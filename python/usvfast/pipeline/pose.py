@@ -227,7 +227,10 @@ def _interp(
     return values[i] + f * d
 
 
-def _read_nav(spec: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+_Nav = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]
+
+
+def _read_nav(spec: Any) -> _Nav:
     """(fix times, lat, lon, heading times, headings rad, damaged) of one navigation stream."""
     from usvfast.nav.nmea import read_nmea
 
@@ -270,7 +273,7 @@ def _read_nav(spec: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray
     return p.time[ok], p.lat_deg[ok], p.lon_deg[ok], h.time, np.radians(h.heading_deg), damaged
 
 
-def _stamped_nmea(spec: Any) -> tuple[np.ndarray, ...]:
+def _stamped_nmea(spec: Any) -> _Nav:
     """`_read_nav`'s result for a bag topic of nmea_msgs/Sentence timed by the message stamps
     (sentences through `parse_sentence`); damaged = messages or sentences that did not parse."""
     from usvfast.nav.bags import BagTopic
