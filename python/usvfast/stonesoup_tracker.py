@@ -1,0 +1,423 @@
+"""The Stone Soup drop-in trackers (`usvfast.stonesoup.MultiTargetMixtureTracker` and
+`MultiTargetTracker`): Stone Soup's tracker protocol on the usvfast core.
+
+Per scan the drop-in hands the detections to the core in one call, takes one snapshot of the
+confirmed tracks, and builds only the Stone Soup objects of that scan (one state per track and,
+with `hypotheses=True`, its association hypotheses) by the fast constructors of
+`usvfast.stonesoup_objects`. Transition matrices are cached per time step; detections of old
+scans are freed in batches.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from usvfast import kalman
+from usvfast.stonesoup import UnsupportedComponentError, _sensor, build_native, read_components
+from usvfast.stonesoup_objects import StoneSoupObjects
+
+
+def _raw_core(tracker: Any) -> Any:
+    """The Rust core behind a `usvfast.tracking.Tracker` when it offers `step(t, z, ids,
+    covariances, origins)` and `snapshot(tentative=False)` (dict of arrays), else None (the
+    public `Tracker` API is used then). The drop-in owns its tracker and calls it from one
+    thread, so it can skip the wrapper's argument checks (the core validates again) and its
+    dataclass snapshot: ~20 µs per scan."""
+    raw = getattr(tracker, "_core", None)
+    ok = callable(getattr(raw, "step", None)) and callable(getattr(raw, "snapshot", None))
+    return raw if ok else None
+
+
+# Scans between two looks at the tentative tracks to free old detections (a look costs a
+# snapshot of the tentative tracks).
+_FREE_EVERY = 4
+
+
+class _DropInTracker:
+    """Shared machinery of the two drop-in trackers (see the module docstring)."""
+
+    _mixture = True
+
+    def __init__(
+        self,
+        initiator: Any,
+        deleter: Any,
+        detector: Any = None,
+        data_associator: Any = None,
+        updater: Any = None,
+        *,
+        hypotheses: bool = True,
+    ) -> None:
+        for name, value in (
+            ("initiator", initiator),
+            ("deleter", deleter),
+            ("data_associator", data_associator),
+            ("updater", updater),
+        ):
+            if value is None:
+                raise TypeError(f"{name}: a Stone Soup component is required")
+        self.initiator = initiator
+        self.deleter = deleter
+        self.detector = detector
+        self.data_associator = data_associator
+        self.updater = updater
+        self.hypotheses = bool(hypotheses)
+        self.config = read_components(
+            initiator=initiator,
+            deleter=deleter,
+            data_associator=data_associator,
+            updater=updater,
+            mixture=self._mixture,
+        )
+        self.detector_iter = None
+        self._objects = StoneSoupObjects()
+        self._raw: Any = None  # the Rust core of `_core` when its fast calls are available
+        # Transition matrices (F, Q) of the tracker's and the initiator's models per time step.
+        self._fq: dict[tuple[bool, float], tuple[np.ndarray, np.ndarray]] = {}
+        self._core: Any = None
+        self._sensor_specs: list[tuple] = []  # (H, R, H_init, R_init) per core sensor
+        # id(model) -> (core sensor index, the model's R if it differs from the sensor's)
+        self._sensor_of_model: dict[int, tuple[int, np.ndarray | None]] = {}
+        self._models: list[Any] = []  # keeps the models alive while their id() is used
+        # Empty scans seen before the core exists (it is built at the first detection).
+        self._replay: list[tuple[float, np.ndarray, np.ndarray]] = []
+        self._t0: Any = None
+        self._scan = 0
+        self._scan_time: list[Any] = []
+        # Detections per scan; scans no history entry can refer to any more are freed (None).
+        self._scan_dets: list[list[Any] | None] = []
+        self._freed = 0
+        self._tracks: dict[int, Any] = {}
+        self._prev: dict[int, tuple[float, np.ndarray, np.ndarray]] = {}
+
+    # -- Stone Soup's Tracker protocol -------------------------------------------------------
+
+    @property
+    def tracks(self) -> set:
+        """The current confirmed tracks (set of stonesoup Track)."""
+        return set(self._tracks.values())
+
+    def __iter__(self):
+        if self.detector is None:
+            raise AttributeError(
+                "Detector has not been set. A detector attribute is required to iterate over a "
+                "tracker."
+            )
+        if self.detector_iter is None:
+            self.detector_iter = iter(self.detector)
+        return self
+
+    def __next__(self):
+        if self.detector_iter is None:
+            iter(self)
+        time, detections = next(self.detector_iter)
+        return self._step(time, detections)
+
+    def update_tracker(self, time: Any, detections: Any):
+        """Process one scan (datetime, set of Detection) without a detector; returns
+        (time, tracks) like iterating does."""
+        return self._step(time, detections)
+
+    # -- internals ---------------------------------------------------------------------------
+
+    def _sensor_index(self, model: Any) -> tuple[int, np.ndarray | None]:
+        """The core sensor of a detection's measurement model, and the model's noise R when it
+        differs from that sensor's (None otherwise). Models with the same H share one core
+        sensor; their own R goes to the core as a per-detection covariance."""
+        key = id(model)
+        hit = self._sensor_of_model.get(key)
+        if hit is not None:
+            return hit
+        cfg = self.config
+        if model is None:
+            main, init = cfg.fallback_sensor, cfg.init_fallback_sensor
+            if main is None or init is None:
+                raise ValueError(
+                    "detections: a detection has no measurement_model and the updater or the "
+                    "initiator has none to fall back on"
+                )
+            upd = cfg.init_update_fallback_sensor
+            if upd is not None and not upd.same_as(main):
+                raise UnsupportedComponentError(
+                    "initiator.updater.measurement_model differs from updater.measurement_model:"
+                    " detections without a model would be updated with two different models"
+                )
+            spec = (main.matrix, main.noise, init.matrix, init.noise)
+        else:
+            s = _sensor(model, "detection.measurement_model")
+            if s is None:
+                raise TypeError(
+                    "detection.measurement_model: expected a LinearGaussian measurement model"
+                )
+            if s.matrix.shape[1] != len(cfg.prior_state):
+                raise ValueError(
+                    f"detection.measurement_model: ndim_state {s.matrix.shape[1]} differs from "
+                    f"the transition model's {len(cfg.prior_state)}"
+                )
+            spec = (s.matrix, s.noise, None, None)
+
+        def same(a: Any, b: Any) -> bool:
+            return (a is None and b is None) or (
+                a is not None and b is not None and np.array_equal(a, b)
+            )
+
+        for i, old in enumerate(self._sensor_specs):
+            # Same H and initiation model; R may differ (a detection's own covariance).
+            if same(old[0], spec[0]) and same(old[2], spec[2]) and same(old[3], spec[3]):
+                idx = i
+                break
+        else:
+            idx = len(self._sensor_specs)
+            self._sensor_specs.append(spec)
+            self._add_core_sensor(spec)
+        own = None if np.array_equal(self._sensor_specs[idx][1], spec[1]) else spec[1]
+        self._sensor_of_model[key] = (idx, own)
+        self._models.append(model)
+        return idx, own
+
+    def _add_core_sensor(self, spec: tuple) -> None:
+        if self._core is None:
+            return
+        from usvfast import tracking as tk
+
+        self._core.add_sensor(tk.Sensor(*spec))
+
+    def _new_core(self) -> Any:
+        from usvfast import tracking as tk
+
+        sensors = [tk.Sensor(*spec) for spec in self._sensor_specs]
+        return build_native(self.config, sensors)
+
+    def _step(self, time: Any, detections: Any):
+        dets = list(detections)
+        for d in dets:
+            if d.timestamp != time:
+                raise ValueError(
+                    f"detections: a detection at {d.timestamp} in the scan at {time}; usvfast "
+                    "needs every detection of a scan to carry the scan time"
+                )
+        found = [self._sensor_index(d.measurement_model) for d in dets]
+        sids = np.fromiter((f[0] for f in found), dtype=np.int64, count=len(dets))
+        m = self._sensor_specs[0][0].shape[0] if self._sensor_specs else 2
+        covs = None
+        if any(f[1] is not None for f in found):
+            covs = np.array(
+                [self._sensor_specs[i][1] if r is None else r for i, r in found], dtype=np.float64
+            ).reshape(len(dets), m, m)
+        z = self._measurements(dets, m)
+        if self._t0 is None:
+            self._t0 = time
+        t = (time - self._t0).total_seconds()
+        if self._core is None and self._sensor_specs:
+            # Built at the first scan with a detection; earlier (empty) scans are replayed so
+            # that the core's scan indices are the drop-in's.
+            self._core = self._new_core()
+            self._raw = _raw_core(self._core)
+            for args in self._replay:
+                self._core.step(*args)
+            self._replay.clear()
+        snap = None
+        if self._raw is not None:
+            # The core's own validation applies (NaN, sensor ids, covariances).
+            self._raw.step(t, z, sids, covs, None)
+            snap = self._raw.snapshot()
+        elif self._core is not None:
+            snap = vars(self._core.step(t, z, sids, covs))
+        else:
+            self._replay.append((t, z, sids))
+        self._scan_time.append(time)
+        self._scan_dets.append(dets)
+        self._scan += 1
+        if snap is not None:
+            self._collect(time, snap)
+            if self._scan % _FREE_EVERY == 0:
+                self._free_scans()
+        return time, self.tracks
+
+    @staticmethod
+    def _measurements(dets: list, m: int) -> np.ndarray:
+        """(k, m) measurement vectors of the detections."""
+        if not dets:
+            return np.empty((0, m))
+        try:
+            z = np.array([d.state_vector for d in dets], dtype=np.float64)
+        except ValueError:  # ragged: report the first odd one below
+            z = None
+        if z is not None and z.shape in ((len(dets), m, 1), (len(dets), m)):
+            return z.reshape(len(dets), m)
+        for d in dets:
+            sv = np.asarray(d.state_vector, dtype=np.float64).ravel()
+            if sv.shape != (m,):
+                raise ValueError(
+                    f"detections: state vector of length {sv.size}, expected {m} (all sensors "
+                    "must share the measurement dimension)"
+                )
+        raise ValueError(f"detections: state vectors must be ({m}, 1) columns")
+
+    def _transition(self, initiator: bool, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """(F, Q) of the tracker's (or the initiator's) transition model over dt seconds."""
+        key = (initiator, dt)
+        hit = self._fq.get(key)
+        if hit is None:
+            model = self.config.init_motion_model if initiator else self.config.motion_model
+            hit = kalman.transition_matrices(model, dt)
+            if len(self._fq) > 4096:
+                self._fq.clear()
+            self._fq[key] = hit
+        return hit
+
+    def _free_scans(self) -> None:
+        # Later states refer to this scan's detections or to those of the tentative tracks'
+        # first scans (a track confirmed later brings its whole tentative history).
+        if self._raw is not None:
+            first = self._raw.snapshot(tentative=True)["first_scan"]
+        else:
+            first = self._core.tentative_tracks.first_scan
+        oldest = min(int(first.min()) if len(first) else self._scan, self._scan - 1)
+        for k in range(self._freed, max(oldest, self._freed)):
+            self._scan_dets[k] = None
+        self._freed = max(oldest, self._freed)
+
+    def _collect(self, time: Any, snap: Any) -> None:
+        from stonesoup.types.track import Track
+
+        core = self._core
+        alive = snap["ids"].tolist()
+        alive_set = set(alive)
+        xs, ps, is_update = snap["states"], snap["covariances"], snap["is_update"]
+        t_now = (time - self._t0).total_seconds()
+        # Deleted this scan: their final state(s) come from the core's history.
+        for tid in [k for k in self._tracks if k not in alive_set]:
+            tr = self._tracks.pop(tid)
+            hist = vars(core.history(tid))
+            n_have = len(tr.states)
+            for j in range(n_have, len(hist["times"])):
+                tr.append(self._state_from_history(hist, j, tid))
+            self._prev.pop(tid, None)
+        for row, tid in enumerate(alive):
+            tr = self._tracks.get(tid)
+            if tr is None:
+                hist = vars(core.history(tid))
+                states = [self._state_from_history(hist, j, tid) for j in range(len(hist["times"]))]
+                tr = Track(states)
+                self._tracks[tid] = tr
+                self._prev[tid] = (
+                    float(hist["times"][-1]),
+                    hist["states"][-1],
+                    hist["covariances"][-1],
+                )
+                continue
+            upd = bool(is_update[row])
+            hyp = self._hypothesis_for(tid, snap, row) if (upd and self.hypotheses) else None
+            if upd and hyp is None:
+                hyp = self._placeholder(time)
+            x, p = xs[row], ps[row]
+            tr.append(self._objects.state(upd, x, p, time, hyp))
+            # Plain arrays (fresh per snapshot): Stone Soup's matrix types are slow in `@`.
+            self._prev[tid] = (t_now, x, p)
+
+    def _placeholder(self, time: Any) -> Any:
+        return self._objects.single(None, self._objects.missed(time))
+
+    def _prediction(self, tid: int, t: float, time: Any) -> Any:
+        prev = self._prev.get(tid)
+        if prev is None:
+            return None
+        t0, x0, p0 = prev
+        f, q = self._transition(False, t - t0)
+        return self._objects.state(False, f @ x0, f @ p0 @ f.T + q, time)
+
+    def _hypothesis_for(self, tid: int, snap: Any, row: int) -> Any:
+        # Association data of the newest entry, from the snapshot.
+        a, b = snap["assoc_offsets"][row], snap["assoc_offsets"][row + 1]
+        dets = snap["assoc_detection"][a:b]
+        probs = snap["assoc_probability"][a:b]
+        missed = float(snap["missed_probability"][row])
+        det = int(snap["detection"][row])
+        time = self._scan_time[-1]
+        t = (time - self._t0).total_seconds()
+        pred = self._prediction(tid, t, time)
+        scan_dets = self._scan_dets[-1]
+        return self._make_hypothesis(pred, scan_dets, time, dets, probs, missed, det)
+
+    def _make_hypothesis(self, pred, scan_dets, time, dets, probs, missed, det) -> Any:
+        ob = self._objects
+        if self._mixture and np.isfinite(missed):
+            prob = ob.probability
+            hyps = [prob(pred, ob.missed(time), missed)]
+            hyps += [
+                prob(pred, scan_dets[j], p)
+                for j, p in zip(dets.tolist(), probs.tolist(), strict=True)
+            ]
+            return ob.multiple(hyps)
+        if det >= 0:
+            return ob.single(pred, scan_dets[det])
+        return None
+
+    def _state_from_history(self, hist: dict, j: int, tid: int) -> Any:
+        scan = int(hist["scan"][j])
+        time = self._scan_time[scan] if 0 <= scan < len(self._scan_time) else None
+        if time is None:
+            raise RuntimeError(f"usvfast.stonesoup: history entry of track {tid} at unknown scan")
+        upd = bool(hist["is_update"][j])
+        hyp = None
+        if upd:
+            det = int(hist["detection"][j])
+            scan_dets = self._scan_dets[scan]
+            if self.hypotheses:
+                if j == 0 and det >= 0:
+                    hyp = self._objects.single(None, scan_dets[det])
+                else:
+                    pred = None
+                    if j > 0:
+                        t_prev = float(hist["times"][j - 1])
+                        f, q = self._transition(True, float(hist["times"][j]) - t_prev)
+                        x0, p0 = hist["states"][j - 1], hist["covariances"][j - 1]
+                        pred = self._objects.state(False, f @ x0, f @ p0 @ f.T + q, time)
+                    a, b = hist["assoc_offsets"][j], hist["assoc_offsets"][j + 1]
+                    hyp = self._make_hypothesis(
+                        pred,
+                        scan_dets,
+                        time,
+                        hist["assoc_detection"][a:b],
+                        hist["assoc_probability"][a:b],
+                        float(hist["missed_probability"][j]),
+                        det,
+                    )
+            if hyp is None:
+                hyp = self._placeholder(time)
+        return self._objects.state(upd, hist["states"][j], hist["covariances"][j], time, hyp)
+
+
+class MultiTargetMixtureTracker(_DropInTracker):
+    """Stone Soup's `MultiTargetMixtureTracker` (JPDA) run by the usvfast core.
+
+    Same keywords (`initiator`, `deleter`, `detector`, `data_associator`, `updater`), same
+    protocol: iterating yields `(datetime, set of Track)` per scan of `detector`;
+    `update_tracker(time, detections)` processes one scan. Update states carry a
+    `MultipleHypothesis` of `SingleProbabilityHypothesis` (prediction, detection or
+    MissedDetection, JPDA probability; `measurement_prediction` is None). `hypotheses=False`
+    skips building them (2-3x faster): update states then carry a placeholder
+    `SingleHypothesis(None, MissedDetection)`, so do not feed such tracks to Stone Soup
+    deleters. Raises UnsupportedComponentError for components usvfast cannot reproduce
+    exactly, ValueError for detections off the scan time or of another dimension.
+
+    Memory: a scan's detections are kept while a tentative track's history refers to them (a
+    track confirmed later brings its tentative states). A detection with a new measurement
+    matrix H registers one more core sensor (`Tracker.add_sensor`); no scan is replayed.
+    Detections whose models share H but not the noise covariance (each detection with its own
+    `LinearGaussian`, e.g. range-dependent noise) share that sensor and reach the core with
+    their own covariance (`Tracker.step(..., covariances=...)`), exactly as Stone Soup uses
+    each detection's model for gating, hypotheses, updates and initiation.
+    """
+
+    _mixture = True
+
+
+class MultiTargetTracker(_DropInTracker):
+    """Stone Soup's `MultiTargetTracker` (GNN: DistanceHypothesiser + GNNWith2DAssignment) run
+    by the usvfast core; same keywords and protocol as `MultiTargetMixtureTracker`."""
+
+    _mixture = False
