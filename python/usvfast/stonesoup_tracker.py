@@ -296,6 +296,7 @@ class _DropInTracker:
             for j in range(n_have, len(hist["times"])):
                 tr.append(self._state_from_history(hist, j, tid))
             self._prev.pop(tid, None)
+        updated = []  # (row, track) of known tracks, in snapshot order
         for row, tid in enumerate(alive):
             tr = self._tracks.get(tid)
             if tr is None:
@@ -309,47 +310,67 @@ class _DropInTracker:
                     hist["covariances"][-1],
                 )
                 continue
-            upd = bool(is_update[row])
-            hyp = self._hypothesis_for(tid, snap, row) if (upd and self.hypotheses) else None
-            if upd and hyp is None:
-                hyp = self._placeholder(time)
+            updated.append((row, tid, tr))
+        upd = is_update.tolist()
+        hyps = self._hypotheses(snap, [(r, tid) for r, tid, _ in updated if upd[r]], time, t_now)
+        ob = self._objects
+        for row, tid, tr in updated:
+            hyp = None
+            if upd[row]:
+                hyp = hyps.get(row)
+                if hyp is None:
+                    hyp = self._placeholder(time)
             x, p = xs[row], ps[row]
-            tr.append(self._objects.state(upd, x, p, time, hyp))
+            tr.append(ob.state(upd[row], x, p, time, hyp))
             # Plain arrays (fresh per snapshot): Stone Soup's matrix types are slow in `@`.
             self._prev[tid] = (t_now, x, p)
 
     def _placeholder(self, time: Any) -> Any:
         return self._objects.single(None, self._objects.missed(time))
 
-    def _prediction(self, tid: int, t: float, time: Any) -> Any:
-        prev = self._prev.get(tid)
-        if prev is None:
-            return None
-        t0, x0, p0 = prev
-        f, q = self._transition(False, t - t0)
-        return self._objects.state(False, f @ x0, f @ p0 @ f.T + q, time)
-
-    def _hypothesis_for(self, tid: int, snap: Any, row: int) -> Any:
-        # Association data of the newest entry, from the snapshot.
-        a, b = snap["assoc_offsets"][row], snap["assoc_offsets"][row + 1]
-        dets = snap["assoc_detection"][a:b]
-        probs = snap["assoc_probability"][a:b]
-        missed = float(snap["missed_probability"][row])
-        det = int(snap["detection"][row])
-        time = self._scan_time[-1]
-        t = (time - self._t0).total_seconds()
-        pred = self._prediction(tid, t, time)
+    def _hypotheses(self, snap: dict, rows: list[tuple[int, int]], time: Any, t: float) -> dict:
+        """{row: hypothesis} of the updated tracks (row, id) of a snapshot: each track's
+        prediction from its previous state (batched per time step) and its association
+        probabilities from the snapshot; empty with hypotheses=False."""
+        if not self.hypotheses or not rows:
+            return {}
+        by_dt: dict[float, list[int]] = {}
+        prevs = []
+        for i, (_, tid) in enumerate(rows):
+            t0, x0, p0 = self._prev[tid]
+            prevs.append((x0, p0))
+            by_dt.setdefault(t - t0, []).append(i)
+        preds: list[Any] = [None] * len(rows)
+        ob = self._objects
+        for dt, idx in by_dt.items():
+            f, q = self._transition(False, dt)
+            x0 = np.array([prevs[i][0] for i in idx])
+            p0 = np.array([prevs[i][1] for i in idx])
+            xp = x0 @ f.T
+            pp = f @ p0 @ f.T + q
+            for k, i in enumerate(idx):
+                preds[i] = ob.state(False, xp[k], pp[k], time)
+        offs = snap["assoc_offsets"].tolist()
+        det_all = snap["assoc_detection"].tolist()
+        prob_all = snap["assoc_probability"].tolist()
+        missed = snap["missed_probability"].tolist()
+        best = snap["detection"].tolist()
         scan_dets = self._scan_dets[-1]
-        return self._make_hypothesis(pred, scan_dets, time, dets, probs, missed, det)
+        out = {}
+        for i, (row, _) in enumerate(rows):
+            a, b = offs[row], offs[row + 1]
+            out[row] = self._make_hypothesis(
+                preds[i], scan_dets, time, det_all[a:b], prob_all[a:b], missed[row], best[row]
+            )
+        return out
 
     def _make_hypothesis(self, pred, scan_dets, time, dets, probs, missed, det) -> Any:
         ob = self._objects
         if self._mixture and np.isfinite(missed):
             prob = ob.probability
-            hyps = [prob(pred, ob.missed(time), missed)]
+            hyps = [prob(pred, ob.missed(time), float(missed))]
             hyps += [
-                prob(pred, scan_dets[j], p)
-                for j, p in zip(dets.tolist(), probs.tolist(), strict=True)
+                prob(pred, scan_dets[int(j)], float(p)) for j, p in zip(dets, probs, strict=True)
             ]
             return ob.multiple(hyps)
         if det >= 0:
