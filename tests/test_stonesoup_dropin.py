@@ -232,17 +232,17 @@ def test_unsupported_components_are_named():
         CombinedLinearGaussianTransitionModel,
         OrnsteinUhlenbeck,
     )
-    from stonesoup.updater.kalman import ExtendedKalmanUpdater, KalmanUpdater
+    from stonesoup.updater.kalman import KalmanUpdater, SqrtKalmanUpdater
 
     def lbp(t):
         t.data_associator = JPDAwithLBP(t.data_associator.hypothesiser)
 
     _refuse(lbp, r"data_associator: .*JPDAwithLBP")
 
-    def ekf(t):
-        t.updater = ExtendedKalmanUpdater(t.updater.measurement_model)
+    def sqrt(t):
+        t.updater = SqrtKalmanUpdater(t.updater.measurement_model)
 
-    _refuse(ekf, r"updater: .*ExtendedKalmanUpdater")
+    _refuse(sqrt, r"updater: .*SqrtKalmanUpdater")
 
     def ou(t):
         t.data_associator.hypothesiser.predictor.transition_model = (
@@ -315,6 +315,6 @@ def test_streaming_keeps_only_recent_scans_and_no_replay():
     ours = H.run_tracker(spy())
     assert H.compare_runs(ours, ref) == []
     assert len(cores) == 1 and len(dropin._core.sensors) == 1
-    assert sum(own is not None for _, own in dropin._sensor_of_model.values()) == 1
+    assert sum(own is not None for _, own, _ in dropin._sensor_of_model.values()) == 1
     kept = sum(d is not None for d in dropin._scan_dets)
     assert len(dropin._scan_dets) > 40 and kept <= 8

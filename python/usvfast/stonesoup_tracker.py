@@ -15,7 +15,13 @@ from typing import Any
 import numpy as np
 
 from usvfast import kalman
-from usvfast.stonesoup import UnsupportedComponentError, _sensor, build_native, read_components
+from usvfast.stonesoup import (
+    PolarSensor,
+    UnsupportedComponentError,
+    build_native,
+    detection_model,
+    read_components,
+)
 from usvfast.stonesoup_objects import StoneSoupObjects
 
 
@@ -28,6 +34,33 @@ def _raw_core(tracker: Any) -> Any:
     raw = getattr(tracker, "_core", None)
     ok = callable(getattr(raw, "step", None)) and callable(getattr(raw, "snapshot", None))
     return raw if ok else None
+
+
+# At most this many measurement models remembered by identity (one per detection when a radar
+# moves and each detection carries its own translation).
+_MODEL_CACHE = 4096
+
+
+def _core_sensor(spec: tuple) -> Any:
+    """The `usvfast.tracking.Sensor` of a sensor spec: ("linear", H, R, H_init, R_init) or
+    ("polar", mapping, ndim, R, update kind)."""
+    from usvfast import tracking as tk
+
+    if spec[0] == "linear":
+        return tk.Sensor(*spec[1:])
+    _, mapping, ndim, noise, kind = spec
+    if kind[0] == "ekf":
+        return tk.Sensor.bearing_range(noise=noise, update="ekf", ndim_state=ndim, mapping=mapping)
+    _, alpha, beta, kappa = kind
+    return tk.Sensor.bearing_range(
+        noise=noise,
+        update="ukf",
+        ndim_state=ndim,
+        mapping=mapping,
+        alpha=alpha,
+        beta=beta,
+        kappa=kappa,
+    )
 
 
 # Scans between two looks at the tentative tracks to free old detections (a look costs a
@@ -77,9 +110,9 @@ class _DropInTracker:
         # Transition matrices (F, Q) of the tracker's and the initiator's models per time step.
         self._fq: dict[tuple[bool, float], tuple[np.ndarray, np.ndarray]] = {}
         self._core: Any = None
-        self._sensor_specs: list[tuple] = []  # (H, R, H_init, R_init) per core sensor
+        self._sensor_specs: list[tuple] = []  # per core sensor, see `_core_sensor`
         # id(model) -> (core sensor index, the model's R if it differs from the sensor's)
-        self._sensor_of_model: dict[int, tuple[int, np.ndarray | None]] = {}
+        self._sensor_of_model: dict[int, tuple] = {}
         self._models: list[Any] = []  # keeps the models alive while their id() is used
         # Empty scans seen before the core exists (it is built at the first detection).
         self._replay: list[tuple[float, np.ndarray, np.ndarray]] = []
@@ -122,15 +155,17 @@ class _DropInTracker:
 
     # -- internals ---------------------------------------------------------------------------
 
-    def _sensor_index(self, model: Any) -> tuple[int, np.ndarray | None]:
-        """The core sensor of a detection's measurement model, and the model's noise R when it
-        differs from that sensor's (None otherwise). Models with the same H share one core
-        sensor; their own R goes to the core as a per-detection covariance."""
+    def _sensor_index(self, model: Any) -> tuple[int, np.ndarray | None, np.ndarray | None]:
+        """(core sensor, the model's noise R when it differs from that sensor's or None, the
+        sensor position for a range-bearing model or None) of a detection's measurement
+        model. Linear models with the same H share one core sensor, range-bearing models with
+        the same mapping too; their own R goes to the core as a per-detection covariance."""
         key = id(model)
         hit = self._sensor_of_model.get(key)
         if hit is not None:
             return hit
         cfg = self.config
+        origin = None
         if model is None:
             main, init = cfg.fallback_sensor, cfg.init_fallback_sensor
             if main is None or init is None:
@@ -144,19 +179,35 @@ class _DropInTracker:
                     "initiator.updater.measurement_model differs from updater.measurement_model:"
                     " detections without a model would be updated with two different models"
                 )
-            spec = (main.matrix, main.noise, init.matrix, init.noise)
+            spec: tuple = ("linear", main.matrix, main.noise, init.matrix, init.noise)
         else:
-            s = _sensor(model, "detection.measurement_model")
-            if s is None:
-                raise TypeError(
-                    "detection.measurement_model: expected a LinearGaussian measurement model"
-                )
-            if s.matrix.shape[1] != len(cfg.prior_state):
+            s, where = detection_model(model, "detection.measurement_model")
+            ndim = s.ndim if isinstance(s, PolarSensor) else s.matrix.shape[1]
+            if ndim != len(cfg.prior_state):
                 raise ValueError(
-                    f"detection.measurement_model: ndim_state {s.matrix.shape[1]} differs from "
-                    f"the transition model's {len(cfg.prior_state)}"
+                    f"detection.measurement_model: ndim_state {ndim} differs from the "
+                    f"transition model's {len(cfg.prior_state)}"
                 )
-            spec = (s.matrix, s.noise, None, None)
+            if isinstance(s, PolarSensor):
+                spec = ("polar", s.mapping, s.ndim, s.noise, cfg.radar_update())
+                origin = where
+            else:
+                spec = ("linear", s.matrix, s.noise, None, None)
+        idx = self._find_or_add(spec)
+        noise = spec[2] if spec[0] == "linear" else spec[3]
+        have = self._sensor_specs[idx]
+        own = None if np.array_equal(have[2] if have[0] == "linear" else have[3], noise) else noise
+        if len(self._sensor_of_model) >= _MODEL_CACHE:
+            # One model per detection (a moving radar): keep the cache bounded.
+            self._sensor_of_model.clear()
+            self._models.clear()
+        self._sensor_of_model[key] = (idx, own, origin)
+        self._models.append(model)
+        return idx, own, origin
+
+    def _find_or_add(self, spec: tuple) -> int:
+        """Index of the core sensor for `spec` (same kind, same H / mapping and initiation
+        model; R may differ), registering a new one when none fits."""
 
         def same(a: Any, b: Any) -> bool:
             return (a is None and b is None) or (
@@ -164,31 +215,25 @@ class _DropInTracker:
             )
 
         for i, old in enumerate(self._sensor_specs):
-            # Same H and initiation model; R may differ (a detection's own covariance).
-            if same(old[0], spec[0]) and same(old[2], spec[2]) and same(old[3], spec[3]):
-                idx = i
-                break
-        else:
-            idx = len(self._sensor_specs)
-            self._sensor_specs.append(spec)
-            self._add_core_sensor(spec)
-        own = None if np.array_equal(self._sensor_specs[idx][1], spec[1]) else spec[1]
-        self._sensor_of_model[key] = (idx, own)
-        self._models.append(model)
-        return idx, own
-
-    def _add_core_sensor(self, spec: tuple) -> None:
-        if self._core is None:
-            return
-        from usvfast import tracking as tk
-
-        self._core.add_sensor(tk.Sensor(*spec))
+            if old[0] != spec[0]:
+                continue
+            if spec[0] == "linear":
+                if same(old[1], spec[1]) and same(old[3], spec[3]) and same(old[4], spec[4]):
+                    return i
+            elif old[1] == spec[1] and old[2] == spec[2] and old[4] == spec[4]:
+                return i
+        self._sensor_specs.append(spec)
+        if self._core is not None:
+            self._core.add_sensor(_core_sensor(spec))
+        return len(self._sensor_specs) - 1
 
     def _new_core(self) -> Any:
-        from usvfast import tracking as tk
-
-        sensors = [tk.Sensor(*spec) for spec in self._sensor_specs]
+        sensors = [_core_sensor(spec) for spec in self._sensor_specs]
         return build_native(self.config, sensors)
+
+    def _noise(self, idx: int) -> np.ndarray:
+        spec = self._sensor_specs[idx]
+        return spec[2] if spec[0] == "linear" else spec[3]
 
     def _step(self, time: Any, detections: Any):
         dets = list(detections)
@@ -200,12 +245,16 @@ class _DropInTracker:
                 )
         found = [self._sensor_index(d.measurement_model) for d in dets]
         sids = np.fromiter((f[0] for f in found), dtype=np.int64, count=len(dets))
-        m = self._sensor_specs[0][0].shape[0] if self._sensor_specs else 2
-        covs = None
+        m = self._noise(0).shape[0] if self._sensor_specs else 2
+        covs = origins = None
         if any(f[1] is not None for f in found):
             covs = np.array(
-                [self._sensor_specs[i][1] if r is None else r for i, r in found], dtype=np.float64
+                [self._noise(i) if r is None else r for i, r, _ in found], dtype=np.float64
             ).reshape(len(dets), m, m)
+        if any(f[2] is not None for f in found):
+            origins = np.array(
+                [(0.0, 0.0) if o is None else o for _, _, o in found], dtype=np.float64
+            ).reshape(len(dets), 2)
         z = self._measurements(dets, m)
         if self._t0 is None:
             self._t0 = time
@@ -221,10 +270,10 @@ class _DropInTracker:
         snap = None
         if self._raw is not None:
             # The core's own validation applies (NaN, sensor ids, covariances).
-            self._raw.step(t, z, sids, covs, None)
+            self._raw.step(t, z, sids, covs, origins)
             snap = self._raw.snapshot()
         elif self._core is not None:
-            snap = vars(self._core.step(t, z, sids, covs))
+            snap = vars(self._core.step(t, z, sids, covs, origins))
         else:
             self._replay.append((t, z, sids))
         self._scan_time.append(time)
