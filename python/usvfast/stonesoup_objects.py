@@ -27,25 +27,38 @@ def _same(a: Any, b: Any) -> bool:
     return a is b or a == b
 
 
+_IMMUTABLE = (type(None), bool, int, float, str)
+
+
 class _Builder:
-    """One Stone Soup class: `make(**values)` with every property given (in any order)."""
+    """One Stone Soup class built from positional `args` (property names) plus `constants`
+    (the other properties; immutable values only, so that objects can share them)."""
 
-    def __init__(self, cls: type, sample: dict[str, Any]) -> None:
+    def __init__(
+        self, cls: type, args: tuple[str, ...], constants: dict[str, Any], sample: tuple
+    ) -> None:
         self.cls = cls
-        self.names = tuple(cls.properties)
-        self.pairs = tuple((f"_property_{n}", n) for n in self.names)
-        self.fast = self._check(sample)
+        self.args = args
+        self.constants = constants
+        self.keys = tuple(f"_property_{n}" for n in args)
+        names = tuple(cls.properties)
+        ok = set(names) == set(args) | set(constants) and not set(args) & set(constants)
+        ok = ok and all(isinstance(v, _IMMUTABLE) for v in constants.values())
+        # Properties in the class's order: a copy of it per object keeps that order.
+        self.template = {f"_property_{n}": constants.get(n) for n in names}
+        self.fast = ok and self._check(sample)
 
-    def _fast(self, values: dict[str, Any]) -> Any:
+    def _fast(self, values: tuple) -> Any:
         obj = self.cls.__new__(self.cls)
-        d = obj.__dict__
-        for k, n in self.pairs:
-            d[k] = values[n]
+        d = self.template.copy()
+        for k, v in zip(self.keys, values, strict=True):
+            d[k] = v
+        obj.__dict__ = d
         return obj
 
-    def _check(self, sample: dict[str, Any]) -> bool:
+    def _check(self, sample: tuple) -> bool:
         try:
-            slow = self.cls(**sample)
+            slow = self.cls(**self.constants, **dict(zip(self.args, sample, strict=True)))
             fast = self._fast(sample)
             a, b = vars(slow), vars(fast)
             if list(a) != list(b):
@@ -54,10 +67,11 @@ class _Builder:
         except Exception:  # any surprise: the public constructor
             return False
 
-    def make(self, **values: Any) -> Any:
+    def make(self, *values: Any) -> Any:
+        """An object with the properties `args` = values (and the constants)."""
         if self.fast:
             return self._fast(values)
-        return self.cls(**values)
+        return self.cls(**self.constants, **dict(zip(self.args, values, strict=True)))
 
 
 class StoneSoupObjects:
@@ -75,30 +89,81 @@ class StoneSoupObjects:
         ts = datetime(2024, 1, 1)
         x = np.arange(4.0).reshape(4, 1).view(StateVector)
         p = np.eye(4).view(CovarianceMatrix)
+        none2 = {"transition_model": None, "prior": None}
         self._pred = _Builder(
-            GaussianStatePrediction,
-            dict(state_vector=x, covar=p, timestamp=ts, transition_model=None, prior=None),
+            GaussianStatePrediction, ("state_vector", "covar", "timestamp"), none2, (x, p, ts)
         )
         self._upd = _Builder(
-            GaussianStateUpdate, dict(state_vector=x, covar=p, hypothesis=None, timestamp=ts)
+            GaussianStateUpdate,
+            ("state_vector", "covar", "hypothesis", "timestamp"),
+            {},
+            (x, p, None, ts),
         )
-        missed_sample = dict(state_vector=None, timestamp=ts, measurement_model=None, metadata={})
-        self._missed = _Builder(MissedDetection, missed_sample)
-        pred = self._pred.make(
-            state_vector=x, covar=p, timestamp=ts, transition_model=None, prior=None
+        self._missed = _Builder(
+            MissedDetection,
+            ("timestamp", "metadata"),
+            {"state_vector": None, "measurement_model": None},
+            (ts, {}),
         )
+        pred = self._pred.make(x, p, ts)
         miss = MissedDetection(timestamp=ts)
         self._single = _Builder(
             SingleHypothesis,
-            dict(prediction=pred, measurement=miss, measurement_prediction=None),
+            ("prediction", "measurement"),
+            {"measurement_prediction": None},
+            (pred, miss),
         )
         self._prob = _Builder(
             SingleProbabilityHypothesis,
-            dict(prediction=pred, measurement=miss, measurement_prediction=None, probability=0.5),
+            ("prediction", "measurement", "probability"),
+            {"measurement_prediction": None},
+            (pred, miss, 0.5),
         )
         self._multi = _Builder(
-            MultipleHypothesis, dict(single_hypotheses=[], normalise=False, total_weight=1)
+            MultipleHypothesis,
+            ("single_hypotheses",),
+            {"normalise": False, "total_weight": 1},
+            ([],),
         )
+        self._fast_append = self._check_append()
+
+    def _check_append(self) -> bool:
+        """True when `append_plain` equals `Track.append` on a sample (see there)."""
+        try:
+            from stonesoup.types.track import Track
+
+            ts = datetime(2024, 1, 1)
+            x, p = np.zeros(4), np.eye(4)
+            det = self.missed(ts)  # a measurement without metadata
+            pred = self.state(False, x, p, ts)
+            hyp = self.multiple([self.probability(pred, det, 1.0)])
+            a, b = Track([pred], init_metadata={"k": 1}), Track([pred], init_metadata={"k": 1})
+            upd = self.state(True, x, p, ts, hyp)
+            a.append(upd)
+            self.append_plain(b, upd, check=False)
+            da, db = vars(a), vars(b)
+            return (
+                list(da) == list(db)
+                and da["metadatas"] == db["metadatas"]
+                and da["metadatas"][-1] is not da["metadatas"][-2]
+                and db["metadatas"][-1] is not db["metadatas"][-2]
+                and da["_property_states"] == db["_property_states"]
+            )
+        except Exception:  # any surprise: Track.append
+            return False
+
+    def append_plain(self, track: Any, state: Any, check: bool = True) -> None:
+        """`track.append(state)` when no measurement of the state's hypotheses carries
+        metadata (the caller knows): Stone Soup's `Track.append` then only appends a copy of
+        the track's current metadata and the state, which this does without sorting the
+        hypotheses. Falls back to `Track.append` when the check at construction failed."""
+        if check and not self._fast_append:
+            track.append(state)
+            return
+        d = track.__dict__
+        mds = d["metadatas"]
+        mds.append((mds[-1] if mds else d["_property_init_metadata"]).copy())
+        d["_property_states"].append(state)
 
     @property
     def all_fast(self) -> bool:
@@ -122,32 +187,21 @@ class StoneSoupObjects:
         p (n, n) at `ts` (views, see `vector`)."""
         sv, cm = self.vector(x), self.matrix(p)
         if is_update:
-            return self._upd.make(state_vector=sv, covar=cm, hypothesis=hypothesis, timestamp=ts)
-        return self._pred.make(
-            state_vector=sv, covar=cm, timestamp=ts, transition_model=None, prior=None
-        )
+            return self._upd.make(sv, cm, hypothesis, ts)
+        return self._pred.make(sv, cm, ts)
 
     def missed(self, ts: Any) -> Any:
         """`MissedDetection(timestamp=ts)`."""
-        return self._missed.make(
-            state_vector=None, timestamp=ts, measurement_model=None, metadata={}
-        )
+        return self._missed.make(ts, {})
 
     def single(self, prediction: Any, measurement: Any) -> Any:
         """`SingleHypothesis(prediction, measurement)`."""
-        return self._single.make(
-            prediction=prediction, measurement=measurement, measurement_prediction=None
-        )
+        return self._single.make(prediction, measurement)
 
     def probability(self, prediction: Any, measurement: Any, probability: float) -> Any:
         """`SingleProbabilityHypothesis(prediction, measurement, probability)`."""
-        return self._prob.make(
-            prediction=prediction,
-            measurement=measurement,
-            measurement_prediction=None,
-            probability=probability,
-        )
+        return self._prob.make(prediction, measurement, probability)
 
     def multiple(self, hypotheses: list) -> Any:
         """`MultipleHypothesis(hypotheses, normalise=False)` (all SingleHypothesis)."""
-        return self._multi.make(single_hypotheses=hypotheses, normalise=False, total_weight=1)
+        return self._multi.make(hypotheses)

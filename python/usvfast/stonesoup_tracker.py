@@ -363,6 +363,10 @@ class _DropInTracker:
         upd = is_update.tolist()
         hyps = self._hypotheses(snap, [(r, tid) for r, tid, _ in updated if upd[r]], time, t_now)
         ob = self._objects
+        # Stone Soup's Track.append merges the metadata of the hypotheses' detections into
+        # the track's; without any (the usual case) it only copies it.
+        plain = not any(d.metadata for d in self._scan_dets[-1] if d.metadata is not None)
+        append = ob.append_plain if plain else Track.append
         for row, tid, tr in updated:
             hyp = None
             if upd[row]:
@@ -370,7 +374,7 @@ class _DropInTracker:
                 if hyp is None:
                     hyp = self._placeholder(time)
             x, p = xs[row], ps[row]
-            tr.append(ob.state(upd[row], x, p, time, hyp))
+            append(tr, ob.state(upd[row], x, p, time, hyp))
             # Plain arrays (fresh per snapshot): Stone Soup's matrix types are slow in `@`.
             self._prev[tid] = (t_now, x, p)
 
