@@ -216,7 +216,7 @@ def _motion_model(transition_model: Any, where: str) -> tuple[kalman.Component, 
         _require(m, name, *simple, tl.CombinedLinearGaussianTransitionModel)
         if type(m) is tl.CombinedLinearGaussianTransitionModel:
             raise UnsupportedComponentError(f"{name}: nested combined models are not supported")
-        q = float(m.noise_diff_coeff)
+        q = float(getattr(m, "noise_diff_coeff"))  # noqa: B009 (a property of these models)
         if not np.isfinite(q) or q < 0:
             raise ValueError(f"{name}.noise_diff_coeff: must be finite and >= 0, got {q}")
         out.append(simple[type(m)](q))

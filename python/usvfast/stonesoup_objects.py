@@ -35,7 +35,7 @@ class _Builder:
     (the other properties; immutable values only, so that objects can share them)."""
 
     def __init__(
-        self, cls: type, args: tuple[str, ...], constants: dict[str, Any], sample: tuple
+        self, cls: Any, args: tuple[str, ...], constants: dict[str, Any], sample: tuple
     ) -> None:
         self.cls = cls
         self.args = args

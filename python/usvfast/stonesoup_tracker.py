@@ -145,7 +145,8 @@ class _DropInTracker:
     def __next__(self):
         if self.detector_iter is None:
             iter(self)
-        time, detections = next(self.detector_iter)
+        it: Any = self.detector_iter
+        time, detections = next(it)
         return self._step(time, detections)
 
     def update_tracker(self, time: Any, detections: Any):
@@ -365,7 +366,7 @@ class _DropInTracker:
         ob = self._objects
         # Stone Soup's Track.append merges the metadata of the hypotheses' detections into
         # the track's; without any (the usual case) it only copies it.
-        plain = not any(d.metadata for d in self._scan_dets[-1] if d.metadata is not None)
+        plain = not any(d.metadata for d in self._dets_of(-1) if d.metadata is not None)
         append = ob.append_plain if plain else Track.append
         for row, tid, tr in updated:
             hyp = None
@@ -377,6 +378,14 @@ class _DropInTracker:
             append(tr, ob.state(upd[row], x, p, time, hyp))
             # Plain arrays (fresh per snapshot): Stone Soup's matrix types are slow in `@`.
             self._prev[tid] = (t_now, x, p)
+
+    def _dets_of(self, scan: int) -> list:
+        """The detections of a scan still kept (the newest scan's and those a tentative
+        history can refer to, see `_free_scans`)."""
+        dets = self._scan_dets[scan]
+        if dets is None:
+            raise RuntimeError(f"usvfast.stonesoup: detections of scan {scan} already freed")
+        return dets
 
     def _placeholder(self, time: Any) -> Any:
         return self._objects.single(None, self._objects.missed(time))
@@ -408,7 +417,7 @@ class _DropInTracker:
         prob_all = snap["assoc_probability"].tolist()
         missed = snap["missed_probability"].tolist()
         best = snap["detection"].tolist()
-        scan_dets = self._scan_dets[-1]
+        scan_dets = self._dets_of(-1)
         out = {}
         for i, (row, _) in enumerate(rows):
             a, b = offs[row], offs[row + 1]
@@ -439,7 +448,7 @@ class _DropInTracker:
         hyp = None
         if upd:
             det = int(hist["detection"][j])
-            scan_dets = self._scan_dets[scan]
+            scan_dets = self._dets_of(scan)
             if self.hypotheses:
                 if j == 0 and det >= 0:
                     hyp = self._objects.single(None, scan_dets[det])
