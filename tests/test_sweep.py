@@ -120,14 +120,15 @@ def test_joyride_sweep_on_the_local_cluster_equals_a_plain_loop(tmp_path):
     metrics.remove("metric.ms_per_scan")  # a timing, not a result
     got = result.table.set_index("job_id").loc[loop["job_id"], metrics].reset_index(drop=True)
     pd.testing.assert_frame_equal(got, loop[metrics])
-    # The shipped joyride preset (IMM + existence, q 5, sigma 20) is one of the jobs, and beats
-    # the same tracker without them (CV only) on coverage and false tracks.
-    at = (loop["param.tracker.q"] == 5.0) & (loop["param.tracker.sigma"] == 20.0)
-    imm = loop[at & (loop["param.base"] == "joyride")].iloc[0]
-    cv = loop[at & (loop["param.base"] == "joyride-cv")].iloc[0]
-    assert imm["metric.fragments"] == 1 and imm["metric.coverage"] >= 0.94
-    assert imm["metric.coverage"] > cv["metric.coverage"]
-    assert imm["metric.tracks_elsewhere"] < cv["metric.tracks_elsewhere"]
+    # Over the q x sigma grid, the IMM + existence preset (joyride) keeps one fragment more
+    # often than the constant-velocity preset (joyride-cv), and at one fragment it covers more
+    # of the target with fewer false tracks.
+    one = loop[loop["metric.fragments"] == 1]
+    imm, cv = (one[one["param.base"] == b] for b in ("joyride", "joyride-cv"))
+    assert len(imm) > len(cv) > 0
+    assert imm["metric.coverage"].max() > cv["metric.coverage"].max() >= 0.94
+    assert imm["metric.tracks_elsewhere"].min() < cv["metric.tracks_elsewhere"].min()
+    assert imm["metric.tracks_elsewhere"].median() < cv["metric.tracks_elsewhere"].median()
 
 
 def test_resume_runs_only_the_jobs_not_finished(tmp_path):

@@ -17,12 +17,23 @@ and deleter, the tracker's deleter) and runs `usvfast.tracking` with them. It re
 what it can reproduce exactly: any other component or setting raises
 `UnsupportedComponentError` naming it (nothing is approximated silently). Supported:
 
-- predictor: `KalmanPredictor` without control; transition model `ConstantVelocity`,
-  `RandomWalk`, `ConstantAcceleration` or a `CombinedLinearGaussianTransitionModel` of them;
-- updater: `KalmanUpdater` (`use_joseph_cov`, `force_symmetric_covariance` either way; not
+- predictor: `KalmanPredictor` (or `ExtendedKalmanPredictor` / `UnscentedKalmanPredictor`,
+  which equal it on these linear models) without control; transition model
+  `ConstantVelocity`, `RandomWalk`, `ConstantAcceleration` or a
+  `CombinedLinearGaussianTransitionModel` of them;
+- updater: `KalmanUpdater`, `ExtendedKalmanUpdater` or `UnscentedKalmanUpdater`
+  (`use_joseph_cov`, `force_symmetric_covariance` either way; not
   `force_positive_definite_covariance`);
 - measurement models: `LinearGaussian` (on the detections — each its own if you like,
-  its own `noise_covar` included — or the updater's/initiator's);
+  its own `noise_covar` included — or the updater's/initiator's), and radar plots with
+  `CartesianToBearingRange` on the detections (`translation_offset` = the sensor position
+  of each detection, e.g. a moving own ship; no `rotation_offset`): usvfast's
+  `Sensor.bearing_range` with the EKF or UKF update of the updaters, which must then all
+  (tracker, hypothesisers, initiator) be the same `ExtendedKalmanUpdater` or the same
+  `UnscentedKalmanUpdater` (alpha, beta, kappa). Stone Soup's `CartesianToBearingRange`
+  Jacobian (EKF updates, and the initiator's covariance with either updater) is a forward
+  finite difference, usvfast's is analytic: radar tracks agree with Stone Soup's to ~1e-5
+  relative (the finite-difference error), not to rounding;
 - JPDA: `PDAHypothesiser` + `JPDA`, `JPDAwithEHM`, `JPDAwithEHM2` (or pyehm's plugins);
 - GNN: `DistanceHypothesiser` (`Mahalanobis` / `SquaredMahalanobis` without mapping) +
   `GNNWith2DAssignment`;
@@ -133,6 +144,59 @@ class StoneSoupConfig:
     notes: list[str] = field(default_factory=list)
     symmetric_covariance: bool = False
     init_symmetric_covariance: bool = False
+    # Where -> ("kf",), ("ekf",) or ("ukf", alpha, beta, kappa) of every updater read.
+    updater_kinds: dict[str, tuple] = field(default_factory=dict)
+
+    def radar_update(self) -> tuple:
+        """("ekf",) or ("ukf", alpha, beta, kappa): the one nonlinear update all updaters
+        share, for range-bearing detections; UnsupportedComponentError otherwise."""
+        kinds = set(self.updater_kinds.values())
+        if len(kinds) == 1:
+            kind = next(iter(kinds))
+            if kind[0] != "kf":
+                return kind
+        names = ", ".join(f"{w}: {k[0]}" for w, k in self.updater_kinds.items())
+        raise UnsupportedComponentError(
+            "detection.measurement_model: CartesianToBearingRange detections need the same "
+            "ExtendedKalmanUpdater or UnscentedKalmanUpdater (same alpha, beta, kappa) for the "
+            f"tracker, its hypothesiser and the initiator; got {names}"
+        )
+
+
+@dataclass(frozen=True)
+class PolarSensor:
+    """A `CartesianToBearingRange` model without its translation: state indices `mapping`
+    of (x, y), state dimension `ndim`, noise R (2, 2) in (rad², m²)."""
+
+    mapping: tuple[int, int]
+    ndim: int
+    noise: np.ndarray
+
+
+def detection_model(model: Any, where: str) -> tuple[LinearSensor | PolarSensor, np.ndarray]:
+    """A detection's own measurement model: (sensor, origin (2,)) — origin the
+    `translation_offset` of a `CartesianToBearingRange`, zeros for a `LinearGaussian`."""
+    from stonesoup.models.measurement.linear import LinearGaussian
+    from stonesoup.models.measurement.nonlinear import CartesianToBearingRange
+
+    _require(model, where, LinearGaussian, CartesianToBearingRange)
+    if type(model) is LinearGaussian:
+        lin = _sensor(model, where)
+        assert lin is not None
+        return lin, np.zeros(2)
+    rot = np.asarray(model.rotation_offset, dtype=np.float64).ravel()
+    if np.any(rot != 0):
+        raise UnsupportedComponentError(
+            f"{where}.rotation_offset: a rotated CartesianToBearingRange is not supported"
+        )
+    mapping = tuple(int(i) for i in model.mapping)
+    origin = np.asarray(model.translation_offset, dtype=np.float64).ravel()
+    if len(mapping) != 2 or origin.shape != (2,):
+        raise UnsupportedComponentError(
+            f"{where}: CartesianToBearingRange with a 2-element mapping and translation_offset only"
+        )
+    noise = np.asarray(model.covar(), dtype=np.float64).copy()
+    return PolarSensor((mapping[0], mapping[1]), int(model.ndim_state), noise), origin.copy()
 
 
 def _motion_model(transition_model: Any, where: str) -> tuple[kalman.Component, ...]:
@@ -153,7 +217,7 @@ def _motion_model(transition_model: Any, where: str) -> tuple[kalman.Component, 
         _require(m, name, *simple, tl.CombinedLinearGaussianTransitionModel)
         if type(m) is tl.CombinedLinearGaussianTransitionModel:
             raise UnsupportedComponentError(f"{name}: nested combined models are not supported")
-        q = float(m.noise_diff_coeff)  # pyright: ignore[reportAttributeAccessIssue]
+        q = float(getattr(m, "noise_diff_coeff"))  # noqa: B009 (a property of these models)
         if not np.isfinite(q) or q < 0:
             raise ValueError(f"{name}.noise_diff_coeff: must be finite and >= 0, got {q}")
         out.append(simple[type(m)](q))
@@ -162,9 +226,15 @@ def _motion_model(transition_model: Any, where: str) -> tuple[kalman.Component, 
 
 def _predictor(predictor: Any, where: str) -> tuple[kalman.Component, ...]:
     from stonesoup.models.control.linear import LinearControlModel
-    from stonesoup.predictor.kalman import KalmanPredictor
+    from stonesoup.predictor.kalman import (
+        ExtendedKalmanPredictor,
+        KalmanPredictor,
+        UnscentedKalmanPredictor,
+    )
 
-    _require(predictor, where, KalmanPredictor)
+    # On linear transition models the extended and unscented predictors give the Kalman
+    # prediction (the unscented transform is exact for a linear map).
+    _require(predictor, where, KalmanPredictor, ExtendedKalmanPredictor, UnscentedKalmanPredictor)
     ctrl = predictor.control_model
     if ctrl is not None:
         zero = type(ctrl) is LinearControlModel and not np.any(ctrl.control_matrix)
@@ -188,11 +258,33 @@ def _sensor(model: Any, where: str) -> LinearSensor | None:
     )
 
 
-def _updater(updater: Any, where: str) -> tuple[bool, bool, LinearSensor | None]:
-    """(use_joseph_cov, force_symmetric_covariance, fallback measurement model)."""
-    from stonesoup.updater.kalman import KalmanUpdater
+def _update_kind(updater: Any) -> tuple:
+    """("kf",), ("ekf",) or ("ukf", alpha, beta, kappa) of an accepted updater."""
+    from stonesoup.updater.kalman import ExtendedKalmanUpdater, UnscentedKalmanUpdater
 
-    _require(updater, where, KalmanUpdater)
+    if type(updater) is ExtendedKalmanUpdater:
+        return ("ekf",)
+    if type(updater) is UnscentedKalmanUpdater:
+        kappa = None if updater.kappa is None else float(updater.kappa)
+        return ("ukf", float(updater.alpha), float(updater.beta), kappa)
+    return ("kf",)
+
+
+def _updater(
+    updater: Any, where: str, kinds: dict[str, tuple] | None = None
+) -> tuple[bool, bool, LinearSensor | None]:
+    """(use_joseph_cov, force_symmetric_covariance, fallback measurement model); the update
+    kind goes to `kinds[where]`. On linear models the extended update is the Kalman update
+    and the unscented one equals it to rounding."""
+    from stonesoup.updater.kalman import (
+        ExtendedKalmanUpdater,
+        KalmanUpdater,
+        UnscentedKalmanUpdater,
+    )
+
+    _require(updater, where, KalmanUpdater, ExtendedKalmanUpdater, UnscentedKalmanUpdater)
+    if kinds is not None:
+        kinds[where] = _update_kind(updater)
     if getattr(updater, "force_positive_definite_covariance", False):
         raise UnsupportedComponentError(
             f"{where}.force_positive_definite_covariance=True is not supported"
@@ -297,7 +389,7 @@ def _deleter(deleter: Any, where: str) -> DeleterSpec:
     return DeleterSpec("composite", children=tuple(children), intersect=bool(deleter.intersect))
 
 
-def _initiator(initiator: Any, where: str) -> dict[str, Any]:
+def _initiator(initiator: Any, where: str, kinds: dict[str, tuple]) -> dict[str, Any]:
     from stonesoup.initiator.simple import MultiMeasurementInitiator, SimpleMeasurementInitiator
 
     _require(initiator, where, MultiMeasurementInitiator)
@@ -313,8 +405,10 @@ def _initiator(initiator: Any, where: str) -> dict[str, Any]:
         raise UnsupportedComponentError(f"{where}.initiator.diag_load != 0 is not supported")
     gnn, hyp = _gnn(initiator.data_associator, f"{where}.data_associator")
     init_motion = _predictor(hyp.predictor, f"{where}.data_associator.hypothesiser.predictor")
-    _, _, hyp_fallback = _updater(hyp.updater, f"{where}.data_associator.hypothesiser.updater")
-    joseph, symmetric, upd_fallback = _updater(initiator.updater, f"{where}.updater")
+    _, _, hyp_fallback = _updater(
+        hyp.updater, f"{where}.data_associator.hypothesiser.updater", kinds
+    )
+    joseph, symmetric, upd_fallback = _updater(initiator.updater, f"{where}.updater", kinds)
     _same_fallback(
         hyp_fallback,
         upd_fallback,
@@ -366,15 +460,16 @@ def read_components(
     else:
         assoc, hyp = _gnn(data_associator, "data_associator")
     motion = _predictor(hyp.predictor, "data_associator.hypothesiser.predictor")
-    _, _, hyp_fallback = _updater(hyp.updater, "data_associator.hypothesiser.updater")
-    joseph, symmetric, upd_fallback = _updater(updater, "updater")
+    kinds: dict[str, tuple] = {}
+    _, _, hyp_fallback = _updater(hyp.updater, "data_associator.hypothesiser.updater", kinds)
+    joseph, symmetric, upd_fallback = _updater(updater, "updater", kinds)
     _same_fallback(
         hyp_fallback,
         upd_fallback,
         "data_associator.hypothesiser.updater.measurement_model",
         "updater.measurement_model",
     )
-    init = _initiator(initiator, "initiator")
+    init = _initiator(initiator, "initiator", kinds)
     ndim = sum(
         {"random_walk": 1, "constant_velocity": 2, "constant_acceleration": 3}[c.kind]
         for c in motion
@@ -396,6 +491,7 @@ def read_components(
         fallback_sensor=upd_fallback if upd_fallback is not None else hyp_fallback,
         deleter=_deleter(deleter, "deleter"),
         delete_last_pred=bool(deleter.delete_last_pred),
+        updater_kinds=kinds,
         **init,
     )
 
@@ -425,8 +521,9 @@ def build_native(
     (list of `usvfast.tracking.Sensor`). initiate_in_gates=False switches on the native
     option that withholds detections inside confirmed tracks' gates from the initiator (no
     duplicate tracks; no longer Stone Soup's behaviour)."""
-    instance("cfg", cfg, StoneSoupConfig)
     from usvfast import tracking as tk
+
+    instance("cfg", cfg, StoneSoupConfig)
 
     if isinstance(cfg.association, JpdaSpec):
         a = cfg.association
@@ -472,438 +569,15 @@ def build_native(
     )
 
 
-# --------------------------------------------------------------------------------------------
-# Building Stone Soup states quickly
-# --------------------------------------------------------------------------------------------
+# The trackers live in their own module; imported here so that
+# `from usvfast.stonesoup import MultiTargetMixtureTracker` keeps working.
+from usvfast.stonesoup_tracker import MultiTargetMixtureTracker, MultiTargetTracker  # noqa: E402
 
-
-class _StateFactory:
-    """Builds Stone Soup states. Stone Soup's `Base.__init__` costs tens of µs per object; when
-    the fast path builds objects whose attributes equal the slow path's (checked once on first
-    use), it fills `__dict__` directly."""
-
-    def __init__(self) -> None:
-        from stonesoup.types.array import CovarianceMatrix, StateVector
-        from stonesoup.types.prediction import GaussianStatePrediction
-        from stonesoup.types.update import GaussianStateUpdate
-
-        self._sv, self._cm = StateVector, CovarianceMatrix
-        self._pred, self._upd = GaussianStatePrediction, GaussianStateUpdate
-        self._fast = self._check_fast()
-
-    def _fast_new(self, cls: type, props: dict[str, Any]) -> Any:
-        obj = cls.__new__(cls)  # pyright: ignore[reportCallIssue]
-        obj.__dict__.update({f"_property_{k}": v for k, v in props.items()})
-        return obj
-
-    def _check_fast(self) -> bool:
-        from datetime import datetime
-
-        x, p, ts = np.arange(4.0).reshape(4, 1), np.eye(4), datetime(2024, 1, 1)
-        try:
-            for cls, extra in ((self._pred, {}), (self._upd, {"hypothesis": None})):
-                slow = cls(x, p, timestamp=ts, **extra)
-                fast = self.make(cls is self._upd, x, p, ts, extra.get("hypothesis"), fast=True)
-                if type(slow) is not type(fast) or vars(slow).keys() != vars(fast).keys():
-                    return False
-                for k, v in vars(slow).items():
-                    w = vars(fast)[k]
-                    if type(v) is not type(w) or (
-                        isinstance(v, np.ndarray) and not np.array_equal(v, w)
-                    ):
-                        return False
-        except Exception:  # any surprise: use the public constructors
-            return False
-        return True
-
-    def make(self, is_update: bool, x, p, ts, hypothesis=None, fast: bool | None = None):
-        """A GaussianStateUpdate (with `hypothesis`) or GaussianStatePrediction."""
-        fast = self._fast if fast is None else fast
-        if not fast:
-            if is_update:
-                return self._upd(x, p, hypothesis=hypothesis, timestamp=ts)
-            return self._pred(x, p, timestamp=ts)
-        sv = np.array(x, dtype=np.float64).reshape(-1, 1).view(self._sv)
-        cm = np.array(p, dtype=np.float64).view(self._cm)
-        if is_update:
-            return self._fast_new(
-                self._upd,
-                {"state_vector": sv, "covar": cm, "hypothesis": hypothesis, "timestamp": ts},
-            )
-        return self._fast_new(
-            self._pred,
-            {
-                "state_vector": sv,
-                "covar": cm,
-                "timestamp": ts,
-                "transition_model": None,
-                "prior": None,
-            },
-        )
-
-
-# --------------------------------------------------------------------------------------------
-# The trackers
-# --------------------------------------------------------------------------------------------
-
-
-class _DropInTracker:
-    """Shared machinery of the two drop-in trackers (see the module docstring)."""
-
-    _mixture = True
-
-    def __init__(
-        self,
-        initiator: Any,
-        deleter: Any,
-        detector: Any = None,
-        data_associator: Any = None,
-        updater: Any = None,
-        *,
-        hypotheses: bool = True,
-    ) -> None:
-        for name, value in (
-            ("initiator", initiator),
-            ("deleter", deleter),
-            ("data_associator", data_associator),
-            ("updater", updater),
-        ):
-            if value is None:
-                raise TypeError(f"{name}: a Stone Soup component is required")
-        self.initiator = initiator
-        self.deleter = deleter
-        self.detector = detector
-        self.data_associator = data_associator
-        self.updater = updater
-        self.hypotheses = bool(hypotheses)
-        self.config = read_components(
-            initiator=initiator,
-            deleter=deleter,
-            data_associator=data_associator,
-            updater=updater,
-            mixture=self._mixture,
-        )
-        self.detector_iter = None
-        self._states = _StateFactory()
-        self._core: Any = None
-        self._sensor_specs: list[tuple] = []  # (H, R, H_init, R_init) per core sensor
-        # id(model) -> (core sensor index, the model's R if it differs from the sensor's)
-        self._sensor_of_model: dict[int, tuple[int, np.ndarray | None]] = {}
-        self._models: list[Any] = []  # keeps the models alive while their id() is used
-        # Empty scans seen before the core exists (it is built at the first detection).
-        self._replay: list[tuple[float, np.ndarray, np.ndarray]] = []
-        self._t0: Any = None
-        self._scan = 0
-        self._scan_time: list[Any] = []
-        # Detections per scan; scans no history entry can refer to any more are freed (None).
-        self._scan_dets: list[list[Any] | None] = []
-        self._freed = 0
-        self._tracks: dict[int, Any] = {}
-        self._prev: dict[int, tuple[float, np.ndarray, np.ndarray]] = {}
-
-    # -- Stone Soup's Tracker protocol -------------------------------------------------------
-
-    @property
-    def tracks(self) -> set:
-        """The current confirmed tracks (set of stonesoup Track)."""
-        return set(self._tracks.values())
-
-    def __iter__(self):
-        if self.detector is None:
-            raise AttributeError(
-                "Detector has not been set. A detector attribute is required to iterate over a "
-                "tracker."
-            )
-        if self.detector_iter is None:
-            self.detector_iter = iter(self.detector)
-        return self
-
-    def __next__(self):
-        if self.detector_iter is None:
-            iter(self)
-        assert self.detector_iter is not None  # set by __iter__
-        time, detections = next(self.detector_iter)
-        return self._step(time, detections)
-
-    def update_tracker(self, time: Any, detections: Any):
-        """Process one scan (datetime, set of Detection) without a detector; returns
-        (time, tracks) like iterating does."""
-        return self._step(time, detections)
-
-    # -- internals ---------------------------------------------------------------------------
-
-    def _sensor_index(self, model: Any) -> tuple[int, np.ndarray | None]:
-        """The core sensor of a detection's measurement model, and the model's noise R when it
-        differs from that sensor's (None otherwise). Models with the same H share one core
-        sensor; their own R goes to the core as a per-detection covariance."""
-        key = id(model)
-        hit = self._sensor_of_model.get(key)
-        if hit is not None:
-            return hit
-        cfg = self.config
-        if model is None:
-            main, init = cfg.fallback_sensor, cfg.init_fallback_sensor
-            if main is None or init is None:
-                raise ValueError(
-                    "detections: a detection has no measurement_model and the updater or the "
-                    "initiator has none to fall back on"
-                )
-            upd = cfg.init_update_fallback_sensor
-            if upd is not None and not upd.same_as(main):
-                raise UnsupportedComponentError(
-                    "initiator.updater.measurement_model differs from updater.measurement_model:"
-                    " detections without a model would be updated with two different models"
-                )
-            spec = (main.matrix, main.noise, init.matrix, init.noise)
-        else:
-            s = _sensor(model, "detection.measurement_model")
-            if s is None:
-                raise TypeError(
-                    "detection.measurement_model: expected a LinearGaussian measurement model"
-                )
-            if s.matrix.shape[1] != len(cfg.prior_state):
-                raise ValueError(
-                    f"detection.measurement_model: ndim_state {s.matrix.shape[1]} differs from "
-                    f"the transition model's {len(cfg.prior_state)}"
-                )
-            spec = (s.matrix, s.noise, None, None)
-
-        def same(a: Any, b: Any) -> bool:
-            return (a is None and b is None) or (
-                a is not None and b is not None and np.array_equal(a, b)
-            )
-
-        for i, old in enumerate(self._sensor_specs):
-            # Same H and initiation model; R may differ (a detection's own covariance).
-            if same(old[0], spec[0]) and same(old[2], spec[2]) and same(old[3], spec[3]):
-                idx = i
-                break
-        else:
-            idx = len(self._sensor_specs)
-            self._sensor_specs.append(spec)
-            self._add_core_sensor(spec)
-        own = None if np.array_equal(self._sensor_specs[idx][1], spec[1]) else spec[1]
-        self._sensor_of_model[key] = (idx, own)
-        self._models.append(model)
-        return idx, own
-
-    def _add_core_sensor(self, spec: tuple) -> None:
-        if self._core is None:
-            return
-        from usvfast import tracking as tk
-
-        self._core.add_sensor(tk.Sensor(*spec))
-
-    def _new_core(self) -> Any:
-        from usvfast import tracking as tk
-
-        sensors = [tk.Sensor(*spec) for spec in self._sensor_specs]
-        return build_native(self.config, sensors)
-
-    def _step(self, time: Any, detections: Any):
-        dets = list(detections)
-        for d in dets:
-            if d.timestamp != time:
-                raise ValueError(
-                    f"detections: a detection at {d.timestamp} in the scan at {time}; usvfast "
-                    "needs every detection of a scan to carry the scan time"
-                )
-        found = [self._sensor_index(d.measurement_model) for d in dets]
-        sids = np.fromiter((f[0] for f in found), dtype=np.int64, count=len(dets))
-        m = self._sensor_specs[0][0].shape[0] if self._sensor_specs else 2
-        covs = None
-        if any(f[1] is not None for f in found):
-            covs = np.array(
-                [self._sensor_specs[i][1] if r is None else r for i, r in found], dtype=np.float64
-            ).reshape(len(dets), m, m)
-        z = np.empty((len(dets), m))
-        for i, d in enumerate(dets):
-            sv = np.asarray(d.state_vector, dtype=np.float64).ravel()
-            if sv.shape != (m,):
-                raise ValueError(
-                    f"detections: state vector of length {sv.size}, expected {m} (all sensors "
-                    "must share the measurement dimension)"
-                )
-            z[i] = sv
-        if self._t0 is None:
-            self._t0 = time
-        t = (time - self._t0).total_seconds()
-        if self._core is None and self._sensor_specs:
-            # Built at the first scan with a detection; earlier (empty) scans are replayed so
-            # that the core's scan indices are the drop-in's.
-            self._core = self._new_core()
-            for args in self._replay:
-                self._core.step(*args)
-            self._replay.clear()
-        if self._core is not None:
-            self._core.step(t, z, sids, covs)
-        else:
-            self._replay.append((t, z, sids))
-        self._scan_time.append(time)
-        self._scan_dets.append(dets)
-        self._scan += 1
-        if self._core is not None:
-            self._collect(time)
-            self._free_scans()
-        return time, self.tracks
-
-    def _free_scans(self) -> None:
-        # Later states refer to this scan's detections or to those of the tentative tracks'
-        # first scans (a track confirmed later brings its whole tentative history).
-        first = self._core.tentative_tracks.first_scan
-        oldest = min(int(first.min()) if len(first) else self._scan, self._scan - 1)
-        for k in range(self._freed, max(oldest, self._freed)):
-            self._scan_dets[k] = None
-        self._freed = max(oldest, self._freed)
-
-    def _collect(self, time: Any) -> None:
-        from stonesoup.types.track import Track
-
-        core = self._core
-        snap = core.tracks
-        alive = snap.ids.tolist()
-        alive_set = set(alive)
-        # Deleted this scan: their final state(s) come from the core's history.
-        for tid in [k for k in self._tracks if k not in alive_set]:
-            tr = self._tracks.pop(tid)
-            hist = vars(core.history(tid))
-            n_have = len(tr.states)
-            for j in range(n_have, len(hist["times"])):
-                tr.append(self._state_from_history(hist, j, tid))
-            self._prev.pop(tid, None)
-        for row, tid in enumerate(alive):
-            tr = self._tracks.get(tid)
-            if tr is None:
-                hist = vars(core.history(tid))
-                states = [self._state_from_history(hist, j, tid) for j in range(len(hist["times"]))]
-                tr = Track(states)
-                self._tracks[tid] = tr
-                self._prev[tid] = (
-                    float(hist["times"][-1]),
-                    hist["states"][-1].copy(),
-                    hist["covariances"][-1].copy(),
-                )
-                continue
-            x, p, upd = snap.states[row], snap.covariances[row], bool(snap.is_update[row])
-            hyp = self._hypothesis_for(tid, snap, row, upd) if (upd and self.hypotheses) else None
-            if upd and hyp is None:
-                hyp = self._placeholder(time)
-            tr.append(self._states.make(upd, x, p, time, hyp))
-            self._prev[tid] = (float(snap.times[row]), x.copy(), p.copy())
-
-    def _placeholder(self, time: Any) -> Any:
-        from stonesoup.types.detection import MissedDetection
-        from stonesoup.types.hypothesis import SingleHypothesis
-
-        return SingleHypothesis(None, MissedDetection(timestamp=time))
-
-    def _prediction(self, tid: int, t: float, time: Any) -> Any:
-        prev = self._prev.get(tid)
-        if prev is None:
-            return None
-        t0, x0, p0 = prev
-        f, q = kalman.transition_matrices(self.config.motion_model, t - t0)
-        return self._states.make(False, f @ x0, f @ p0 @ f.T + q, time)
-
-    def _hypothesis_for(self, tid: int, snap: Any, row: int, upd: bool) -> Any:
-        # Association data of the newest entry, from the snapshot.
-        a, b = snap.assoc_offsets[row], snap.assoc_offsets[row + 1]
-        dets = snap.assoc_detection[a:b]
-        probs = snap.assoc_probability[a:b]
-        missed = float(snap.missed_probability[row])
-        det = int(snap.detection[row])
-        time = self._scan_time[-1]
-        t = (time - self._t0).total_seconds()
-        pred = self._prediction(tid, t, time)
-        scan_dets = self._scan_dets[-1]
-        return self._make_hypothesis(pred, scan_dets, time, dets, probs, missed, det)
-
-    def _make_hypothesis(self, pred, scan_dets, time, dets, probs, missed, det) -> Any:
-        from stonesoup.types.detection import MissedDetection
-        from stonesoup.types.hypothesis import SingleHypothesis, SingleProbabilityHypothesis
-        from stonesoup.types.multihypothesis import MultipleHypothesis
-
-        if self._mixture and np.isfinite(missed):
-            hyps = [SingleProbabilityHypothesis(pred, MissedDetection(timestamp=time), missed)]
-            hyps += [
-                SingleProbabilityHypothesis(pred, scan_dets[int(j)], float(p))
-                for j, p in zip(dets, probs, strict=True)
-            ]
-            return MultipleHypothesis(hyps, normalise=False)
-        if det >= 0:
-            return SingleHypothesis(pred, scan_dets[det])
-        return None
-
-    def _state_from_history(self, hist: dict, j: int, tid: int) -> Any:
-        scan = int(hist["scan"][j])
-        time = self._scan_time[scan] if 0 <= scan < len(self._scan_time) else None
-        if time is None:
-            raise RuntimeError(f"usvfast.stonesoup: history entry of track {tid} at unknown scan")
-        upd = bool(hist["is_update"][j])
-        hyp = None
-        if upd:
-            det = int(hist["detection"][j])
-            scan_dets = self._scan_dets[scan]
-            if scan_dets is None:
-                raise RuntimeError(
-                    f"usvfast.stonesoup: detections of scan {scan} (track {tid}) were released"
-                )
-            if self.hypotheses:
-                from stonesoup.types.hypothesis import SingleHypothesis
-
-                if j == 0 and det >= 0:
-                    hyp = SingleHypothesis(None, scan_dets[det])  # pyright: ignore[reportArgumentType]  # (no prediction)
-                else:
-                    pred = None
-                    if j > 0:
-                        t_prev = float(hist["times"][j - 1])
-                        f, q = kalman.transition_matrices(
-                            self.config.init_motion_model, float(hist["times"][j]) - t_prev
-                        )
-                        x0, p0 = hist["states"][j - 1], hist["covariances"][j - 1]
-                        pred = self._states.make(False, f @ x0, f @ p0 @ f.T + q, time)
-                    a, b = hist["assoc_offsets"][j], hist["assoc_offsets"][j + 1]
-                    hyp = self._make_hypothesis(
-                        pred,
-                        scan_dets,
-                        time,
-                        hist["assoc_detection"][a:b],
-                        hist["assoc_probability"][a:b],
-                        float(hist["missed_probability"][j]),
-                        det,
-                    )
-            if hyp is None:
-                hyp = self._placeholder(time)
-        return self._states.make(upd, hist["states"][j], hist["covariances"][j], time, hyp)
-
-
-class MultiTargetMixtureTracker(_DropInTracker):
-    """Stone Soup's `MultiTargetMixtureTracker` (JPDA) run by the usvfast core.
-
-    Same keywords (`initiator`, `deleter`, `detector`, `data_associator`, `updater`), same
-    protocol: iterating yields `(datetime, set of Track)` per scan of `detector`;
-    `update_tracker(time, detections)` processes one scan. Update states carry a
-    `MultipleHypothesis` of `SingleProbabilityHypothesis` (prediction, detection or
-    MissedDetection, JPDA probability; `measurement_prediction` is None). `hypotheses=False`
-    skips building them (2-3x faster): update states then carry a placeholder
-    `SingleHypothesis(None, MissedDetection)`, so do not feed such tracks to Stone Soup
-    deleters. Raises UnsupportedComponentError for components usvfast cannot reproduce
-    exactly, ValueError for detections off the scan time or of another dimension.
-
-    Memory: a scan's detections are kept while a tentative track's history refers to them (a
-    track confirmed later brings its tentative states). A detection with a new measurement
-    matrix H registers one more core sensor (`Tracker.add_sensor`); no scan is replayed.
-    Detections whose models share H but not the noise covariance (each detection with its own
-    `LinearGaussian`, e.g. range-dependent noise) share that sensor and reach the core with
-    their own covariance (`Tracker.step(..., covariances=...)`), exactly as Stone Soup uses
-    each detection's model for gating, hypotheses, updates and initiation.
-    """
-
-    _mixture = True
-
-
-class MultiTargetTracker(_DropInTracker):
-    """Stone Soup's `MultiTargetTracker` (GNN: DistanceHypothesiser + GNNWith2DAssignment) run
-    by the usvfast core; same keywords and protocol as `MultiTargetMixtureTracker`."""
-
-    _mixture = False
+__all__ = [
+    "MultiTargetMixtureTracker",
+    "MultiTargetTracker",
+    "StoneSoupConfig",
+    "UnsupportedComponentError",
+    "build_native",
+    "read_components",
+]

@@ -42,7 +42,7 @@ _TOP = {
     "existence",
 }
 _INIT = {"min_points", "delete_steps", "missed_distance", "prior_velocity_var"}
-_IMM = {"turn_rates", "turn_q", "stay"}
+_IMM = {"turn_rates", "turn_q", "stay", "cv_q"}
 _EXIST = {"survival", "initial", "delete", "vis_stay", "invis_stay", "confirm", "birth"}
 
 
@@ -88,7 +88,9 @@ def tracker_from_config(cfg: dict[str, Any]) -> tk.Tracker:
     if "imm" in cfg:
         t = dict(cfg["imm"])
         _check_keys(t, _IMM, "tracker.imm")
+        # Modes: CV(q), then more CV modes (e.g. a high-noise one), then coordinated turns.
         modes: list[Any] = [constant_velocity_2d(q)]
+        modes += [constant_velocity_2d(float(v)) for v in t.get("cv_q", [])]
         modes += [tk.KnownTurnRate(float(t.get("turn_q", q)), float(w)) for w in t["turn_rates"]]
         r, stay = len(modes), float(t.get("stay", 0.95))
         m = np.full((r, r), (1.0 - stay) / max(r - 1, 1))

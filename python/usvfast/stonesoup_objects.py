@@ -1,0 +1,207 @@
+"""Building Stone Soup objects quickly, for the drop-in trackers (`usvfast.stonesoup`).
+
+Stone Soup's `Base.__init__` sets every declared property through its descriptor, which costs
+tens of µs per object — more than the usvfast core needs for a whole scan. Each class the
+drop-in hands out (states, hypotheses, missed detections) is built here by `cls.__new__` and a
+direct fill of `__dict__` with the same `_property_<name>` entries, in the same order, that the
+public constructor would set. Before the fast path is used for a class, one object is built
+both ways and compared (same type, same `__dict__` keys in the same order, values of the same
+type and equal); any difference, or an error, switches that class to the public constructor
+for good. So a Stone Soup release that changes how these classes are built costs speed, never
+correctness.
+"""
+
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Any
+
+import numpy as np
+
+
+def _same(a: Any, b: Any) -> bool:
+    if type(a) is not type(b):
+        return False
+    if isinstance(a, np.ndarray):
+        return a.shape == b.shape and np.array_equal(a, b)
+    return a is b or a == b
+
+
+_IMMUTABLE = (type(None), bool, int, float, str)
+
+
+class _Builder:
+    """One Stone Soup class built from positional `args` (property names) plus `constants`
+    (the other properties; immutable values only, so that objects can share them)."""
+
+    def __init__(
+        self, cls: Any, args: tuple[str, ...], constants: dict[str, Any], sample: tuple
+    ) -> None:
+        self.cls = cls
+        self.args = args
+        self.constants = constants
+        self.keys = tuple(f"_property_{n}" for n in args)
+        names = tuple(cls.properties)
+        ok = set(names) == set(args) | set(constants) and not set(args) & set(constants)
+        ok = ok and all(isinstance(v, _IMMUTABLE) for v in constants.values())
+        # Properties in the class's order: a copy of it per object keeps that order.
+        self.template = {f"_property_{n}": constants.get(n) for n in names}
+        self.fast = ok and self._check(sample)
+
+    def _fast(self, values: tuple) -> Any:
+        obj = self.cls.__new__(self.cls)
+        d = self.template.copy()
+        for k, v in zip(self.keys, values, strict=True):
+            d[k] = v
+        obj.__dict__ = d
+        return obj
+
+    def _check(self, sample: tuple) -> bool:
+        try:
+            slow = self.cls(**self.constants, **dict(zip(self.args, sample, strict=True)))
+            fast = self._fast(sample)
+            a, b = vars(slow), vars(fast)
+            if list(a) != list(b):
+                return False
+            return all(_same(a[k], b[k]) for k in a)
+        except Exception:  # any surprise: the public constructor
+            return False
+
+    def make(self, *values: Any) -> Any:
+        """An object with the properties `args` = values (and the constants)."""
+        if self.fast:
+            return self._fast(values)
+        return self.cls(**self.constants, **dict(zip(self.args, values, strict=True)))
+
+
+class StoneSoupObjects:
+    """Factories for the Stone Soup objects of a drop-in run (see the module docstring)."""
+
+    def __init__(self) -> None:
+        from stonesoup.types.array import CovarianceMatrix, StateVector
+        from stonesoup.types.detection import MissedDetection
+        from stonesoup.types.hypothesis import SingleHypothesis, SingleProbabilityHypothesis
+        from stonesoup.types.multihypothesis import MultipleHypothesis
+        from stonesoup.types.prediction import GaussianStatePrediction
+        from stonesoup.types.update import GaussianStateUpdate
+
+        self._sv, self._cm = StateVector, CovarianceMatrix
+        ts = datetime(2024, 1, 1)
+        x = np.arange(4.0).reshape(4, 1).view(StateVector)
+        p = np.eye(4).view(CovarianceMatrix)
+        none2 = {"transition_model": None, "prior": None}
+        self._pred = _Builder(
+            GaussianStatePrediction, ("state_vector", "covar", "timestamp"), none2, (x, p, ts)
+        )
+        self._upd = _Builder(
+            GaussianStateUpdate,
+            ("state_vector", "covar", "hypothesis", "timestamp"),
+            {},
+            (x, p, None, ts),
+        )
+        self._missed = _Builder(
+            MissedDetection,
+            ("timestamp", "metadata"),
+            {"state_vector": None, "measurement_model": None},
+            (ts, {}),
+        )
+        pred = self._pred.make(x, p, ts)
+        miss = MissedDetection(timestamp=ts)
+        self._single = _Builder(
+            SingleHypothesis,
+            ("prediction", "measurement"),
+            {"measurement_prediction": None},
+            (pred, miss),
+        )
+        self._prob = _Builder(
+            SingleProbabilityHypothesis,
+            ("prediction", "measurement", "probability"),
+            {"measurement_prediction": None},
+            (pred, miss, 0.5),
+        )
+        self._multi = _Builder(
+            MultipleHypothesis,
+            ("single_hypotheses",),
+            {"normalise": False, "total_weight": 1},
+            ([],),
+        )
+        self._fast_append = self._check_append()
+
+    def _check_append(self) -> bool:
+        """True when `append_plain` equals `Track.append` on a sample (see there)."""
+        try:
+            from stonesoup.types.track import Track
+
+            ts = datetime(2024, 1, 1)
+            x, p = np.zeros(4), np.eye(4)
+            det = self.missed(ts)  # a measurement without metadata
+            pred = self.state(False, x, p, ts)
+            hyp = self.multiple([self.probability(pred, det, 1.0)])
+            a, b = Track([pred], init_metadata={"k": 1}), Track([pred], init_metadata={"k": 1})
+            upd = self.state(True, x, p, ts, hyp)
+            a.append(upd)
+            self.append_plain(b, upd, check=False)
+            da, db = vars(a), vars(b)
+            return (
+                list(da) == list(db)
+                and da["metadatas"] == db["metadatas"]
+                and da["metadatas"][-1] is not da["metadatas"][-2]
+                and db["metadatas"][-1] is not db["metadatas"][-2]
+                and da["_property_states"] == db["_property_states"]
+            )
+        except Exception:  # any surprise: Track.append
+            return False
+
+    def append_plain(self, track: Any, state: Any, check: bool = True) -> None:
+        """`track.append(state)` when no measurement of the state's hypotheses carries
+        metadata (the caller knows): Stone Soup's `Track.append` then only appends a copy of
+        the track's current metadata and the state, which this does without sorting the
+        hypotheses. Falls back to `Track.append` when the check at construction failed."""
+        if check and not self._fast_append:
+            track.append(state)
+            return
+        d = track.__dict__
+        mds = d["metadatas"]
+        mds.append((mds[-1] if mds else d["_property_init_metadata"]).copy())
+        d["_property_states"].append(state)
+
+    @property
+    def all_fast(self) -> bool:
+        """True when every class uses the fast path (the checks passed)."""
+        return all(
+            b.fast
+            for b in (self._pred, self._upd, self._missed, self._single, self._prob, self._multi)
+        )
+
+    def vector(self, x: np.ndarray) -> Any:
+        """A StateVector (n, 1) on `x` (a view when x is float64: pass arrays nobody else
+        changes, e.g. the rows of a fresh core snapshot)."""
+        return np.asarray(x, dtype=np.float64).reshape(-1, 1).view(self._sv)
+
+    def matrix(self, p: np.ndarray) -> Any:
+        """A CovarianceMatrix on `p` (a view when p is float64, as `vector`)."""
+        return np.asarray(p, dtype=np.float64).view(self._cm)
+
+    def state(self, is_update: bool, x: Any, p: Any, ts: Any, hypothesis: Any = None) -> Any:
+        """A GaussianStateUpdate (with `hypothesis`) or GaussianStatePrediction on x (n,) and
+        p (n, n) at `ts` (views, see `vector`)."""
+        sv, cm = self.vector(x), self.matrix(p)
+        if is_update:
+            return self._upd.make(sv, cm, hypothesis, ts)
+        return self._pred.make(sv, cm, ts)
+
+    def missed(self, ts: Any) -> Any:
+        """`MissedDetection(timestamp=ts)`."""
+        return self._missed.make(ts, {})
+
+    def single(self, prediction: Any, measurement: Any) -> Any:
+        """`SingleHypothesis(prediction, measurement)`."""
+        return self._single.make(prediction, measurement)
+
+    def probability(self, prediction: Any, measurement: Any, probability: float) -> Any:
+        """`SingleProbabilityHypothesis(prediction, measurement, probability)`."""
+        return self._prob.make(prediction, measurement, probability)
+
+    def multiple(self, hypotheses: list) -> Any:
+        """`MultipleHypothesis(hypotheses, normalise=False)` (all SingleHypothesis)."""
+        return self._multi.make(hypotheses)
