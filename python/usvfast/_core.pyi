@@ -201,7 +201,7 @@ class TrackerCore:
         sensor_ids: npt.NDArray[np.int64],
         covariances: npt.NDArray[np.float64] | None = None,
         origins: npt.NDArray[np.float64] | None = None,
-    ) -> bool: ...
+    ) -> tuple[bool, int, int, int]: ...
     def run(
         self,
         times: npt.NDArray[np.float64],

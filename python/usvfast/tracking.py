@@ -114,6 +114,7 @@ __all__ = [
     "NeverDelete",
     "RunResult",
     "Sensor",
+    "StepStats",
     "StepsSinceUpdate",
     "TimeSinceUpdate",
     "TrackHistory",
@@ -271,14 +272,23 @@ class JPDA:
     prob_detect P_D and prob_gate P_G in (0, 1]; clutter_density λ > 0 per unit measurement
     volume (m⁻² for 2-D positions), or None for Stone Soup's estimate from the gate volume;
     include_all keeps detections outside the gate (needs clutter_density); method "ehm"
-    (exact, fast) or "brute_force" (exact, exponential).
+    (exact, fast), "brute_force" (exact, exponential) or "lbp" (loopy belief propagation,
+    approximate: Williams & Lau, IEEE Trans. AES 50(4), 2014).
+
+    max_hypotheses: per-cluster budget of the exact method (EHM: edges of its hypothesis net
+    times the 64-bit words of a node key, one per 64 detections in the cluster — its memory
+    and work, a few tens of bytes and nanoseconds each; brute force: joint hypotheses). A cluster
+    past it gets belief-propagation marginals instead and is counted in
+    `Tracker.last_step.approximated_clusters` (and `RunResult.approximated_clusters`). None:
+    always exact, unbounded (Stone Soup's behaviour; a dense cluster can then exhaust memory).
     """
 
     prob_detect: float = 0.85
     prob_gate: float = 0.95
     clutter_density: float | None = None
     include_all: bool = False
-    method: Literal["ehm", "brute_force"] = "ehm"
+    method: Literal["ehm", "brute_force", "lbp"] = "ehm"
+    max_hypotheses: int | None = 1_000_000
 
     def _spec(self) -> dict[str, Any]:
         return {
@@ -290,6 +300,9 @@ class JPDA:
             else float(self.clutter_density),
             "include_all": bool(self.include_all),
             "method": self.method,
+            "max_hypotheses": None
+            if self.max_hypotheses is None
+            else _non_negative_int("max_hypotheses", self.max_hypotheses),
         }
 
 
@@ -667,10 +680,24 @@ class TrackHistory:
 
 
 @dataclass(frozen=True)
+class StepStats:
+    """What the last `Tracker.step` did: processed (False when dropped as out of order),
+    clusters of confirmed tracks sharing gated detections (JPDA; 0 under GNN),
+    approximated_clusters among them (belief propagation past `JPDA.max_hypotheses`, or
+    method "lbp"), largest_cluster (tracks)."""
+
+    processed: bool
+    clusters: int
+    approximated_clusters: int
+    largest_cluster: int
+
+
+@dataclass(frozen=True)
 class RunResult:
     """Confirmed tracks after every scan of a batch run, one row per (scan, track):
     scan (r,), track_id (r,), time (r,), state (r, ndim), covariance (r, ndim, ndim),
-    is_update (r,); dropped_scans: indices of scans dropped as out of order."""
+    is_update (r,); dropped_scans: indices of scans dropped as out of order;
+    approximated_clusters (s,): JPDA clusters approximated in each scan (see `JPDA`)."""
 
     scan: np.ndarray
     track_id: np.ndarray
@@ -679,6 +706,7 @@ class RunResult:
     covariance: np.ndarray
     is_update: np.ndarray
     dropped_scans: np.ndarray
+    approximated_clusters: np.ndarray
 
 
 class Tracker:
@@ -731,6 +759,7 @@ class Tracker:
             sensors = [sensors]
         specs = [_sensor_spec(s, f"sensors[{i}]") for i, s in enumerate(sensors)]
         self.sensors = tuple(sensors)
+        self.last_step: StepStats | None = None
         self._busy = threading.Lock()
         self._m = specs[0][0].shape[0] if specs else 0
         self._core = _core.TrackerCore(
@@ -770,6 +799,7 @@ class Tracker:
         advance independently."""
         new = object.__new__(type(self))
         new.sensors = self.sensors
+        new.last_step = self.last_step
         new._m = self._m
         new._busy = threading.Lock()
         with self._exclusive():
@@ -850,7 +880,7 @@ class Tracker:
         c = self._covariances(covariances, len(z))
         o = self._origins(origins, len(z))
         with self._exclusive():
-            self._core.step(float(t), z, ids, c, o)
+            self.last_step = StepStats(*self._core.step(float(t), z, ids, c, o))
         return self.tracks
 
     def run(

@@ -25,6 +25,7 @@ pub mod polar;
 pub mod track;
 pub mod tracker;
 pub mod tracker_config;
+pub mod tracker_run;
 
 #[cfg(feature = "python")]
 pub mod py;

@@ -28,7 +28,9 @@ use crate::hypothesise::{
     axis_orders, gate_pairs, gnn_step, order_cluster, posterior_cov, predict_all, sensors_t, Alloc,
     CovForm, Dets, Innovations, Pred, SensorT, NO_OWN,
 };
-use crate::jpda::{clusters, ehm_size_estimate, marginals, Method, TrackHypotheses};
+use crate::jpda::{
+    clusters, ehm_size_estimate, marginals_within, Exactness, Method, TrackHypotheses,
+};
 use crate::kalman::check_covariance;
 use crate::track::{Entry, Track};
 pub use crate::tracker_config::{
@@ -46,6 +48,38 @@ pub enum StepOutcome {
     Processed,
     /// The scan was older than the previous one and [`OutOfOrder::Drop`] is set.
     Dropped,
+}
+
+/// What one [`Tracker::step`] did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct StepReport {
+    pub outcome: StepOutcome,
+    /// JPDA clusters of confirmed tracks (tracks sharing gated detections) in the scan.
+    pub clusters: usize,
+    /// Clusters whose marginals were approximated (belief propagation: over the
+    /// `max_hypotheses` budget, or asked for by [`Method::Lbp`]).
+    pub approximated_clusters: usize,
+    /// Tracks in the largest cluster.
+    pub largest_cluster: usize,
+}
+
+impl StepReport {
+    fn of(outcome: StepOutcome, c: ClusterStats) -> Self {
+        Self {
+            outcome,
+            clusters: c.clusters,
+            approximated_clusters: c.approximated,
+            largest_cluster: c.largest,
+        }
+    }
+}
+
+/// Cluster counts of one JPDA scan.
+#[derive(Debug, Clone, Copy, Default)]
+struct ClusterStats {
+    clusters: usize,
+    approximated: usize,
+    largest: usize,
 }
 
 /// The tracker state between scans.
@@ -67,6 +101,8 @@ pub struct Tracker {
     pub dropped_scans: usize,
     /// Detections that started no tentative track because of `max_new_tentative`.
     pub capped_detections: usize,
+    /// JPDA clusters approximated so far (see [`StepReport::approximated_clusters`]).
+    pub approximated_clusters: usize,
     gate: f64,
 }
 
@@ -91,6 +127,7 @@ impl Tracker {
             scan: 0,
             dropped_scans: 0,
             capped_detections: 0,
+            approximated_clusters: 0,
             gate,
         })
     }
@@ -194,7 +231,7 @@ impl Tracker {
     /// Processes one scan: detections `z` (`(k, m)` row-major) from sensors `sensor_ids`
     /// (`(k,)`) at time `t` seconds, each with its sensor's noise `R`. An empty scan only
     /// predicts.
-    pub fn step(&mut self, t: f64, z: &[f64], sensor_ids: &[usize]) -> Result<StepOutcome> {
+    pub fn step(&mut self, t: f64, z: &[f64], sensor_ids: &[usize]) -> Result<StepReport> {
         self.step_with(t, z, sensor_ids, None, None)
     }
 
@@ -215,7 +252,22 @@ impl Tracker {
         sensor_ids: &[usize],
         covariances: Option<&[f64]>,
         origins: Option<&[f64]>,
-    ) -> Result<StepOutcome> {
+    ) -> Result<StepReport> {
+        self.step_interruptible(t, z, sensor_ids, covariances, origins, &mut || false)
+    }
+
+    /// [`Tracker::step_with`] that calls `interrupt` between JPDA clusters and stops with
+    /// [`Error::Interrupted`] when it returns true; the tracker is then left as it was before
+    /// the scan (association computes before any track changes).
+    pub fn step_interruptible(
+        &mut self,
+        t: f64,
+        z: &[f64],
+        sensor_ids: &[usize],
+        covariances: Option<&[f64]>,
+        origins: Option<&[f64]>,
+        interrupt: &mut dyn FnMut() -> bool,
+    ) -> Result<StepReport> {
         let m = self.m;
         check_finite("t", &[t])?;
         if z.len() != sensor_ids.len() * m {
@@ -264,7 +316,10 @@ impl Tracker {
                 return match self.cfg.out_of_order {
                     OutOfOrder::Drop => {
                         self.dropped_scans += 1;
-                        Ok(StepOutcome::Dropped)
+                        Ok(StepReport::of(
+                            StepOutcome::Dropped,
+                            ClusterStats::default(),
+                        ))
                     }
                     OutOfOrder::Raise => Err(Error::Order {
                         arg: "t".into(),
@@ -274,14 +329,16 @@ impl Tracker {
             }
         }
         let nd = self.cfg.motion_model.ndim();
-        match (nd, m) {
-            (4, 2) => self.step_dims((U4, U2), t, z, sensor_ids, covariances, origins)?,
-            (6, 2) => self.step_dims((U6, U2), t, z, sensor_ids, covariances, origins)?,
-            _ => self.step_dims((Dyn(nd), Dyn(m)), t, z, sensor_ids, covariances, origins)?,
-        }
+        let (zc, i) = ((z, covariances, origins), interrupt);
+        let stats = match (nd, m) {
+            (4, 2) => self.step_dims((U4, U2), t, sensor_ids, zc, i)?,
+            (6, 2) => self.step_dims((U6, U2), t, sensor_ids, zc, i)?,
+            _ => self.step_dims((Dyn(nd), Dyn(m)), t, sensor_ids, zc, i)?,
+        };
+        self.approximated_clusters += stats.approximated;
         self.last_time = Some(t);
         self.scan += 1;
-        Ok(StepOutcome::Processed)
+        Ok(StepReport::of(StepOutcome::Processed, stats))
     }
 
     /// The scan in the kernels' dimensions (state `N`, measurement `M`).
@@ -289,11 +346,10 @@ impl Tracker {
         &mut self,
         dims: (N, M),
         t: f64,
-        z: &[f64],
         sensor_ids: &[usize],
-        covariances: Option<&[f64]>,
-        origins: Option<&[f64]>,
-    ) -> Result<()>
+        (z, covariances, origins): (&[f64], Option<&[f64]>, Option<&[f64]>),
+        interrupt: &mut dyn FnMut() -> bool,
+    ) -> Result<ClusterStats>
     where
         DefaultAllocator: Alloc<N, M>,
     {
@@ -312,8 +368,13 @@ impl Tracker {
             covs: covs.as_deref(),
             origins,
         };
+        let mut stats = ClusterStats::default();
         let associated = match self.cfg.association {
-            Association::Jpda(j) => self.step_jpda(t, &dets, &all, &j, &sensors, dims)?,
+            Association::Jpda(j) => {
+                let (a, s) = self.step_jpda(t, &dets, &all, &j, &sensors, dims, interrupt)?;
+                stats = s;
+                a
+            }
             Association::Gnn(g) => {
                 let model = self.cfg.motion_model.clone();
                 let assoc = gnn_step(
@@ -366,9 +427,11 @@ impl Tracker {
             }
         }
         let free: Vec<usize> = (0..k).filter(|&d| !associated[d]).collect();
-        self.initiate(t, &dets, &free, &sensors, dims)
+        self.initiate(t, &dets, &free, &sensors, dims)?;
+        Ok(stats)
     }
 
+    #[allow(clippy::too_many_arguments)]
     fn step_jpda<N: Dim, M: Dim>(
         &mut self,
         t: f64,
@@ -377,7 +440,8 @@ impl Tracker {
         j: &JpdaParams,
         sensors: &[SensorT<N, M>],
         (n, md): (N, M),
-    ) -> Result<Vec<bool>>
+        interrupt: &mut dyn FnMut() -> bool,
+    ) -> Result<(Vec<bool>, ClusterStats)>
     where
         DefaultAllocator: Alloc<N, M>,
     {
@@ -437,7 +501,13 @@ impl Tracker {
             })
             .collect();
         let mut marg = vec![crate::jpda::Marginals::default(); th.len()];
+        let mut stats = ClusterStats::default();
         for c in clusters(&th, k) {
+            stats.clusters += 1;
+            stats.largest = stats.largest.max(c.len());
+            if interrupt() {
+                return Err(Error::Interrupted);
+            }
             if c.len() == 1 {
                 let h = &th[c[0]];
                 let tot = h.missed + h.detections.iter().map(|d| d.1).sum::<f64>();
@@ -461,7 +531,10 @@ impl Tracker {
                 }
             }
             let sub: Vec<TrackHypotheses> = ordered.iter().map(|&i| th[i].clone()).collect();
-            let r = marginals(&sub, j.method)?;
+            let (r, how) = marginals_within(&sub, j.method, j.max_hypotheses)?;
+            if how != Exactness::Exact {
+                stats.approximated += 1;
+            }
             for (i, mm) in ordered.into_iter().zip(r) {
                 marg[i] = mm;
             }
@@ -583,7 +656,7 @@ impl Tracker {
                 associated[d] |= in_gate[d];
             }
         }
-        Ok(associated)
+        Ok((associated, stats))
     }
 
     fn initiate<N: Dim, M: Dim>(
@@ -956,6 +1029,7 @@ mod tests {
             clutter_density: Some(1e-3),
             include_all: false,
             method: Method::Ehm,
+            max_hypotheses: None,
         });
         let gnn = Association::Gnn(GnnParams {
             measure: Measure::Mahalanobis,
@@ -986,7 +1060,10 @@ mod tests {
         c.out_of_order = OutOfOrder::Drop;
         let mut tr = Tracker::new(c).unwrap();
         tr.step(1.0, &[], &[]).unwrap();
-        assert_eq!(tr.step(0.5, &[], &[]).unwrap(), StepOutcome::Dropped);
+        assert_eq!(
+            tr.step(0.5, &[], &[]).unwrap().outcome,
+            StepOutcome::Dropped
+        );
         assert_eq!(tr.dropped_scans, 1);
     }
 }

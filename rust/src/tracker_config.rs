@@ -158,6 +158,12 @@ pub struct JpdaParams {
     /// Keep detections outside the gate (needs `clutter_density`).
     pub include_all: bool,
     pub method: Method,
+    /// Per-cluster budget of the exact method (EHM: edges of its net, i.e. single-track
+    /// hypotheses summed over its levels, times the 64-bit words of a node key, one per 64
+    /// detections of the cluster — its memory and work; brute force: joint hypotheses). A cluster past it gets belief-propagation marginals
+    /// ([`crate::jpda::marginals_lbp`]) and is counted in [`crate::tracker::StepReport`].
+    /// `None`: always exact (unbounded).
+    pub max_hypotheses: Option<usize>,
 }
 
 /// The association of confirmed tracks.
@@ -408,6 +414,9 @@ impl TrackerConfig {
                         "must be < 1 when clutter_density is None (the clutter density is \
                          estimated from the gate volume, which is infinite at prob_gate=1)",
                     ));
+                }
+                if j.max_hypotheses == Some(0) {
+                    return Err(Error::param("max_hypotheses", "must be >= 1 or None"));
                 }
                 if let Some(l) = j.clutter_density {
                     if !(l > 0.0 && l.is_finite()) {
