@@ -709,6 +709,19 @@ class RunResult:
     approximated_clusters: np.ndarray
 
 
+def _restore_tracker(
+    cls: type[Tracker], sensors: tuple, m: int, last_step: StepStats | None, state: bytes
+) -> Tracker:
+    """Rebuilds a pickled `Tracker` (see `Tracker.__reduce__`)."""
+    new = object.__new__(cls)
+    new.sensors = tuple(sensors)
+    new.last_step = last_step
+    new._m = m
+    new._busy = threading.Lock()
+    new._core = _core.TrackerCore.from_bytes(state)
+    return new
+
+
 class Tracker:
     """Multi-target tracker (see the module docstring for the step and the parameters).
 
@@ -808,6 +821,14 @@ class Tracker:
 
     def __deepcopy__(self, memo: dict[int, Any]) -> Tracker:
         return self.__copy__()
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        """Pickling: the whole state (configuration, tracks and histories, counters, IMM and
+        existence states) goes out as bytes and comes back bit-exact, so a restored tracker
+        (e.g. in a process pool) continues exactly like the original."""
+        with self._exclusive():
+            state = self._core.to_bytes()
+        return (_restore_tracker, (type(self), self.sensors, self._m, self.last_step, state))
 
     def _detections(self, measurements: Any, sensor_ids: Any) -> tuple[np.ndarray, np.ndarray]:
         z = as_float_array("measurements", measurements)

@@ -36,7 +36,7 @@ pub struct Marginals {
 }
 
 /// Which exact method computes the marginals of a cluster.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Method {
     /// Enumerate every joint hypothesis (exponential; reference implementation).
     BruteForce,

@@ -5,7 +5,7 @@ use crate::error::{Error, Result};
 use nalgebra::{DMatrix, DVector};
 
 /// Everything appended to a track at one scan, flat and row-major (numpy-ready).
-#[derive(Debug, Clone, Default, PartialEq)]
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct History {
     /// Time of each entry, seconds.
     pub times: Vec<f64>,
@@ -118,7 +118,7 @@ impl History {
 }
 
 /// A track: current Gaussian state and its full history.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Track {
     /// Stable id (confirmed tracks count 0, 1, 2, ... in order of confirmation; tentative
     /// tracks have their own counter).
@@ -187,7 +187,7 @@ impl Track {
 }
 
 /// When a track is deleted.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum Deleter {
     /// Delete when more than `steps` distinct timestamps go back from the newest state without
     /// meeting an update (`UpdateTimeStepsDeleter(time_steps_since_update=steps)`).

@@ -83,7 +83,7 @@ struct ClusterStats {
 }
 
 /// The tracker state between scans.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Tracker {
     cfg: TrackerConfig,
     m: usize,
@@ -130,6 +130,24 @@ impl Tracker {
             approximated_clusters: 0,
             gate,
         })
+    }
+
+    /// The whole tracker (configuration, tracks with their histories, counters) as bytes
+    /// (CBOR; floats bit-exact), for [`Tracker::from_bytes`].
+    pub fn to_bytes(&self) -> Result<Vec<u8>> {
+        let mut out = Vec::new();
+        ciborium::into_writer(self, &mut out).map_err(|e| Error::param("tracker", e))?;
+        Ok(out)
+    }
+
+    /// A tracker from [`Tracker::to_bytes`]; it continues exactly as the one saved. Bytes that
+    /// are not such a tracker, or whose configuration does not validate, are an
+    /// `InvalidParameter` error naming `state`.
+    pub fn from_bytes(bytes: &[u8]) -> Result<Self> {
+        let t: Self = ciborium::from_reader(bytes)
+            .map_err(|e| Error::param("state", format!("not a saved tracker ({e})")))?;
+        t.cfg.validate()?;
+        Ok(t)
     }
 
     /// Removes and returns the deleted confirmed tracks kept so far (their histories are then

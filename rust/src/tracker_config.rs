@@ -9,7 +9,7 @@ use crate::track::Deleter;
 use nalgebra::{DMatrix, DVector};
 
 /// A sensor's linear-Gaussian measurement model `z = H x + w`, `w ~ N(0, R)`.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Sensor {
     /// `H`, `(m, ndim)`.
     pub h: DMatrix<f64>,
@@ -126,7 +126,7 @@ impl Sensor {
 }
 
 /// How a distance hypothesiser scores a detection (Stone Soup measures).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Measure {
     /// `sqrt(yᵀ S⁻¹ y)`.
     Mahalanobis,
@@ -135,7 +135,7 @@ pub enum Measure {
 }
 
 /// Distance hypotheses + GNN (`DistanceHypothesiser` + `GNNWith2DAssignment`).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct GnnParams {
     pub measure: Measure,
     /// Detections at `distance >= missed_distance` are not hypothesised; a missed detection
@@ -146,7 +146,7 @@ pub struct GnnParams {
 }
 
 /// PDA hypotheses + JPDA (`PDAHypothesiser` + `JPDA`/`JPDAwithEHM`).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct JpdaParams {
     /// `P_D` in (0, 1].
     pub prob_detect: f64,
@@ -167,14 +167,14 @@ pub struct JpdaParams {
 }
 
 /// The association of confirmed tracks.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum Association {
     Jpda(JpdaParams),
     Gnn(GnnParams),
 }
 
 /// How tentative tracks are confirmed.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum Confirmation {
     /// Confirmed once the track holds `min_points` updates (or states when `updates_only` is
     /// false); dropped by the initiator's deleter (Stone Soup's `MultiMeasurementInitiator`).
@@ -188,7 +188,7 @@ pub enum Confirmation {
 }
 
 /// The multi-measurement initiator.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct InitiatorConfig {
     /// Prior state `(ndim,)`; its mapped entries are replaced by `H⁺ z`.
     pub prior_state: DVector<f64>,
@@ -222,7 +222,7 @@ pub struct InitiatorConfig {
 /// `v⁺ = v⁻ L / (v⁻ L + 1 − v⁻)`. A confirmed track starts at `initial` (visible) and is deleted
 /// when `r < delete` (besides the deleter). Per track (IPDA), not joint: the JPDA association
 /// itself does not weight tracks by existence.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Existence {
     pub survival: f64,
     pub initial: f64,
@@ -256,7 +256,7 @@ impl Existence {
 }
 
 /// What to do with a scan older than the previous one.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum OutOfOrder {
     /// Fail with [`Error::Order`].
     Raise,
@@ -265,7 +265,7 @@ pub enum OutOfOrder {
 }
 
 /// The whole tracker configuration.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct TrackerConfig {
     pub motion_model: MotionModel,
     pub sensors: Vec<Sensor>,

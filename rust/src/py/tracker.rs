@@ -772,6 +772,20 @@ impl TrackerCore {
         }
     }
 
+    /// The whole tracker state as bytes (for pickling; see `from_bytes`).
+    fn to_bytes<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, pyo3::types::PyBytes>> {
+        let b = self.inner.to_bytes().map_err(to_py_err)?;
+        Ok(pyo3::types::PyBytes::new(py, &b))
+    }
+
+    /// A tracker core from `to_bytes` output; it continues exactly as the saved one.
+    #[staticmethod]
+    fn from_bytes(state: &[u8]) -> PyResult<Self> {
+        Ok(Self {
+            inner: Tracker::from_bytes(state).map_err(to_py_err)?,
+        })
+    }
+
     /// Removes the deleted tracks kept so far and returns their histories.
     fn drain_deleted<'py>(&mut self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
         let n = self.inner.config().motion_model.ndim();
