@@ -186,6 +186,11 @@ where
 
 /// The innovations of one scan's gated pairs: per (track, sensor) with the sensor's `R`, and
 /// per (track, detection) for detections with their own covariance.
+/// The error of a pair whose innovation was never computed (an internal invariant).
+pub(crate) fn missing_innovation() -> Error {
+    Error::param("tracker", "internal error: a gated pair has no innovation")
+}
+
 pub(crate) struct Innovations<N: Dim, M: Dim>
 where
     DefaultAllocator: Alloc<N, M>,
@@ -208,15 +213,17 @@ where
         }
     }
 
-    /// The innovation of a gated pair.
-    pub fn of(&self, pair: &Pair, sensor: usize) -> &Innovation<N, M> {
-        if pair.own == NO_OWN {
-            self.shared[pair.t * self.ns + sensor]
-                .as_ref()
-                .expect("a gated pair's track innovation is computed by gate_pairs")
+    /// The innovation of a gated pair (`gate_pairs` computes it for every pair it returns;
+    /// an [`Error::InvalidParameter`] naming `tracker` should that invariant ever break).
+    pub fn of(&self, pair: &Pair, sensor: usize) -> Result<&Innovation<N, M>> {
+        let inn = if pair.own == NO_OWN {
+            self.shared
+                .get(pair.t * self.ns + sensor)
+                .and_then(|i| i.as_ref())
         } else {
-            &self.own[pair.own as usize]
-        }
+            self.own.get(pair.own as usize)
+        };
+        inn.ok_or_else(|| missing_innovation())
     }
 }
 
@@ -437,11 +444,13 @@ where
         // Cell side: median gate box width over tracks.
         let mut widths: Vec<f64> = (0..preds.len())
             .map(|t| {
-                let inn = innov.shared[t * ns + s].as_ref().expect("filled above");
+                let inn = innov.shared[t * ns + s]
+                    .as_ref()
+                    .ok_or_else(missing_innovation)?;
                 let w = (0..md.min(2)).map(|i| var(inn, i)).fold(0.0, f64::max);
-                2.0 * (gate * w).sqrt()
+                Ok(2.0 * (gate * w).sqrt())
             })
-            .collect();
+            .collect::<Result<_>>()?;
         let cell = if gate.is_finite() {
             let mid = widths.len() / 2;
             *widths.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1
@@ -454,7 +463,7 @@ where
         let mut err: Option<Error> = None;
         let Innovations { shared, own, .. } = innov;
         for t in 0..preds.len() {
-            let inn = shared[t * ns + s].as_ref().expect("filled above");
+            let inn = shared[t * ns + s].as_ref().ok_or_else(missing_innovation)?;
             for (i, h) in half.iter_mut().enumerate() {
                 *h = (gate * var(inn, i)).sqrt();
                 if h.is_nan() {
@@ -619,7 +628,7 @@ where
             Some(p) => {
                 let d = p.d;
                 let s = dets.sensor[d];
-                let inn = innov.of(p, s);
+                let inn = innov.of(p, s)?;
                 if let Some(out) = ln_pdf.as_deref_mut() {
                     const LN_2PI: f64 = 1.837_877_066_409_345_5;
                     out.push(-0.5 * (p.d2 + inn.ln_det + md as f64 * LN_2PI));

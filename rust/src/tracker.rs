@@ -489,7 +489,7 @@ impl Tracker {
         // (det, ln w, d2, index into pairs)
         let mut hyps: Vec<Vec<(usize, f64, f64, usize)>> = vec![Vec::new(); preds.len()];
         for (pi, p) in pairs.iter().enumerate() {
-            let inn = innov.of(p, det_sensor[p.d]);
+            let inn = innov.of(p, det_sensor[p.d])?;
             let logpdf = -0.5 * (p.d2 + inn.ln_det + m as f64 * LN_2PI);
             let mut lw = logpdf + j.prob_detect.ln();
             if let Some(l) = j.clutter_density {
@@ -502,7 +502,7 @@ impl Tracker {
                 let n_valid = h.iter().filter(|x| x.2 <= self.gate).count() as f64;
                 for e in h.iter_mut() {
                     let p = &pairs[e.3];
-                    let inn = innov.of(p, det_sensor[p.d]);
+                    let inn = innov.of(p, det_sensor[p.d])?;
                     let vol = validation_volume(m, self.gate, inn.ln_det.exp());
                     e.1 += vol.ln() - n_valid.ln();
                 }
@@ -586,7 +586,7 @@ impl Tracker {
             let mut mean = &xp * (b0 / tot);
             comps.clear();
             for (e, &b) in h.iter().zip(&mg.detections) {
-                let inn = innov.of(&pairs[e.3], det_sensor[e.0]);
+                let inn = innov.of(&pairs[e.3], det_sensor[e.0])?;
                 let y = inn.residual(dets.row(e.0, m));
                 let xu = &xp + &inn.k * y;
                 mean += &xu * (b / tot);
@@ -599,7 +599,7 @@ impl Tracker {
             for (w, xu, pi) in &comps {
                 let p = &pairs[*pi];
                 let s = det_sensor[p.d];
-                let inn = innov.of(p, s);
+                let inn = innov.of(p, s)?;
                 let own;
                 let pu = if p.own == NO_OWN {
                     &*post_by_sensor[s]
@@ -648,11 +648,11 @@ impl Tracker {
                     .zip(&mg.detections)
                     .map(|(e, &b)| {
                         let p = &pairs[e.3];
-                        let inn = innov.of(p, det_sensor[p.d]);
+                        let inn = innov.of(p, det_sensor[p.d])?;
                         let logpdf = -0.5 * (p.d2 + inn.ln_det + m as f64 * LN_2PI);
-                        (e.0, b / tot, e.1 - logpdf)
+                        Ok((e.0, b / tot, e.1 - logpdf))
                     })
-                    .collect();
+                    .collect::<Result<_>>()?;
                 let (st, (xu, pu)) = crate::hypothesise::imm_update(
                     &ip[ti],
                     n,
@@ -844,7 +844,12 @@ impl Tracker {
                     .collect();
                 init_of[s] = Some((pinv, cov, mapped));
             }
-            let (pinv, pcov, mapped) = init_of[s].as_ref().expect("filled above");
+            let Some((pinv, pcov, mapped)) = init_of[s].as_ref() else {
+                return Err(Error::param(
+                    "tracker",
+                    "internal error: no initiation model",
+                ));
+            };
             let zd = DVector::from_column_slice(dets.row(d, m));
             let mut x = init.prior_state.clone();
             let mut p = init.prior_covariance.clone();
