@@ -133,10 +133,8 @@ pub(crate) fn finish<N: Dim, M: Dim>(
 where
     DefaultAllocator: Alloc<N, M>,
 {
-    let s = &hph + r;
-    let chol = Cholesky::new(s.clone()).ok_or_else(not_pd)?;
-    let ln_det = chol.l_dirty().diagonal().iter().map(|d| 2.0 * d.ln()).sum();
-    let k = chol.solve(&pht.transpose()).transpose();
+    let crate::kalman::Gain { s, chol, ln_det, k } =
+        crate::kalman::gain(&hph, &pht, r).ok_or_else(not_pd)?;
     Ok(Innovation {
         zhat,
         hph,
@@ -261,21 +259,9 @@ pub(crate) fn posterior_cov<N: Dim, M: Dim>(
 where
     DefaultAllocator: Alloc<N, M>,
 {
-    let out = if form.joseph {
-        let (n, _) = p.shape_generic();
-        let h = inn.h.as_ref().unwrap_or(&sensor.h);
-        let ikh = OMatrix::<f64, N, N>::identity_generic(n, n) - &inn.k * h;
-        let r = inn.r.as_ref().unwrap_or(&sensor.r);
-        &ikh * p * ikh.transpose() + &inn.k * r * inn.k.transpose()
-    } else {
-        p - &inn.k * &inn.s * inn.k.transpose()
-    };
-    if form.symmetric {
-        let t = out.transpose();
-        (out + t) / 2.0
-    } else {
-        out
-    }
+    let h = inn.h.as_ref().unwrap_or(&sensor.h);
+    let r = inn.r.as_ref().unwrap_or(&sensor.r);
+    crate::kalman::posterior_covariance(p, &inn.k, &inn.s, h, r, form.joseph, form.symmetric)
 }
 
 /// Predicts every track to `t` (`x⁻ = F x`, `P⁻ = F P Fᵀ + Q`), computing `F`, `Q` once per
