@@ -120,6 +120,15 @@ def test_bad_budget_and_method_are_clear_errors():
         clutter_tracker(-1)
     with pytest.raises(ValueError, match="method"):
         clutter_tracker(10, method="murty")
+    # The association crosses into Rust as a typed object: a wrong field type names the field.
+    with pytest.raises(TypeError, match="prob_detect"):
+        T.Tracker(
+            motion_model=constant_velocity_2d(1.0),
+            sensors=[T.Sensor.position(1.0)],
+            association=T.JPDA(prob_detect="high"),
+            deleter=T.StepsSinceUpdate(2),
+            initiator=T.MultiMeasurementInitiator(np.zeros(4), np.eye(4)),
+        )
 
 
 @pytest.mark.skipif(threading.current_thread() is not threading.main_thread(), reason="signals")

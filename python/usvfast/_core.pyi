@@ -181,7 +181,7 @@ class TrackerCore:
         self,
         motion_model: list[tuple[str, float]],
         sensors: list[tuple[npt.NDArray[np.float64], ...]],
-        association: dict[str, object],
+        association: object,
         deleter_spec: tuple[object, ...],
         initiator: dict[str, object],
         *,

@@ -290,21 +290,6 @@ class JPDA:
     method: Literal["ehm", "brute_force", "lbp"] = "ehm"
     max_hypotheses: int | None = 1_000_000
 
-    def _spec(self) -> dict[str, Any]:
-        return {
-            "kind": "jpda",
-            "prob_detect": float(self.prob_detect),
-            "prob_gate": float(self.prob_gate),
-            "clutter_density": None
-            if self.clutter_density is None
-            else float(self.clutter_density),
-            "include_all": bool(self.include_all),
-            "method": self.method,
-            "max_hypotheses": None
-            if self.max_hypotheses is None
-            else _non_negative_int("max_hypotheses", self.max_hypotheses),
-        }
-
 
 @dataclass(frozen=True)
 class GNN:
@@ -316,14 +301,6 @@ class GNN:
     missed_distance: float = float("inf")
     measure: Literal["mahalanobis", "squared_mahalanobis"] = "mahalanobis"
     include_all: bool = False
-
-    def _spec(self) -> dict[str, Any]:
-        return {
-            "kind": "gnn",
-            "measure": self.measure,
-            "missed_distance": float(self.missed_distance),
-            "include_all": bool(self.include_all),
-        }
 
 
 @dataclass(frozen=True)
@@ -778,7 +755,7 @@ class Tracker:
         self._core = _core.TrackerCore(
             model_spec(motion_model),
             specs,
-            association._spec(),
+            association,
             _deleter_spec(deleter),
             initiator._spec(),
             use_joseph_cov=bool(use_joseph_cov),

@@ -52,10 +52,6 @@ fn get_f64(d: &Bound<'_, PyDict>, key: &str) -> PyResult<f64> {
     item(d, key)?.extract()
 }
 
-fn get_opt_f64(d: &Bound<'_, PyDict>, key: &str) -> PyResult<Option<f64>> {
-    item(d, key)?.extract()
-}
-
 fn get_bool(d: &Bound<'_, PyDict>, key: &str) -> PyResult<bool> {
     item(d, key)?.extract()
 }
@@ -116,6 +112,73 @@ fn deleter(spec: &Bound<'_, PyAny>) -> PyResult<Deleter> {
             )))
         }
     })
+}
+
+/// The fields of `usvfast.tracking.JPDA`, read by attribute (typed: a wrong type is a
+/// TypeError naming the field).
+#[derive(FromPyObject)]
+struct JpdaArgs {
+    prob_detect: f64,
+    prob_gate: f64,
+    clutter_density: Option<f64>,
+    include_all: bool,
+    method: String,
+    max_hypotheses: Option<i64>,
+}
+
+/// The fields of `usvfast.tracking.GNN`, read by attribute.
+#[derive(FromPyObject)]
+struct GnnArgs {
+    measure: String,
+    missed_distance: f64,
+    include_all: bool,
+}
+
+/// A `JPDA` or a `GNN` association object.
+enum AssociationArgs {
+    Jpda(JpdaArgs),
+    Gnn(GnnArgs),
+}
+
+impl AssociationArgs {
+    /// A `JPDA` (it has `prob_detect`) or a `GNN`; a field of the wrong type is a TypeError
+    /// naming it.
+    fn from_object(a: &Bound<'_, PyAny>) -> PyResult<Self> {
+        let named = |e: PyErr| {
+            pyo3::exceptions::PyTypeError::new_err(format!("association: {}", e.value(a.py())))
+        };
+        if a.hasattr("prob_detect")? {
+            Ok(Self::Jpda(a.extract().map_err(named)?))
+        } else {
+            Ok(Self::Gnn(a.extract().map_err(named)?))
+        }
+    }
+
+    fn into_core(self) -> PyResult<Association> {
+        Ok(match self {
+            Self::Jpda(j) => Association::Jpda(JpdaParams {
+                prob_detect: j.prob_detect,
+                prob_gate: j.prob_gate,
+                clutter_density: j.clutter_density,
+                include_all: j.include_all,
+                method: method(&j.method)?,
+                max_hypotheses: match j.max_hypotheses {
+                    None => None,
+                    Some(v) if v >= 1 => Some(usize::try_from(v).unwrap_or(usize::MAX)),
+                    Some(v) => {
+                        return Err(PyValueError::new_err(format!(
+                            "max_hypotheses: must be >= 1 or None, got {v}"
+                        )))
+                    }
+                },
+            }),
+            Self::Gnn(g) => Association::Gnn(GnnParams {
+                measure: measure(&g.measure)?,
+                missed_distance: g.missed_distance,
+                include_all: g.include_all,
+            }),
+        })
+    }
 }
 
 /// `(i, j, "ekf" | "ukf", alpha, beta, kappa)` of a range–bearing sensor.
@@ -309,7 +372,7 @@ impl TrackerCore {
     fn new(
         motion_model: Vec<(String, f64)>,
         sensors: Vec<SensorSpec<'_>>,
-        association: &Bound<'_, PyDict>,
+        association: &Bound<'_, PyAny>,
         deleter_spec: &Bound<'_, PyAny>,
         initiator: &Bound<'_, PyDict>,
         use_joseph_cov: bool,
@@ -330,27 +393,7 @@ impl TrackerCore {
                 sensor_from_arrays(h, r, hi.as_ref(), ri.as_ref(), pol.as_ref(), n, i)
             })
             .collect::<PyResult<Vec<_>>>()?;
-        let kind = get_str(association, "kind")?;
-        let association = match kind.as_str() {
-            "jpda" => Association::Jpda(JpdaParams {
-                prob_detect: get_f64(association, "prob_detect")?,
-                prob_gate: get_f64(association, "prob_gate")?,
-                clutter_density: get_opt_f64(association, "clutter_density")?,
-                include_all: get_bool(association, "include_all")?,
-                method: method(&get_str(association, "method")?)?,
-                max_hypotheses: item(association, "max_hypotheses")?.extract()?,
-            }),
-            "gnn" => Association::Gnn(GnnParams {
-                measure: measure(&get_str(association, "measure")?)?,
-                missed_distance: get_f64(association, "missed_distance")?,
-                include_all: get_bool(association, "include_all")?,
-            }),
-            other => {
-                return Err(PyValueError::new_err(format!(
-                    "association: expected 'jpda' or 'gnn', got {other:?}"
-                )))
-            }
-        };
+        let association = AssociationArgs::from_object(association)?.into_core()?;
         let prior_state: Vec<f64> = item(initiator, "prior_state")?.extract()?;
         let prior_cov: PyReadonlyArray2<'_, f64> =
             item(initiator, "prior_covariance")?.extract()?;
