@@ -67,9 +67,9 @@ prior, not an update); ``tracker.add_sensor(Sensor(...))`` registers a sensor be
 ``tracker.tentative_tracks``, ``tracker.deleted_track_ids``,
 ``tracker.history(id).to_dataframe()``, ``tracker.dropped_scans``. Track ids are stable
 integers counted in order of confirmation. Kernels: ``usvfast._core.linear_sum_assignment``,
-``jpda_marginals`` (EHM, brute force, or "lbp" belief propagation) and ``chi2_gate``. Trackers pickle
-(the whole state, bit-exact) and copy; ``tracker.last_step`` reports the JPDA clusters of the
-last step and how many were approximated (see `JPDA.max_hypotheses`).
+``jpda_marginals`` (EHM, brute force, or "lbp" belief propagation) and ``chi2_gate``.
+Trackers pickle (the whole state, bit-exact) and copy; ``tracker.last_step`` reports the JPDA
+clusters of the last step and how many were approximated (see `JPDA.max_hypotheses`).
 
 Units SI, state ``[n, v_n, e, v_e]`` (NED metres, m/s) for the 2-D model; times float seconds
 (use times relative to a recent epoch for sub-microsecond ``dt``). All detections of a scan
