@@ -155,3 +155,37 @@ def test_ctrl_c_between_clusters_leaves_the_tracker_as_before():
     assert tr.last_time == 0.0 or tr.last_time is None
     tr.step(1.0, z[:10])
     assert tr.last_time == 1.0
+
+
+def test_time_deleter_boundary_equals_stonesoup():
+    # Scans at k · 0.1 s, a 5 s UpdateTimeDeleter: 6.3 − 1.3 is 5.000000000000001 in floats,
+    # exactly 5 s in Stone Soup's datetimes — the track is deleted at the same scan by both.
+    from datetime import datetime, timedelta
+
+    from stonesoup.deleter.time import UpdateTimeDeleter
+    from stonesoup.types.detection import Detection
+    from stonesoup.types.hypothesis import SingleHypothesis
+    from stonesoup.types.prediction import GaussianStatePrediction
+    from stonesoup.types.track import Track
+    from stonesoup.types.update import GaussianStateUpdate
+
+    tr = T.Tracker(
+        motion_model=constant_velocity_2d(0.1),
+        sensors=[T.Sensor.position(0.5)],
+        association=T.GNN(missed_distance=5.0),
+        deleter=T.TimeSinceUpdate(5.0),
+        initiator=T.MultiMeasurementInitiator(np.zeros(4), np.eye(4)),
+    )
+    tr.add_track(np.zeros(4), np.eye(4), 13 * 0.1)
+    tr.step(13 * 0.1, [[0.0, 0.0]])
+    ours = next(k for k in range(14, 100) if len(tr.step(k * 0.1)) == 0)
+    epoch = datetime(2024, 1, 1)
+    ts = [epoch + timedelta(seconds=round(k * 0.1, 6)) for k in range(13, 100)]
+    hyp = SingleHypothesis(None, Detection(np.zeros((2, 1)), timestamp=ts[0]))
+    track = Track([GaussianStateUpdate(np.zeros((4, 1)), np.eye(4), hyp, timestamp=ts[0])])
+    deleter = UpdateTimeDeleter(time_since_update=timedelta(seconds=5.0))
+    for k, t in zip(range(14, 100), ts[1:], strict=False):
+        track.append(GaussianStatePrediction(np.zeros((4, 1)), np.eye(4), timestamp=t))
+        if deleter.check_for_deletion(track):
+            break
+    assert ours == k == 64

@@ -85,10 +85,13 @@ impl Deleter {
                 false
             }
             Deleter::TimeSinceUpdate(s) => {
-                let start = track.t - s;
+                // In whole microseconds, as Stone Soup compares datetimes: 7.6 s − 2.6 s is
+                // 5 s exactly there (5.000000000000001 in floats).
+                let us = |t: f64| (t * 1e6).round();
+                let (now, limit) = (us(track.t), us(*s));
                 !(0..h.len())
                     .rev()
-                    .take_while(|&k| h.times[k] >= start)
+                    .take_while(|&k| now - us(h.times[k]) <= limit)
                     .any(|k| h.is_update[k])
             }
             Deleter::CovarianceTrace { threshold, mapping } => {

@@ -228,4 +228,21 @@ mod tests {
         t.drop_last_prediction();
         assert_eq!(t.history.len(), 3);
     }
+
+    #[test]
+    fn time_since_update_compares_whole_microseconds_like_stonesoup() {
+        // Scans at k · 0.1 s, last update at 1.3 s, 5 s deleter: 63 · 0.1 − 13 · 0.1 is
+        // 5.000000000000001 in floats but exactly 5 s for Stone Soup's datetimes (kept);
+        // deleted at 6.4 s.
+        let (x, p) = (DVector::zeros(2), DMatrix::identity(2, 2));
+        let d = Deleter::TimeSinceUpdate(5.0);
+        let mut t = Track::new(0, x.clone(), p.clone(), entry(13.0 * 0.1, true));
+        assert!(63.0 * 0.1 - 13.0 * 0.1 > 5.0);
+        for k in 14..=63 {
+            t.append_slices(x.as_slice(), p.as_slice(), &entry(k as f64 * 0.1, false));
+            assert!(!d.check(&t), "deleted at scan {k}");
+        }
+        t.append_slices(x.as_slice(), p.as_slice(), &entry(64.0 * 0.1, false));
+        assert!(d.check(&t));
+    }
 }
