@@ -40,6 +40,7 @@ fn config() -> TrackerConfig {
             clutter_density: Some(0.125),
             include_all: false,
             method: Method::Ehm,
+            max_hypotheses: None,
         }),
         use_joseph_cov: false,
         symmetric_covariance: false,

@@ -183,7 +183,7 @@ class TrackerCore:
         self,
         motion_model: list[tuple[str, float]],
         sensors: list[tuple[npt.NDArray[np.float64], ...]],
-        association: dict[str, object],
+        association: object,
         deleter_spec: tuple[object, ...],
         initiator: dict[str, object],
         *,
@@ -203,7 +203,7 @@ class TrackerCore:
         sensor_ids: npt.NDArray[np.int64],
         covariances: npt.NDArray[np.float64] | None = None,
         origins: npt.NDArray[np.float64] | None = None,
-    ) -> bool: ...
+    ) -> tuple[bool, int, int, int]: ...
     def run(
         self,
         times: npt.NDArray[np.float64],
@@ -229,6 +229,9 @@ class TrackerCore:
     def history(self, track_id: int) -> dict[str, Any]: ...
     def drain_deleted(self) -> list[dict[str, Any]]: ...
     def copy(self) -> TrackerCore: ...
+    def to_bytes(self) -> bytes: ...
+    @staticmethod
+    def from_bytes(state: bytes) -> TrackerCore: ...
     @property
     def capped_detections(self) -> int: ...
     @property

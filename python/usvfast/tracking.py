@@ -67,7 +67,9 @@ prior, not an update); ``tracker.add_sensor(Sensor(...))`` registers a sensor be
 ``tracker.tentative_tracks``, ``tracker.deleted_track_ids``,
 ``tracker.history(id).to_dataframe()``, ``tracker.dropped_scans``. Track ids are stable
 integers counted in order of confirmation. Kernels: ``usvfast._core.linear_sum_assignment``,
-``jpda_marginals`` (EHM or brute force) and ``chi2_gate``.
+``jpda_marginals`` (EHM, brute force, or "lbp" belief propagation) and ``chi2_gate``.
+Trackers pickle (the whole state, bit-exact) and copy; ``tracker.last_step`` reports the JPDA
+clusters of the last step and how many were approximated (see `JPDA.max_hypotheses`).
 
 Units SI, state ``[n, v_n, e, v_e]`` (NED metres, m/s) for the 2-D model; times float seconds
 (use times relative to a recent epoch for sub-microsecond ``dt``). All detections of a scan
@@ -115,6 +117,7 @@ __all__ = [
     "NeverDelete",
     "RunResult",
     "Sensor",
+    "StepStats",
     "StepsSinceUpdate",
     "TimeSinceUpdate",
     "TrackHistory",
@@ -279,26 +282,23 @@ class JPDA:
     prob_detect P_D and prob_gate P_G in (0, 1]; clutter_density λ > 0 per unit measurement
     volume (m⁻² for 2-D positions), or None for Stone Soup's estimate from the gate volume;
     include_all keeps detections outside the gate (needs clutter_density); method "ehm"
-    (exact, fast) or "brute_force" (exact, exponential).
+    (exact, fast), "brute_force" (exact, exponential) or "lbp" (loopy belief propagation,
+    approximate: Williams & Lau, IEEE Trans. AES 50(4), 2014).
+
+    max_hypotheses: per-cluster budget of the exact method (EHM: edges of its hypothesis net
+    times the 64-bit words of a node key, one per 64 detections in the cluster — its memory
+    and work, a few tens of bytes and nanoseconds each; brute force: joint hypotheses). A cluster
+    past it gets belief-propagation marginals instead and is counted in
+    `Tracker.last_step.approximated_clusters` (and `RunResult.approximated_clusters`). None:
+    always exact, unbounded (Stone Soup's behaviour; a dense cluster can then exhaust memory).
     """
 
     prob_detect: float = 0.85
     prob_gate: float = 0.95
     clutter_density: float | None = None
     include_all: bool = False
-    method: Literal["ehm", "brute_force"] = "ehm"
-
-    def _spec(self) -> dict[str, Any]:
-        return {
-            "kind": "jpda",
-            "prob_detect": float(self.prob_detect),
-            "prob_gate": float(self.prob_gate),
-            "clutter_density": None
-            if self.clutter_density is None
-            else float(self.clutter_density),
-            "include_all": bool(self.include_all),
-            "method": self.method,
-        }
+    method: Literal["ehm", "brute_force", "lbp"] = "ehm"
+    max_hypotheses: int | None = 1_000_000
 
 
 @dataclass(frozen=True)
@@ -311,14 +311,6 @@ class GNN:
     missed_distance: float = float("inf")
     measure: Literal["mahalanobis", "squared_mahalanobis"] = "mahalanobis"
     include_all: bool = False
-
-    def _spec(self) -> dict[str, Any]:
-        return {
-            "kind": "gnn",
-            "measure": self.measure,
-            "missed_distance": float(self.missed_distance),
-            "include_all": bool(self.include_all),
-        }
 
 
 @dataclass(frozen=True)
@@ -683,10 +675,24 @@ class TrackHistory:
 
 
 @dataclass(frozen=True)
+class StepStats:
+    """What the last `Tracker.step` did: processed (False when dropped as out of order),
+    clusters of confirmed tracks sharing gated detections (JPDA; 0 under GNN),
+    approximated_clusters among them (belief propagation past `JPDA.max_hypotheses`, or
+    method "lbp"), largest_cluster (tracks)."""
+
+    processed: bool
+    clusters: int
+    approximated_clusters: int
+    largest_cluster: int
+
+
+@dataclass(frozen=True)
 class RunResult:
     """Confirmed tracks after every scan of a batch run, one row per (scan, track):
     scan (r,), track_id (r,), time (r,), state (r, ndim), covariance (r, ndim, ndim),
-    is_update (r,); dropped_scans: indices of scans dropped as out of order."""
+    is_update (r,); dropped_scans: indices of scans dropped as out of order;
+    approximated_clusters (s,): JPDA clusters approximated in each scan (see `JPDA`)."""
 
     scan: np.ndarray
     track_id: np.ndarray
@@ -695,6 +701,20 @@ class RunResult:
     covariance: np.ndarray
     is_update: np.ndarray
     dropped_scans: np.ndarray
+    approximated_clusters: np.ndarray
+
+
+def _restore_tracker(
+    cls: type[Tracker], sensors: tuple, m: int, last_step: StepStats | None, state: bytes
+) -> Tracker:
+    """Rebuilds a pickled `Tracker` (see `Tracker.__reduce__`)."""
+    new = object.__new__(cls)
+    new.sensors = tuple(sensors)
+    new.last_step = last_step
+    new._m = m
+    new._busy = threading.Lock()
+    new._core = _core.TrackerCore.from_bytes(state)
+    return new
 
 
 class Tracker:
@@ -747,12 +767,13 @@ class Tracker:
             sensors = [sensors]
         specs = [_sensor_spec(s, f"sensors[{i}]") for i, s in enumerate(sensors)]
         self.sensors = tuple(sensors)
+        self.last_step: StepStats | None = None
         self._busy = threading.Lock()
         self._m = specs[0][0].shape[0] if specs else 0
         self._core = _core.TrackerCore(
             model_spec(motion_model),
             specs,
-            association._spec(),
+            association,
             _deleter_spec(deleter),
             initiator._spec(),
             use_joseph_cov=bool(use_joseph_cov),
@@ -786,6 +807,7 @@ class Tracker:
         advance independently."""
         new = object.__new__(type(self))
         new.sensors = self.sensors
+        new.last_step = self.last_step
         new._m = self._m
         new._busy = threading.Lock()
         with self._exclusive():
@@ -794,6 +816,14 @@ class Tracker:
 
     def __deepcopy__(self, memo: dict[int, Any]) -> Tracker:
         return self.__copy__()
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        """Pickling: the whole state (configuration, tracks and histories, counters, IMM and
+        existence states) goes out as bytes and comes back bit-exact, so a restored tracker
+        (e.g. in a process pool) continues exactly like the original."""
+        with self._exclusive():
+            state = self._core.to_bytes()
+        return (_restore_tracker, (type(self), self.sensors, self._m, self.last_step, state))
 
     def _detections(self, measurements: Any, sensor_ids: Any) -> tuple[np.ndarray, np.ndarray]:
         z = as_float_array("measurements", measurements)
@@ -866,7 +896,7 @@ class Tracker:
         c = self._covariances(covariances, len(z))
         o = self._origins(origins, len(z))
         with self._exclusive():
-            self._core.step(float(t), z, ids, c, o)
+            self.last_step = StepStats(*self._core.step(float(t), z, ids, c, o))
         return self.tracks
 
     def run(

@@ -23,6 +23,9 @@ pub enum Error {
     /// A parameter outside its valid range.
     #[error("{arg}: {reason}")]
     InvalidParameter { arg: String, reason: String },
+    /// A long computation was stopped by its caller (e.g. Ctrl-C) before changing any state.
+    #[error("interrupted")]
+    Interrupted,
 }
 
 /// Result alias of the core.

@@ -48,8 +48,73 @@ where
     pub log_likelihood: f64,
 }
 
+/// The gain part of a Kalman step: `S = H P⁻ Hᵀ + R`, its Cholesky factor, `ln det S` and the
+/// gain `K = P⁻ Hᵀ S⁻¹`, from `hph = H P⁻ Hᵀ` and `pht = P⁻ Hᵀ` (linearised or sigma-point
+/// versions for non-linear sensors). `None` when `S` has no Cholesky factor. This and
+/// [`posterior_covariance`] are the one Kalman step of the crate: the filter ([`update`]) and
+/// the tracker's updaters (`tracking::hypothesise`) both use them.
+pub fn gain<N: Dim, M: Dim>(
+    hph: &OMatrix<f64, M, M>,
+    pht: &OMatrix<f64, N, M>,
+    r: &OMatrix<f64, M, M>,
+) -> Option<Gain<N, M>>
+where
+    DefaultAllocator: Allocator<N, M> + Allocator<M, N> + Allocator<M, M> + Allocator<M>,
+{
+    let s = hph + r;
+    let chol = Cholesky::new(s.clone())?;
+    let ln_det = chol.l_dirty().diagonal().iter().map(|d| 2.0 * d.ln()).sum();
+    // K = P⁻ Hᵀ S⁻¹, computed as (S⁻¹ H P⁻)ᵀ since S and P⁻ are symmetric.
+    let k = chol.solve(&pht.transpose()).transpose();
+    Some(Gain { s, chol, ln_det, k })
+}
+
+/// See [`gain`].
+#[derive(Debug, Clone)]
+pub struct Gain<N: Dim, M: Dim>
+where
+    DefaultAllocator: Allocator<N, M> + Allocator<M, M>,
+{
+    /// Innovation covariance `S`.
+    pub s: OMatrix<f64, M, M>,
+    pub chol: Cholesky<f64, M>,
+    /// `ln det S`.
+    pub ln_det: f64,
+    /// Kalman gain `K`, `(n, m)`.
+    pub k: OMatrix<f64, N, M>,
+}
+
+/// The posterior covariance of a Kalman step with gain `k`: Joseph form
+/// `(I − K H) P⁻ (I − K H)ᵀ + K R Kᵀ` (`joseph`) or `P⁻ − K S Kᵀ`; then `(P + Pᵀ) / 2` when
+/// `symmetric`.
+pub fn posterior_covariance<N: Dim, M: Dim>(
+    p: &OMatrix<f64, N, N>,
+    k: &OMatrix<f64, N, M>,
+    s: &OMatrix<f64, M, M>,
+    h: &OMatrix<f64, M, N>,
+    r: &OMatrix<f64, M, M>,
+    joseph: bool,
+    symmetric: bool,
+) -> OMatrix<f64, N, N>
+where
+    DefaultAllocator: Allocator<N, N> + Allocator<N, M> + Allocator<M, N> + Allocator<M, M>,
+{
+    let mut out = if joseph {
+        let (n, _) = p.shape_generic();
+        let ikh = OMatrix::<f64, N, N>::identity_generic(n, n) - k * h;
+        &ikh * p * ikh.transpose() + k * r * k.transpose()
+    } else {
+        p - k * s * k.transpose()
+    };
+    if symmetric {
+        symmetrise(&mut out);
+    }
+    out
+}
+
 /// Measurement update with the Joseph-form covariance
-/// `P = (I − K H) P⁻ (I − K H)ᵀ + K R Kᵀ`, `K = P⁻ Hᵀ S⁻¹`.
+/// `P = (I − K H) P⁻ (I − K H)ᵀ + K R Kᵀ`, `K = P⁻ Hᵀ S⁻¹` (symmetrised): [`gain`] and
+/// [`posterior_covariance`].
 ///
 /// Fails with [`Error::NotPositiveDefinite`] when `S` has no Cholesky factor.
 pub fn update<N: Dim, M: Dim>(
@@ -67,32 +132,24 @@ where
         + Allocator<M, N>
         + Allocator<N, M>,
 {
-    let (n, _) = p.shape_generic();
     // y = z − H x⁻
     let innovation = z - h * x;
     let pht = p * h.transpose();
-    // S = H P⁻ Hᵀ + R
-    let s = h * &pht + r;
-    let chol = Cholesky::new(s.clone()).ok_or_else(|| Error::NotPositiveDefinite {
+    let g = gain(&(h * &pht), &pht, r).ok_or_else(|| Error::NotPositiveDefinite {
         arg: "innovation covariance".into(),
         reason: "H P Hᵀ + R is not positive definite (check measurement_noise)".into(),
     })?;
-    // K = P⁻ Hᵀ S⁻¹, computed as (S⁻¹ H P⁻)ᵀ since S and P⁻ are symmetric.
-    let k = chol.solve(&pht.transpose()).transpose();
-    let s_inv_y = chol.solve(&innovation);
+    let s_inv_y = g.chol.solve(&innovation);
     let nis = innovation.dot(&s_inv_y);
-    let ln_det: f64 = chol.l_dirty().diagonal().iter().map(|d| 2.0 * d.ln()).sum();
     let m = innovation.len() as f64;
-    let log_likelihood = -0.5 * (nis + ln_det + m * LN_2PI);
-    let x_post = x + &k * &innovation;
-    let i_kh = OMatrix::<f64, N, N>::identity_generic(n, n) - &k * h;
-    let mut p_post = &i_kh * p * i_kh.transpose() + &k * r * k.transpose();
-    symmetrise(&mut p_post);
+    let log_likelihood = -0.5 * (nis + g.ln_det + m * LN_2PI);
+    let x_post = x + &g.k * &innovation;
+    let p_post = posterior_covariance(p, &g.k, &g.s, h, r, true, true);
     Ok(Update {
         x: x_post,
         p: p_post,
         innovation,
-        s,
+        s: g.s,
         nis,
         log_likelihood,
     })

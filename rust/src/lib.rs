@@ -5,27 +5,23 @@
 //! Conventions (see `docs/design.md`): SI units, radians, NED world frame, 2-D constant-velocity
 //! state `[n, v_n, e, v_e]`.
 
-pub mod assign;
 pub mod cascade;
 pub mod error;
 pub mod fastmath;
 pub mod frames;
-pub mod gating;
 pub mod geodesy;
 pub mod georef;
-pub mod hypothesise;
-pub mod imm;
-pub mod jpda;
 pub mod kalman;
 pub mod line_of_sight;
 pub mod mean_shift;
 pub mod models;
 pub mod nms;
 pub mod particle;
-pub mod polar;
-pub mod track;
-pub mod tracker;
-pub mod tracker_config;
+pub mod tracking;
+// The tracking modules under their earlier top-level paths.
+pub use tracking::config as tracker_config;
+pub use tracking::run as tracker_run;
+pub use tracking::{assign, gating, hypothesise, imm, jpda, polar, track, tracker};
 
 #[cfg(feature = "python")]
 pub mod py;

@@ -9,7 +9,7 @@ use nalgebra::{Dim, OMatrix};
 
 /// One axis of a motion model; `q` is the noise diffusion coefficient (Stone Soup's
 /// `noise_diff_coeff`), in (state unit)² per second^(2k-1).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum Component {
     /// Position only: `F = [1]`, `Q = [q·dt]`.
     RandomWalk { q: f64 },
@@ -40,7 +40,7 @@ impl Component {
 }
 
 /// A block-diagonal combination of [`Component`]s.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct MotionModel {
     components: Vec<Component>,
     ndim: usize,

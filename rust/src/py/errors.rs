@@ -38,6 +38,7 @@ pub fn to_py_err(e: Error) -> PyErr {
         Error::NotPositiveDefinite { .. } => NotPositiveDefiniteError::new_err(msg),
         Error::Order { .. } => TimeOrderError::new_err(msg),
         Error::InvalidParameter { .. } => PyValueError::new_err(msg),
+        Error::Interrupted => pyo3::exceptions::PyKeyboardInterrupt::new_err(msg),
     }
 }
 

@@ -52,10 +52,6 @@ fn get_f64(d: &Bound<'_, PyDict>, key: &str) -> PyResult<f64> {
     item(d, key)?.extract()
 }
 
-fn get_opt_f64(d: &Bound<'_, PyDict>, key: &str) -> PyResult<Option<f64>> {
-    item(d, key)?.extract()
-}
-
 fn get_bool(d: &Bound<'_, PyDict>, key: &str) -> PyResult<bool> {
     item(d, key)?.extract()
 }
@@ -78,8 +74,9 @@ fn method(s: &str) -> PyResult<Method> {
     match s {
         "ehm" => Ok(Method::Ehm),
         "brute_force" => Ok(Method::BruteForce),
+        "lbp" => Ok(Method::Lbp),
         other => Err(PyValueError::new_err(format!(
-            "method: expected 'ehm' or 'brute_force', got {other:?}"
+            "method: expected 'ehm', 'brute_force' or 'lbp', got {other:?}"
         ))),
     }
 }
@@ -115,6 +112,73 @@ fn deleter(spec: &Bound<'_, PyAny>) -> PyResult<Deleter> {
             )))
         }
     })
+}
+
+/// The fields of `usvfast.tracking.JPDA`, read by attribute (typed: a wrong type is a
+/// TypeError naming the field).
+#[derive(FromPyObject)]
+struct JpdaArgs {
+    prob_detect: f64,
+    prob_gate: f64,
+    clutter_density: Option<f64>,
+    include_all: bool,
+    method: String,
+    max_hypotheses: Option<i64>,
+}
+
+/// The fields of `usvfast.tracking.GNN`, read by attribute.
+#[derive(FromPyObject)]
+struct GnnArgs {
+    measure: String,
+    missed_distance: f64,
+    include_all: bool,
+}
+
+/// A `JPDA` or a `GNN` association object.
+enum AssociationArgs {
+    Jpda(JpdaArgs),
+    Gnn(GnnArgs),
+}
+
+impl AssociationArgs {
+    /// A `JPDA` (it has `prob_detect`) or a `GNN`; a field of the wrong type is a TypeError
+    /// naming it.
+    fn from_object(a: &Bound<'_, PyAny>) -> PyResult<Self> {
+        let named = |e: PyErr| {
+            pyo3::exceptions::PyTypeError::new_err(format!("association: {}", e.value(a.py())))
+        };
+        if a.hasattr("prob_detect")? {
+            Ok(Self::Jpda(a.extract().map_err(named)?))
+        } else {
+            Ok(Self::Gnn(a.extract().map_err(named)?))
+        }
+    }
+
+    fn into_core(self) -> PyResult<Association> {
+        Ok(match self {
+            Self::Jpda(j) => Association::Jpda(JpdaParams {
+                prob_detect: j.prob_detect,
+                prob_gate: j.prob_gate,
+                clutter_density: j.clutter_density,
+                include_all: j.include_all,
+                method: method(&j.method)?,
+                max_hypotheses: match j.max_hypotheses {
+                    None => None,
+                    Some(v) if v >= 1 => Some(usize::try_from(v).unwrap_or(usize::MAX)),
+                    Some(v) => {
+                        return Err(PyValueError::new_err(format!(
+                            "max_hypotheses: must be >= 1 or None, got {v}"
+                        )))
+                    }
+                },
+            }),
+            Self::Gnn(g) => Association::Gnn(GnnParams {
+                measure: measure(&g.measure)?,
+                missed_distance: g.missed_distance,
+                include_all: g.include_all,
+            }),
+        })
+    }
 }
 
 /// `(i, j, "ekf" | "ukf", alpha, beta, kappa)` of a range–bearing sensor.
@@ -250,6 +314,45 @@ fn sensor_from_arrays(
     }
 }
 
+/// Ctrl-C polling for core code running without the GIL: [`SignalCheck::poll`] re-attaches
+/// at most every 20 ms to run Python's signal handlers and keeps the exception they raise.
+struct SignalCheck {
+    last: std::time::Instant,
+    err: Option<PyErr>,
+}
+
+impl SignalCheck {
+    fn new() -> Self {
+        Self {
+            last: std::time::Instant::now(),
+            err: None,
+        }
+    }
+
+    /// True once a signal handler has raised (then always).
+    fn poll(&mut self) -> bool {
+        if self.err.is_some() {
+            return true;
+        }
+        if self.last.elapsed() < std::time::Duration::from_millis(20) {
+            return false;
+        }
+        self.last = std::time::Instant::now();
+        if let Err(e) = Python::attach(|py| py.check_signals()) {
+            self.err = Some(e);
+        }
+        self.err.is_some()
+    }
+
+    /// The core's result, with the signal handler's own exception for an interruption.
+    fn result<T>(self, r: crate::Result<T>) -> PyResult<T> {
+        match (r, self.err) {
+            (Err(Error::Interrupted), Some(e)) => Err(e),
+            (r, _) => r.map_err(to_py_err),
+        }
+    }
+}
+
 /// The multi-target tracker core; build it through `usvfast.tracking.Tracker`.
 #[pyclass(module = "usvfast._core")]
 pub struct TrackerCore {
@@ -269,7 +372,7 @@ impl TrackerCore {
     fn new(
         motion_model: Vec<(String, f64)>,
         sensors: Vec<SensorSpec<'_>>,
-        association: &Bound<'_, PyDict>,
+        association: &Bound<'_, PyAny>,
         deleter_spec: &Bound<'_, PyAny>,
         initiator: &Bound<'_, PyDict>,
         use_joseph_cov: bool,
@@ -290,26 +393,7 @@ impl TrackerCore {
                 sensor_from_arrays(h, r, hi.as_ref(), ri.as_ref(), pol.as_ref(), n, i)
             })
             .collect::<PyResult<Vec<_>>>()?;
-        let kind = get_str(association, "kind")?;
-        let association = match kind.as_str() {
-            "jpda" => Association::Jpda(JpdaParams {
-                prob_detect: get_f64(association, "prob_detect")?,
-                prob_gate: get_f64(association, "prob_gate")?,
-                clutter_density: get_opt_f64(association, "clutter_density")?,
-                include_all: get_bool(association, "include_all")?,
-                method: method(&get_str(association, "method")?)?,
-            }),
-            "gnn" => Association::Gnn(GnnParams {
-                measure: measure(&get_str(association, "measure")?)?,
-                missed_distance: get_f64(association, "missed_distance")?,
-                include_all: get_bool(association, "include_all")?,
-            }),
-            other => {
-                return Err(PyValueError::new_err(format!(
-                    "association: expected 'jpda' or 'gnn', got {other:?}"
-                )))
-            }
-        };
+        let association = AssociationArgs::from_object(association)?.into_core()?;
         let prior_state: Vec<f64> = item(initiator, "prior_state")?.extract()?;
         let prior_cov: PyReadonlyArray2<'_, f64> =
             item(initiator, "prior_covariance")?.extract()?;
@@ -380,7 +464,9 @@ impl TrackerCore {
     }
 
     /// Processes one scan (detections with their own noise covariances `(k, m, m)` when
-    /// given); returns False when it was dropped as out of order.
+    /// given); returns `(processed, clusters, approximated_clusters, largest_cluster)`,
+    /// processed False when it was dropped as out of order. Ctrl-C between JPDA clusters
+    /// raises KeyboardInterrupt and leaves the tracker as before the scan.
     #[pyo3(signature = (t, measurements, sensor_ids, covariances=None, origins=None))]
     fn step(
         &mut self,
@@ -390,7 +476,7 @@ impl TrackerCore {
         sensor_ids: PyReadonlyArray1<'_, i64>,
         covariances: Option<PyReadonlyArray3<'_, f64>>,
         origins: Option<PyReadonlyArray2<'_, f64>>,
-    ) -> PyResult<bool> {
+    ) -> PyResult<(bool, usize, usize, usize)> {
         let z = slice("measurements", &measurements)?;
         let ids = to_usize("sensor_ids", slice("sensor_ids", &sensor_ids)?)?;
         let covs = covariances
@@ -399,10 +485,16 @@ impl TrackerCore {
             .transpose()?;
         let orig = origins.as_ref().map(|o| slice("origins", o)).transpose()?;
         let inner = &mut self.inner;
-        let out = py
-            .detach(|| inner.step_with(t, z, &ids, covs, orig))
-            .map_err(to_py_err)?;
-        Ok(out == crate::tracker::StepOutcome::Processed)
+        let mut signals = SignalCheck::new();
+        let res =
+            py.detach(|| inner.step_interruptible(t, z, &ids, covs, orig, &mut || signals.poll()));
+        let r = signals.result(res)?;
+        Ok((
+            r.outcome == crate::tracker::StepOutcome::Processed,
+            r.clusters,
+            r.approximated_clusters,
+            r.largest_cluster,
+        ))
     }
 
     /// Runs a whole recording: scan `i` at `times[i]` holds the detections with
@@ -475,98 +567,27 @@ impl TrackerCore {
         }
         let n = self.inner.config().motion_model.ndim();
         let inner = &mut self.inner;
-        let out = py
-            .detach(|| -> crate::Result<_> {
-                // Bucket detections by scan, keeping their order.
-                let mut order: Vec<usize> = (0..nd).collect();
-                order.sort_by_key(|&i| scans[i]);
-                let mut rows = (
-                    Vec::<i64>::new(),
-                    Vec::<i64>::new(),
-                    Vec::<f64>::new(),
-                    Vec::<f64>::new(),
-                    Vec::<f64>::new(),
-                    Vec::<bool>::new(),
-                );
-                let mut dropped = Vec::<i64>::new();
-                let mut interrupted: Option<PyErr> = None;
-                let mut first_row = Vec::<i64>::with_capacity(t.len());
-                let mut p = 0;
-                let mut zs = Vec::<f64>::new();
-                let mut ss = Vec::<usize>::new();
-                let mut cs = Vec::<f64>::new();
-                let mut os = Vec::<f64>::new();
-                let mm = m * m;
-                for (i, &ti) in t.iter().enumerate() {
-                    zs.clear();
-                    ss.clear();
-                    cs.clear();
-                    os.clear();
-                    first_row.push(p as i64);
-                    while p < nd && scans[order[p]] == i {
-                        let d = order[p];
-                        zs.extend_from_slice(&z[d * m..(d + 1) * m]);
-                        ss.push(ids[d]);
-                        if let Some(c) = covs {
-                            cs.extend_from_slice(&c[d * mm..(d + 1) * mm]);
-                        }
-                        if let Some(o) = orig {
-                            os.extend_from_slice(&o[2 * d..2 * d + 2]);
-                        }
-                        p += 1;
-                    }
-                    let ci = covs.map(|_| cs.as_slice());
-                    let oi = orig.map(|_| os.as_slice());
-                    // Errors name the row of the whole run, not of the scan.
-                    let res = inner.step_with(ti, &zs, &ss, ci, oi).map_err(|e| match e {
-                        Error::NotPositiveDefinite { arg, reason } => {
-                            let row = arg
-                                .strip_prefix("covariances[")
-                                .and_then(|r| r.strip_suffix(']'))
-                                .and_then(|r| r.parse::<usize>().ok());
-                            match row {
-                                Some(r) => Error::NotPositiveDefinite {
-                                    arg: format!(
-                                        "covariances[{}]",
-                                        order[first_row[i] as usize + r]
-                                    ),
-                                    reason,
-                                },
-                                None => Error::NotPositiveDefinite { arg, reason },
-                            }
-                        }
-                        e => e,
-                    })?;
-                    // Ctrl-C between scans of a long run.
-                    if i % 256 == 255 {
-                        if let Err(e) = Python::attach(|py| py.check_signals()) {
-                            interrupted = Some(e);
-                            break;
-                        }
-                    }
-                    if res == crate::tracker::StepOutcome::Dropped {
-                        dropped.push(i as i64);
-                        continue;
-                    }
-                    for tr in &inner.tracks {
-                        rows.0.push(i as i64);
-                        rows.1.push(tr.id as i64);
-                        rows.2.push(tr.t);
-                        rows.3.extend(tr.x.iter());
-                        rows.4.extend(tr.p.transpose().iter());
-                        rows.5.push(*tr.history.is_update.last().unwrap_or(&false));
-                    }
-                }
-                Ok((rows, dropped, interrupted))
-            })
-            .map_err(to_py_err)?;
-        let (rows, dropped, interrupted) = out;
-        if let Some(e) = interrupted {
-            return Err(e);
-        }
-        let out = (rows, dropped);
-        let ((scan, id, time, st, cv, upd), dropped) = out;
-        let r = scan.len();
+        let input = crate::tracker_run::RunInput {
+            times: t,
+            z,
+            sensor_ids: &ids,
+            scan_index: &scans,
+            covariances: covs,
+            origins: orig,
+        };
+        let mut signals = SignalCheck::new();
+        let res = py.detach(|| inner.run(&input, &mut || signals.poll()));
+        let o = signals.result(res)?;
+        let r = o.scan.len();
+        let (scan, id, time, st, cv, upd) = (
+            o.scan,
+            o.track_id,
+            o.time,
+            o.state,
+            o.covariance,
+            o.is_update,
+        );
+        let (dropped, approx) = (o.dropped_scans, o.approximated_clusters);
         let d = PyDict::new(py);
         d.set_item("scan", arr_i(py, scan, &[r])?)?;
         d.set_item("track_id", arr_i(py, id, &[r])?)?;
@@ -576,6 +597,8 @@ impl TrackerCore {
         d.set_item("is_update", PyArray1::from_vec(py, upd))?;
         let nd_ = dropped.len();
         d.set_item("dropped_scans", arr_i(py, dropped, &[nd_])?)?;
+        let na = approx.len();
+        d.set_item("approximated_clusters", arr_i(py, approx, &[na])?)?;
         Ok(d)
     }
 
@@ -790,6 +813,20 @@ impl TrackerCore {
         Self {
             inner: self.inner.clone(),
         }
+    }
+
+    /// The whole tracker state as bytes (for pickling; see `from_bytes`).
+    fn to_bytes<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, pyo3::types::PyBytes>> {
+        let b = self.inner.to_bytes().map_err(to_py_err)?;
+        Ok(pyo3::types::PyBytes::new(py, &b))
+    }
+
+    /// A tracker core from `to_bytes` output; it continues exactly as the saved one.
+    #[staticmethod]
+    fn from_bytes(state: &[u8]) -> PyResult<Self> {
+        Ok(Self {
+            inner: Tracker::from_bytes(state).map_err(to_py_err)?,
+        })
     }
 
     /// Removes the deleted tracks kept so far and returns their histories.

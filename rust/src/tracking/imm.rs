@@ -17,7 +17,7 @@ use crate::models::MotionModel;
 use nalgebra::{DMatrix, DVector};
 
 /// One mode of an IMM bank.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum Mode {
     /// A block-diagonal linear model.
     Linear(MotionModel),
@@ -82,7 +82,7 @@ impl Mode {
 
 /// An IMM bank: modes (same state dimension), switching matrix `M[i][j]` = P(mode j next |
 /// mode i now) (rows sum to 1), and the mode probabilities of a newly confirmed track.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ImmConfig {
     pub modes: Vec<Mode>,
     pub transition: DMatrix<f64>,
@@ -139,7 +139,7 @@ impl ImmConfig {
 }
 
 /// Per-track IMM state: mode probabilities `μ` and mode-conditioned Gaussians.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ImmState {
     pub mu: Vec<f64>,
     pub x: Vec<DVector<f64>>,

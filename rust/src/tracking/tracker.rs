@@ -26,9 +26,11 @@ use crate::error::{check_finite, Error, Result};
 use crate::gating::{chi2_quantile, validation_volume};
 use crate::hypothesise::{
     axis_orders, gate_pairs, gnn_step, order_cluster, posterior_cov, predict_all, sensors_t, Alloc,
-    CovForm, Dets, Innovations, Pred, SensorT, NO_OWN,
+    CovForm, Dets, Innovations, SensorT, NO_OWN,
 };
-use crate::jpda::{clusters, ehm_size_estimate, marginals, Method, TrackHypotheses};
+use crate::jpda::{
+    clusters, ehm_size_estimate, marginals_within, Exactness, Method, TrackHypotheses,
+};
 use crate::kalman::check_covariance;
 use crate::track::{Entry, Track};
 pub use crate::tracker_config::{
@@ -48,26 +50,60 @@ pub enum StepOutcome {
     Dropped,
 }
 
+/// What one [`Tracker::step`] did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct StepReport {
+    pub outcome: StepOutcome,
+    /// JPDA clusters of confirmed tracks (tracks sharing gated detections) in the scan.
+    pub clusters: usize,
+    /// Clusters whose marginals were approximated (belief propagation: over the
+    /// `max_hypotheses` budget, or asked for by [`Method::Lbp`]).
+    pub approximated_clusters: usize,
+    /// Tracks in the largest cluster.
+    pub largest_cluster: usize,
+}
+
+impl StepReport {
+    fn of(outcome: StepOutcome, c: ClusterStats) -> Self {
+        Self {
+            outcome,
+            clusters: c.clusters,
+            approximated_clusters: c.approximated,
+            largest_cluster: c.largest,
+        }
+    }
+}
+
+/// Cluster counts of one JPDA scan.
+#[derive(Debug, Clone, Copy, Default)]
+struct ClusterStats {
+    clusters: usize,
+    approximated: usize,
+    largest: usize,
+}
+
 /// The tracker state between scans.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Tracker {
-    cfg: TrackerConfig,
-    m: usize,
+    pub(super) cfg: TrackerConfig,
+    pub(super) m: usize,
     /// Confirmed, alive tracks.
     pub tracks: Vec<Track>,
     /// Tentative tracks held by the initiator.
     pub tentative: Vec<Track>,
     /// Deleted confirmed tracks, in order of deletion.
     pub deleted: Vec<Track>,
-    next_id: u64,
-    next_tentative_id: u64,
-    last_time: Option<f64>,
-    scan: i64,
+    pub(super) next_id: u64,
+    pub(super) next_tentative_id: u64,
+    pub(super) last_time: Option<f64>,
+    pub(super) scan: i64,
     /// Number of scans dropped for being out of order.
     pub dropped_scans: usize,
     /// Detections that started no tentative track because of `max_new_tentative`.
     pub capped_detections: usize,
-    gate: f64,
+    /// JPDA clusters approximated so far (see [`StepReport::approximated_clusters`]).
+    pub approximated_clusters: usize,
+    pub(super) gate: f64,
 }
 
 impl Tracker {
@@ -91,8 +127,27 @@ impl Tracker {
             scan: 0,
             dropped_scans: 0,
             capped_detections: 0,
+            approximated_clusters: 0,
             gate,
         })
+    }
+
+    /// The whole tracker (configuration, tracks with their histories, counters) as bytes
+    /// (CBOR; floats bit-exact), for [`Tracker::from_bytes`].
+    pub fn to_bytes(&self) -> Result<Vec<u8>> {
+        let mut out = Vec::new();
+        ciborium::into_writer(self, &mut out).map_err(|e| Error::param("tracker", e))?;
+        Ok(out)
+    }
+
+    /// A tracker from [`Tracker::to_bytes`]; it continues exactly as the one saved. Bytes that
+    /// are not such a tracker, or whose configuration does not validate, are an
+    /// `InvalidParameter` error naming `state`.
+    pub fn from_bytes(bytes: &[u8]) -> Result<Self> {
+        let t: Self = ciborium::from_reader(bytes)
+            .map_err(|e| Error::param("state", format!("not a saved tracker ({e})")))?;
+        t.cfg.validate()?;
+        Ok(t)
     }
 
     /// Removes and returns the deleted confirmed tracks kept so far (their histories are then
@@ -194,7 +249,7 @@ impl Tracker {
     /// Processes one scan: detections `z` (`(k, m)` row-major) from sensors `sensor_ids`
     /// (`(k,)`) at time `t` seconds, each with its sensor's noise `R`. An empty scan only
     /// predicts.
-    pub fn step(&mut self, t: f64, z: &[f64], sensor_ids: &[usize]) -> Result<StepOutcome> {
+    pub fn step(&mut self, t: f64, z: &[f64], sensor_ids: &[usize]) -> Result<StepReport> {
         self.step_with(t, z, sensor_ids, None, None)
     }
 
@@ -215,7 +270,22 @@ impl Tracker {
         sensor_ids: &[usize],
         covariances: Option<&[f64]>,
         origins: Option<&[f64]>,
-    ) -> Result<StepOutcome> {
+    ) -> Result<StepReport> {
+        self.step_interruptible(t, z, sensor_ids, covariances, origins, &mut || false)
+    }
+
+    /// [`Tracker::step_with`] that calls `interrupt` between JPDA clusters and stops with
+    /// [`Error::Interrupted`] when it returns true; the tracker is then left as it was before
+    /// the scan (association computes before any track changes).
+    pub fn step_interruptible(
+        &mut self,
+        t: f64,
+        z: &[f64],
+        sensor_ids: &[usize],
+        covariances: Option<&[f64]>,
+        origins: Option<&[f64]>,
+        interrupt: &mut dyn FnMut() -> bool,
+    ) -> Result<StepReport> {
         let m = self.m;
         check_finite("t", &[t])?;
         if z.len() != sensor_ids.len() * m {
@@ -264,7 +334,10 @@ impl Tracker {
                 return match self.cfg.out_of_order {
                     OutOfOrder::Drop => {
                         self.dropped_scans += 1;
-                        Ok(StepOutcome::Dropped)
+                        Ok(StepReport::of(
+                            StepOutcome::Dropped,
+                            ClusterStats::default(),
+                        ))
                     }
                     OutOfOrder::Raise => Err(Error::Order {
                         arg: "t".into(),
@@ -274,14 +347,16 @@ impl Tracker {
             }
         }
         let nd = self.cfg.motion_model.ndim();
-        match (nd, m) {
-            (4, 2) => self.step_dims((U4, U2), t, z, sensor_ids, covariances, origins)?,
-            (6, 2) => self.step_dims((U6, U2), t, z, sensor_ids, covariances, origins)?,
-            _ => self.step_dims((Dyn(nd), Dyn(m)), t, z, sensor_ids, covariances, origins)?,
-        }
+        let (zc, i) = ((z, covariances, origins), interrupt);
+        let stats = match (nd, m) {
+            (4, 2) => self.step_dims((U4, U2), t, sensor_ids, zc, i)?,
+            (6, 2) => self.step_dims((U6, U2), t, sensor_ids, zc, i)?,
+            _ => self.step_dims((Dyn(nd), Dyn(m)), t, sensor_ids, zc, i)?,
+        };
+        self.approximated_clusters += stats.approximated;
         self.last_time = Some(t);
         self.scan += 1;
-        Ok(StepOutcome::Processed)
+        Ok(StepReport::of(StepOutcome::Processed, stats))
     }
 
     /// The scan in the kernels' dimensions (state `N`, measurement `M`).
@@ -289,11 +364,10 @@ impl Tracker {
         &mut self,
         dims: (N, M),
         t: f64,
-        z: &[f64],
         sensor_ids: &[usize],
-        covariances: Option<&[f64]>,
-        origins: Option<&[f64]>,
-    ) -> Result<()>
+        (z, covariances, origins): (&[f64], Option<&[f64]>, Option<&[f64]>),
+        interrupt: &mut dyn FnMut() -> bool,
+    ) -> Result<ClusterStats>
     where
         DefaultAllocator: Alloc<N, M>,
     {
@@ -312,8 +386,13 @@ impl Tracker {
             covs: covs.as_deref(),
             origins,
         };
+        let mut stats = ClusterStats::default();
         let associated = match self.cfg.association {
-            Association::Jpda(j) => self.step_jpda(t, &dets, &all, &j, &sensors, dims)?,
+            Association::Jpda(j) => {
+                let (a, s) = self.step_jpda(t, &dets, &all, &j, &sensors, dims, interrupt)?;
+                stats = s;
+                a
+            }
             Association::Gnn(g) => {
                 let model = self.cfg.motion_model.clone();
                 let assoc = gnn_step(
@@ -366,9 +445,11 @@ impl Tracker {
             }
         }
         let free: Vec<usize> = (0..k).filter(|&d| !associated[d]).collect();
-        self.initiate(t, &dets, &free, &sensors, dims)
+        self.initiate(t, &dets, &free, &sensors, dims)?;
+        Ok(stats)
     }
 
+    #[allow(clippy::too_many_arguments)]
     fn step_jpda<N: Dim, M: Dim>(
         &mut self,
         t: f64,
@@ -377,7 +458,8 @@ impl Tracker {
         j: &JpdaParams,
         sensors: &[SensorT<N, M>],
         (n, md): (N, M),
-    ) -> Result<Vec<bool>>
+        interrupt: &mut dyn FnMut() -> bool,
+    ) -> Result<(Vec<bool>, ClusterStats)>
     where
         DefaultAllocator: Alloc<N, M>,
     {
@@ -407,7 +489,7 @@ impl Tracker {
         // (det, ln w, d2, index into pairs)
         let mut hyps: Vec<Vec<(usize, f64, f64, usize)>> = vec![Vec::new(); preds.len()];
         for (pi, p) in pairs.iter().enumerate() {
-            let inn = innov.of(p, det_sensor[p.d]);
+            let inn = innov.of(p, det_sensor[p.d])?;
             let logpdf = -0.5 * (p.d2 + inn.ln_det + m as f64 * LN_2PI);
             let mut lw = logpdf + j.prob_detect.ln();
             if let Some(l) = j.clutter_density {
@@ -420,7 +502,7 @@ impl Tracker {
                 let n_valid = h.iter().filter(|x| x.2 <= self.gate).count() as f64;
                 for e in h.iter_mut() {
                     let p = &pairs[e.3];
-                    let inn = innov.of(p, det_sensor[p.d]);
+                    let inn = innov.of(p, det_sensor[p.d])?;
                     let vol = validation_volume(m, self.gate, inn.ln_det.exp());
                     e.1 += vol.ln() - n_valid.ln();
                 }
@@ -437,7 +519,13 @@ impl Tracker {
             })
             .collect();
         let mut marg = vec![crate::jpda::Marginals::default(); th.len()];
+        let mut stats = ClusterStats::default();
         for c in clusters(&th, k) {
+            stats.clusters += 1;
+            stats.largest = stats.largest.max(c.len());
+            if interrupt() {
+                return Err(Error::Interrupted);
+            }
             if c.len() == 1 {
                 let h = &th[c[0]];
                 let tot = h.missed + h.detections.iter().map(|d| d.1).sum::<f64>();
@@ -461,7 +549,10 @@ impl Tracker {
                 }
             }
             let sub: Vec<TrackHypotheses> = ordered.iter().map(|&i| th[i].clone()).collect();
-            let r = marginals(&sub, j.method)?;
+            let (r, how) = marginals_within(&sub, j.method, j.max_hypotheses)?;
+            if how != Exactness::Exact {
+                stats.approximated += 1;
+            }
             for (i, mm) in ordered.into_iter().zip(r) {
                 marg[i] = mm;
             }
@@ -495,7 +586,7 @@ impl Tracker {
             let mut mean = &xp * (b0 / tot);
             comps.clear();
             for (e, &b) in h.iter().zip(&mg.detections) {
-                let inn = innov.of(&pairs[e.3], det_sensor[e.0]);
+                let inn = innov.of(&pairs[e.3], det_sensor[e.0])?;
                 let y = inn.residual(dets.row(e.0, m));
                 let xu = &xp + &inn.k * y;
                 mean += &xu * (b / tot);
@@ -508,7 +599,7 @@ impl Tracker {
             for (w, xu, pi) in &comps {
                 let p = &pairs[*pi];
                 let s = det_sensor[p.d];
-                let inn = innov.of(p, s);
+                let inn = innov.of(p, s)?;
                 let own;
                 let pu = if p.own == NO_OWN {
                     &*post_by_sensor[s]
@@ -557,11 +648,11 @@ impl Tracker {
                     .zip(&mg.detections)
                     .map(|(e, &b)| {
                         let p = &pairs[e.3];
-                        let inn = innov.of(p, det_sensor[p.d]);
+                        let inn = innov.of(p, det_sensor[p.d])?;
                         let logpdf = -0.5 * (p.d2 + inn.ln_det + m as f64 * LN_2PI);
-                        (e.0, b / tot, e.1 - logpdf)
+                        Ok((e.0, b / tot, e.1 - logpdf))
                     })
-                    .collect();
+                    .collect::<Result<_>>()?;
                 let (st, (xu, pu)) = crate::hypothesise::imm_update(
                     &ip[ti],
                     n,
@@ -583,312 +674,7 @@ impl Tracker {
                 associated[d] |= in_gate[d];
             }
         }
-        Ok(associated)
-    }
-
-    fn initiate<N: Dim, M: Dim>(
-        &mut self,
-        t: f64,
-        dets: &Dets<'_, M>,
-        free: &[usize],
-        sensors: &[SensorT<N, M>],
-        dims: (N, M),
-    ) -> Result<()>
-    where
-        DefaultAllocator: Alloc<N, M>,
-    {
-        let m = self.m;
-        let init = self.cfg.initiator.clone();
-        let model = init
-            .motion_model
-            .clone()
-            .unwrap_or_else(|| self.cfg.motion_model.clone());
-        let det_sensor = dets.sensor;
-        let covs = dets.covs;
-        let mut used = vec![false; det_sensor.len()];
-        if !self.tentative.is_empty() {
-            let mut ln_pdf = Vec::new();
-            let assoc = gnn_step(
-                &mut self.tentative,
-                &model,
-                sensors,
-                &init.gnn,
-                CovForm {
-                    joseph: init.use_joseph_cov,
-                    symmetric: init.symmetric_covariance,
-                },
-                t,
-                dets,
-                dims,
-                free,
-                self.scan,
-                None,
-                Some(&mut ln_pdf),
-            )?;
-            // Existence of tentative tracks: L = 1 − P_D P_G (+ P_D N(z)/λ with a detection).
-            let ex_conf = match (&self.cfg.existence, &self.cfg.association) {
-                (Some(e), Association::Jpda(j)) if e.confirm.is_some() => Some((*e, *j)),
-                _ => None,
-            };
-            if let Some((e, j)) = ex_conf {
-                let lam = j.clutter_density.unwrap_or(1.0);
-                let ln_missed = (1.0 - j.prob_detect * j.prob_gate).ln();
-                for (tr, lp) in self.tentative.iter_mut().zip(&ln_pdf) {
-                    let lw = j.prob_detect.ln() - lam.ln() + lp;
-                    let mx = lw.max(ln_missed);
-                    let ln_l = mx + ((ln_missed - mx).exp() + (lw - mx).exp()).ln();
-                    let rv = tr.existence.unwrap_or((e.birth, 1.0));
-                    tr.existence = Some(e.update(rv, ln_l));
-                }
-            }
-            for d in assoc.into_iter().flatten() {
-                used[d] = true;
-            }
-            let mut keep = Vec::with_capacity(self.tentative.len());
-            let mut confirmed = Vec::new();
-            for tr in std::mem::take(&mut self.tentative) {
-                let (confirm, drop) = match init.confirmation {
-                    Confirmation::MinPoints {
-                        min_points,
-                        updates_only,
-                    } => {
-                        let count = if updates_only {
-                            tr.n_updates()
-                        } else {
-                            tr.history.len()
-                        };
-                        (count >= min_points, false)
-                    }
-                    Confirmation::MOfN { m: mm, n } => {
-                        let ups = tr.history.is_update.iter().take(n).filter(|u| **u).count();
-                        (ups >= mm, tr.history.len() >= n)
-                    }
-                };
-                let (confirm, drop) = match (ex_conf, tr.existence) {
-                    (Some((e, _)), Some((r, _))) => (
-                        confirm && r >= e.confirm.unwrap_or(0.0),
-                        drop || r < e.delete,
-                    ),
-                    _ => (confirm, drop),
-                };
-                if confirm {
-                    confirmed.push(tr);
-                } else if !drop {
-                    keep.push(tr);
-                }
-            }
-            if !self.cfg.initiate_in_gates {
-                confirmed = self.without_duplicates(confirmed)?;
-            }
-            for mut tr in confirmed {
-                tr.id = self.next_id;
-                self.next_id += 1;
-                tr.confirmed_time = t;
-                self.tracks.push(tr);
-            }
-            if matches!(init.confirmation, Confirmation::MinPoints { .. }) {
-                keep.retain(|tr| !init.deleter.check(tr));
-            }
-            self.tentative = keep;
-        }
-        // New tentative tracks from every detection left. Per sensor (computed once):
-        // H⁺, H⁺ R H⁺ᵀ and the mapped state axes; H⁺ R_d H⁺ᵀ per detection with its own
-        // covariance R_d (unless the sensor has its own initiation noise).
-        type InitModel = (DMatrix<f64>, DMatrix<f64>, Vec<bool>);
-        let mut init_of: Vec<Option<InitModel>> = vec![None; self.cfg.sensors.len()];
-        let mut started = 0usize;
-        for &d in free {
-            if used[d] {
-                continue;
-            }
-            if init.max_new_tentative.is_some_and(|cap| started >= cap) {
-                self.capped_detections += 1;
-                continue;
-            }
-            started += 1;
-            let s = det_sensor[d];
-            if let Some(pol) = self.cfg.sensors[s].polar {
-                // Stone Soup's SimpleMeasurementInitiator with a reversible model: positions
-                // from the inverse function, J⁺ R J⁺ᵀ on them, the prior elsewhere.
-                let sensor = &self.cfg.sensors[s];
-                let r: Vec<f64> = match covs {
-                    Some(c) if !sensor.init_noise_given => {
-                        c[d].transpose().iter().copied().collect()
-                    }
-                    _ => sensor.init.1.transpose().iter().copied().collect(),
-                };
-                let (pos, c) = pol.inverse(dets.row(d, m), &r, dets.origin(d))?;
-                let mut x = init.prior_state.clone();
-                let mut p = init.prior_covariance.clone();
-                let n = x.len();
-                for &c in &pol.mapping {
-                    x[c] = 0.0;
-                    for r in 0..n {
-                        p[(c, r)] = 0.0;
-                        p[(r, c)] = 0.0;
-                    }
-                }
-                let [i, j] = pol.mapping;
-                x[i] += pos[0];
-                x[j] += pos[1];
-                p[(i, i)] += c[0];
-                p[(i, j)] += c[1];
-                p[(j, i)] += c[2];
-                p[(j, j)] += c[3];
-                for i in 0..n {
-                    p[(i, i)] += init.diag_load;
-                }
-                self.push_tentative(t, x, p, s, d);
-                continue;
-            }
-            if init_of[s].is_none() {
-                let (hi, ri) = &self.cfg.sensors[s].init;
-                let pinv = hi
-                    .clone()
-                    .pseudo_inverse(1e-15)
-                    .map_err(|e| Error::param("initiation_measurement_matrix", e))?;
-                let cov = &pinv * ri * pinv.transpose();
-                let mapped = (0..hi.ncols())
-                    .map(|c| (0..hi.nrows()).any(|r| hi[(r, c)] != 0.0))
-                    .collect();
-                init_of[s] = Some((pinv, cov, mapped));
-            }
-            let (pinv, pcov, mapped) = init_of[s].as_ref().expect("filled above");
-            let zd = DVector::from_column_slice(dets.row(d, m));
-            let mut x = init.prior_state.clone();
-            let mut p = init.prior_covariance.clone();
-            let n = x.len();
-            for c in 0..n {
-                if mapped[c] {
-                    x[c] = 0.0;
-                    for r in 0..n {
-                        p[(c, r)] = 0.0;
-                        p[(r, c)] = 0.0;
-                    }
-                }
-            }
-            x += pinv * zd;
-            match covs {
-                Some(c) if !self.cfg.sensors[s].init_noise_given => {
-                    let rd = DMatrix::from_iterator(m, m, c[d].iter().copied());
-                    p += pinv * rd * pinv.transpose();
-                }
-                _ => p += pcov,
-            }
-            for i in 0..n {
-                p[(i, i)] += init.diag_load;
-            }
-            self.push_tentative(t, x, p, s, d);
-        }
-        Ok(())
-    }
-}
-
-impl Tracker {
-    /// Starts a tentative track `(x, p)` from detection `d` of sensor `s` at time `t`.
-    fn push_tentative(&mut self, t: f64, x: DVector<f64>, p: DMatrix<f64>, s: usize, d: usize) {
-        let id = self.next_tentative_id;
-        self.next_tentative_id += 1;
-        self.tentative.push(Track::new(
-            id,
-            x,
-            p,
-            Entry {
-                time: t,
-                is_update: true,
-                scan: self.scan,
-                sensor: s as i64,
-                detection: d as i64,
-                nis: f64::NAN,
-                missed_probability: f64::NAN,
-                assoc: vec![(d as i64, 1.0)],
-            },
-        ));
-    }
-
-    /// Drops tentative tracks about to be confirmed whose position falls inside the gate of a
-    /// confirmed track or of a candidate accepted before them (native duplicate suppression;
-    /// the gate is the association gate widened to at least χ²_m(0.9999)).
-    fn without_duplicates(&self, cands: Vec<Track>) -> Result<Vec<Track>> {
-        if cands.is_empty() {
-            return Ok(cands);
-        }
-        let m = self.m;
-        let gate = match &self.cfg.association {
-            Association::Jpda(_) => self.gate,
-            Association::Gnn(g) => match g.measure {
-                Measure::Mahalanobis => g.missed_distance * g.missed_distance,
-                Measure::SquaredMahalanobis => g.missed_distance,
-            },
-        };
-        // A generous gate: a candidate is a duplicate unless clearly outside (P = 0.9999).
-        let wide = chi2_quantile(0.9999, m)?;
-        let gate = if gate.is_finite() {
-            gate.max(wide)
-        } else {
-            wide
-        };
-        // Each candidate as a pseudo-detection H x from the sensor of its last update.
-        let sens: Vec<usize> = cands
-            .iter()
-            .map(|c| {
-                let s = *c.history.sensor.last().unwrap_or(&0);
-                if s >= 0 {
-                    s as usize
-                } else {
-                    0
-                }
-            })
-            .collect();
-        let z: Vec<f64> = cands
-            .iter()
-            .zip(&sens)
-            .flat_map(|(c, &s)| {
-                (&self.cfg.sensors[s].h * &c.x)
-                    .iter()
-                    .copied()
-                    .collect::<Vec<_>>()
-            })
-            .collect();
-        let all: Vec<usize> = (0..cands.len()).collect();
-        let ns = self.cfg.sensors.len();
-        let (nd, md) = (Dyn(self.cfg.motion_model.ndim()), Dyn(m));
-        let sensors = sensors_t(&self.cfg.sensors, nd, md);
-        let existing: Vec<Pred<Dyn>> = self
-            .tracks
-            .iter()
-            .map(|t| (t.x.clone(), t.p.clone()))
-            .collect();
-        let mut innov = Innovations::new(existing.len(), ns);
-        let mut reject = vec![false; cands.len()];
-        let dets = Dets {
-            z: &z,
-            sensor: &sens,
-            covs: None,
-            origins: None,
-        };
-        for p in gate_pairs(&existing, &sensors, md, &dets, &all, gate, &mut innov)? {
-            reject[p.d] = true;
-        }
-        let own: Vec<Pred<Dyn>> = cands.iter().map(|t| (t.x.clone(), t.p.clone())).collect();
-        let mut innov = Innovations::new(own.len(), ns);
-        let mut gated_by: Vec<Vec<usize>> = vec![Vec::new(); cands.len()];
-        for p in gate_pairs(&own, &sensors, md, &dets, &all, gate, &mut innov)? {
-            if p.t != p.d {
-                gated_by[p.d].push(p.t);
-            }
-        }
-        let mut accepted = vec![false; cands.len()];
-        for c in 0..cands.len() {
-            if !reject[c] && !gated_by[c].iter().any(|&i| accepted[i]) {
-                accepted[c] = true;
-            }
-        }
-        Ok(cands
-            .into_iter()
-            .zip(accepted)
-            .filter_map(|(c, a)| a.then_some(c))
-            .collect())
+        Ok((associated, stats))
     }
 }
 
@@ -956,6 +742,7 @@ mod tests {
             clutter_density: Some(1e-3),
             include_all: false,
             method: Method::Ehm,
+            max_hypotheses: None,
         });
         let gnn = Association::Gnn(GnnParams {
             measure: Measure::Mahalanobis,
@@ -986,7 +773,10 @@ mod tests {
         c.out_of_order = OutOfOrder::Drop;
         let mut tr = Tracker::new(c).unwrap();
         tr.step(1.0, &[], &[]).unwrap();
-        assert_eq!(tr.step(0.5, &[], &[]).unwrap(), StepOutcome::Dropped);
+        assert_eq!(
+            tr.step(0.5, &[], &[]).unwrap().outcome,
+            StepOutcome::Dropped
+        );
         assert_eq!(tr.dropped_scans, 1);
     }
 }

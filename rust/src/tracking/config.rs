@@ -9,7 +9,7 @@ use crate::track::Deleter;
 use nalgebra::{DMatrix, DVector};
 
 /// A sensor's linear-Gaussian measurement model `z = H x + w`, `w ~ N(0, R)`.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Sensor {
     /// `H`, `(m, ndim)`.
     pub h: DMatrix<f64>,
@@ -126,7 +126,7 @@ impl Sensor {
 }
 
 /// How a distance hypothesiser scores a detection (Stone Soup measures).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Measure {
     /// `sqrt(yᵀ S⁻¹ y)`.
     Mahalanobis,
@@ -135,7 +135,7 @@ pub enum Measure {
 }
 
 /// Distance hypotheses + GNN (`DistanceHypothesiser` + `GNNWith2DAssignment`).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct GnnParams {
     pub measure: Measure,
     /// Detections at `distance >= missed_distance` are not hypothesised; a missed detection
@@ -146,7 +146,7 @@ pub struct GnnParams {
 }
 
 /// PDA hypotheses + JPDA (`PDAHypothesiser` + `JPDA`/`JPDAwithEHM`).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct JpdaParams {
     /// `P_D` in (0, 1].
     pub prob_detect: f64,
@@ -158,17 +158,23 @@ pub struct JpdaParams {
     /// Keep detections outside the gate (needs `clutter_density`).
     pub include_all: bool,
     pub method: Method,
+    /// Per-cluster budget of the exact method (EHM: edges of its net, i.e. single-track
+    /// hypotheses summed over its levels, times the 64-bit words of a node key, one per 64
+    /// detections of the cluster — its memory and work; brute force: joint hypotheses). A cluster past it gets belief-propagation marginals
+    /// ([`crate::jpda::marginals_lbp`]) and is counted in [`crate::tracker::StepReport`].
+    /// `None`: always exact (unbounded).
+    pub max_hypotheses: Option<usize>,
 }
 
 /// The association of confirmed tracks.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum Association {
     Jpda(JpdaParams),
     Gnn(GnnParams),
 }
 
 /// How tentative tracks are confirmed.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum Confirmation {
     /// Confirmed once the track holds `min_points` updates (or states when `updates_only` is
     /// false); dropped by the initiator's deleter (Stone Soup's `MultiMeasurementInitiator`).
@@ -182,7 +188,7 @@ pub enum Confirmation {
 }
 
 /// The multi-measurement initiator.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct InitiatorConfig {
     /// Prior state `(ndim,)`; its mapped entries are replaced by `H⁺ z`.
     pub prior_state: DVector<f64>,
@@ -216,7 +222,7 @@ pub struct InitiatorConfig {
 /// `v⁺ = v⁻ L / (v⁻ L + 1 − v⁻)`. A confirmed track starts at `initial` (visible) and is deleted
 /// when `r < delete` (besides the deleter). Per track (IPDA), not joint: the JPDA association
 /// itself does not weight tracks by existence.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Existence {
     pub survival: f64,
     pub initial: f64,
@@ -250,7 +256,7 @@ impl Existence {
 }
 
 /// What to do with a scan older than the previous one.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum OutOfOrder {
     /// Fail with [`Error::Order`].
     Raise,
@@ -259,7 +265,7 @@ pub enum OutOfOrder {
 }
 
 /// The whole tracker configuration.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct TrackerConfig {
     pub motion_model: MotionModel,
     pub sensors: Vec<Sensor>,
@@ -408,6 +414,9 @@ impl TrackerConfig {
                         "must be < 1 when clutter_density is None (the clutter density is \
                          estimated from the gate volume, which is infinite at prob_gate=1)",
                     ));
+                }
+                if j.max_hypotheses == Some(0) {
+                    return Err(Error::param("max_hypotheses", "must be >= 1 or None"));
                 }
                 if let Some(l) = j.clutter_density {
                     if !(l > 0.0 && l.is_finite()) {

@@ -1,11 +1,9 @@
-//! Tracks, their history, and the deleters that end them (Stone Soup's
-//! `UpdateTimeStepsDeleter`, `UpdateTimeDeleter`, `CovarianceBasedDeleter`, `CompositeDeleter`).
+//! Tracks and their history (the deleters that end them are in [`super::deleters`]).
 
-use crate::error::{Error, Result};
 use nalgebra::{DMatrix, DVector};
 
 /// Everything appended to a track at one scan, flat and row-major (numpy-ready).
-#[derive(Debug, Clone, Default, PartialEq)]
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct History {
     /// Time of each entry, seconds.
     pub times: Vec<f64>,
@@ -118,7 +116,7 @@ impl History {
 }
 
 /// A track: current Gaussian state and its full history.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Track {
     /// Stable id (confirmed tracks count 0, 1, 2, ... in order of confirmation; tentative
     /// tracks have their own counter).
@@ -186,113 +184,7 @@ impl Track {
     }
 }
 
-/// When a track is deleted.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Deleter {
-    /// Delete when more than `steps` distinct timestamps go back from the newest state without
-    /// meeting an update (`UpdateTimeStepsDeleter(time_steps_since_update=steps)`).
-    StepsSinceUpdate(usize),
-    /// Delete when no update has a timestamp within `seconds` of the newest state
-    /// (`UpdateTimeDeleter(time_since_update=seconds)`).
-    TimeSinceUpdate(f64),
-    /// Delete when the trace of the covariance (or of the `mapping` diagonal entries) exceeds
-    /// the threshold (`CovarianceBasedDeleter`).
-    CovarianceTrace {
-        threshold: f64,
-        mapping: Option<Vec<usize>>,
-    },
-    /// Delete when any (`intersect = false`) or all (`intersect = true`) delete
-    /// (`CompositeDeleter`).
-    Composite {
-        deleters: Vec<Deleter>,
-        intersect: bool,
-    },
-    /// Never delete.
-    Never,
-}
-
-impl Deleter {
-    /// Checks parameters against the state dimension `ndim`.
-    pub fn validate(&self, ndim: usize, arg: &str) -> Result<()> {
-        match self {
-            Deleter::StepsSinceUpdate(_) | Deleter::Never => Ok(()),
-            Deleter::TimeSinceUpdate(s) if s.is_finite() && *s >= 0.0 => Ok(()),
-            Deleter::TimeSinceUpdate(s) => Err(Error::param(
-                arg,
-                format!("time since update must be finite and >= 0, got {s}"),
-            )),
-            Deleter::CovarianceTrace { threshold, mapping } => {
-                if threshold.is_nan() {
-                    return Err(Error::param(arg, "covariance trace threshold is NaN"));
-                }
-                if let Some(m) = mapping {
-                    if let Some(&bad) = m.iter().find(|&&i| i >= ndim) {
-                        return Err(Error::param(
-                            arg,
-                            format!("mapping index {bad} is outside the {ndim}-D state"),
-                        ));
-                    }
-                }
-                Ok(())
-            }
-            Deleter::Composite { deleters, .. } => {
-                if deleters.is_empty() {
-                    return Err(Error::param(arg, "a composite deleter needs deleters"));
-                }
-                deleters.iter().try_for_each(|d| d.validate(ndim, arg))
-            }
-        }
-    }
-
-    /// Whether `track` should be deleted now.
-    pub fn check(&self, track: &Track) -> bool {
-        let h = &track.history;
-        match self {
-            Deleter::Never => false,
-            Deleter::StepsSinceUpdate(steps) => {
-                let mut distinct = 0usize;
-                let mut last = f64::NAN;
-                for k in (0..h.len()).rev() {
-                    if h.times[k] != last {
-                        distinct += 1;
-                        last = h.times[k];
-                    }
-                    if distinct > *steps {
-                        return true;
-                    }
-                    if h.is_update[k] {
-                        return false;
-                    }
-                }
-                false
-            }
-            Deleter::TimeSinceUpdate(s) => {
-                let start = track.t - s;
-                !(0..h.len())
-                    .rev()
-                    .take_while(|&k| h.times[k] >= start)
-                    .any(|k| h.is_update[k])
-            }
-            Deleter::CovarianceTrace { threshold, mapping } => {
-                let trace: f64 = match mapping {
-                    Some(m) if !m.is_empty() => m.iter().map(|&i| track.p[(i, i)]).sum(),
-                    _ => track.p.diagonal().sum(),
-                };
-                trace > *threshold
-            }
-            Deleter::Composite {
-                deleters,
-                intersect,
-            } => {
-                if *intersect {
-                    deleters.iter().all(|d| d.check(track))
-                } else {
-                    deleters.iter().any(|d| d.check(track))
-                }
-            }
-        }
-    }
-}
+pub use super::deleters::Deleter;
 
 #[cfg(test)]
 mod tests {
@@ -335,5 +227,21 @@ mod tests {
         assert!(!both.check(&t));
         t.drop_last_prediction();
         assert_eq!(t.history.len(), 3);
+    }
+
+    #[test]
+    fn time_since_update_compares_whole_microseconds_like_stonesoup() {
+        // Scans at k · 0.1 s, last update at 1.3 s, 5 s deleter: 63 · 0.1 − 13 · 0.1 is
+        // 5.000000000000001 in floats but exactly 5 s for Stone Soup's datetimes (kept);
+        // deleted at 6.4 s.
+        let (x, p) = (DVector::zeros(2), DMatrix::identity(2, 2));
+        let d = Deleter::TimeSinceUpdate(5.0);
+        let mut t = Track::new(0, x.clone(), p.clone(), entry(13.0 * 0.1, true));
+        for k in 14..=63 {
+            t.append_slices(x.as_slice(), p.as_slice(), &entry(k as f64 * 0.1, false));
+            assert!(!d.check(&t), "deleted at scan {k}");
+        }
+        t.append_slices(x.as_slice(), p.as_slice(), &entry(64.0 * 0.1, false));
+        assert!(d.check(&t));
     }
 }

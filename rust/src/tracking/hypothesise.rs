@@ -1,13 +1,14 @@
 //! Per-scan kernels of the tracker: prediction of all tracks, innovations, gating of
-//! (track, detection) pairs through the spatial grid, GNN association with Kalman updates, and
-//! the spatial ordering of JPDA clusters for EHM.
+//! (track, detection) pairs through the spatial grid, and the spatial ordering of JPDA clusters
+//! for EHM. GNN association lives in [`super::gnn`].
 
-use crate::assign::gnn_assign;
+pub(crate) use super::gnn::gnn_step;
+
 use crate::error::{Error, Result};
 use crate::gating::CandidateGrid;
 use crate::models::MotionModel;
-use crate::track::{Entry, Track};
-use crate::tracker_config::{GnnParams, Measure, Sensor};
+use crate::track::Track;
+use crate::tracker_config::Sensor;
 use nalgebra::allocator::Allocator;
 use nalgebra::{Cholesky, DefaultAllocator, Dim, OMatrix, OVector, U1};
 
@@ -132,10 +133,8 @@ pub(crate) fn finish<N: Dim, M: Dim>(
 where
     DefaultAllocator: Alloc<N, M>,
 {
-    let s = &hph + r;
-    let chol = Cholesky::new(s.clone()).ok_or_else(not_pd)?;
-    let ln_det = chol.l_dirty().diagonal().iter().map(|d| 2.0 * d.ln()).sum();
-    let k = chol.solve(&pht.transpose()).transpose();
+    let crate::kalman::Gain { s, chol, ln_det, k } =
+        crate::kalman::gain(&hph, &pht, r).ok_or_else(not_pd)?;
     Ok(Innovation {
         zhat,
         hph,
@@ -186,6 +185,11 @@ where
 
 /// The innovations of one scan's gated pairs: per (track, sensor) with the sensor's `R`, and
 /// per (track, detection) for detections with their own covariance.
+/// The error of a pair whose innovation was never computed (an internal invariant).
+pub(crate) fn missing_innovation() -> Error {
+    Error::param("tracker", "internal error: a gated pair has no innovation")
+}
+
 pub(crate) struct Innovations<N: Dim, M: Dim>
 where
     DefaultAllocator: Alloc<N, M>,
@@ -208,15 +212,17 @@ where
         }
     }
 
-    /// The innovation of a gated pair.
-    pub fn of(&self, pair: &Pair, sensor: usize) -> &Innovation<N, M> {
-        if pair.own == NO_OWN {
-            self.shared[pair.t * self.ns + sensor]
-                .as_ref()
-                .expect("a gated pair's track innovation is computed by gate_pairs")
+    /// The innovation of a gated pair (`gate_pairs` computes it for every pair it returns;
+    /// an [`Error::InvalidParameter`] naming `tracker` should that invariant ever break).
+    pub fn of(&self, pair: &Pair, sensor: usize) -> Result<&Innovation<N, M>> {
+        let inn = if pair.own == NO_OWN {
+            self.shared
+                .get(pair.t * self.ns + sensor)
+                .and_then(|i| i.as_ref())
         } else {
-            &self.own[pair.own as usize]
-        }
+            self.own.get(pair.own as usize)
+        };
+        inn.ok_or_else(missing_innovation)
     }
 }
 
@@ -253,21 +259,9 @@ pub(crate) fn posterior_cov<N: Dim, M: Dim>(
 where
     DefaultAllocator: Alloc<N, M>,
 {
-    let out = if form.joseph {
-        let (n, _) = p.shape_generic();
-        let h = inn.h.as_ref().unwrap_or(&sensor.h);
-        let ikh = OMatrix::<f64, N, N>::identity_generic(n, n) - &inn.k * h;
-        let r = inn.r.as_ref().unwrap_or(&sensor.r);
-        &ikh * p * ikh.transpose() + &inn.k * r * inn.k.transpose()
-    } else {
-        p - &inn.k * &inn.s * inn.k.transpose()
-    };
-    if form.symmetric {
-        let t = out.transpose();
-        (out + t) / 2.0
-    } else {
-        out
-    }
+    let h = inn.h.as_ref().unwrap_or(&sensor.h);
+    let r = inn.r.as_ref().unwrap_or(&sensor.r);
+    crate::kalman::posterior_covariance(p, &inn.k, &inn.s, h, r, form.joseph, form.symmetric)
 }
 
 /// Predicts every track to `t` (`x⁻ = F x`, `P⁻ = F P Fᵀ + Q`), computing `F`, `Q` once per
@@ -437,11 +431,13 @@ where
         // Cell side: median gate box width over tracks.
         let mut widths: Vec<f64> = (0..preds.len())
             .map(|t| {
-                let inn = innov.shared[t * ns + s].as_ref().expect("filled above");
+                let inn = innov.shared[t * ns + s]
+                    .as_ref()
+                    .ok_or_else(missing_innovation)?;
                 let w = (0..md.min(2)).map(|i| var(inn, i)).fold(0.0, f64::max);
-                2.0 * (gate * w).sqrt()
+                Ok(2.0 * (gate * w).sqrt())
             })
-            .collect();
+            .collect::<Result<_>>()?;
         let cell = if gate.is_finite() {
             let mid = widths.len() / 2;
             *widths.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1
@@ -454,7 +450,7 @@ where
         let mut err: Option<Error> = None;
         let Innovations { shared, own, .. } = innov;
         for t in 0..preds.len() {
-            let inn = shared[t * ns + s].as_ref().expect("filled above");
+            let inn = shared[t * ns + s].as_ref().ok_or_else(missing_innovation)?;
             for (i, h) in half.iter_mut().enumerate() {
                 *h = (gate * var(inn, i)).sqrt();
                 if h.is_nan() {
@@ -541,138 +537,6 @@ where
         out.push(r);
     }
     out
-}
-
-/// Distance hypotheses + GNN + update/predict on `tracks` (confirmed or tentative) with the
-/// detections `which` of `dets`; `ln_pdf` receives per track `ln N(z; ẑ, S)` of its assigned
-/// detection (−∞ when missed). Returns the detection assigned to each
-/// track.
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn gnn_step<N: Dim, M: Dim>(
-    tracks: &mut [Track],
-    model: &MotionModel,
-    sensors: &[SensorT<N, M>],
-    g: &GnnParams,
-    form: CovForm,
-    t: f64,
-    dets: &Dets<'_, M>,
-    (n, m): (N, M),
-    which: &[usize],
-    scan: i64,
-    imm: Option<&crate::imm::ImmConfig>,
-    mut ln_pdf: Option<&mut Vec<f64>>,
-) -> Result<Vec<Option<usize>>>
-where
-    DefaultAllocator: Alloc<N, M>,
-{
-    let (imm_preds, preds) = match imm {
-        Some(c) => {
-            let (a, b) = imm_predict_all(c, tracks, t, n);
-            (Some(a), b)
-        }
-        None => (None, predict_all(model, tracks, t, n)),
-    };
-    let ns = sensors.len();
-    let mut innov = Innovations::new(preds.len(), ns);
-    let gate = if g.include_all {
-        f64::INFINITY
-    } else {
-        match g.measure {
-            Measure::Mahalanobis => g.missed_distance * g.missed_distance,
-            Measure::SquaredMahalanobis => g.missed_distance,
-        }
-    };
-    let pairs = gate_pairs(&preds, sensors, m, dets, which, gate, &mut innov)?;
-    let mut hyps: Vec<Vec<(usize, f64)>> = vec![Vec::new(); tracks.len()];
-    let mut kept: Vec<Vec<Pair>> = vec![Vec::new(); tracks.len()];
-    for p in pairs {
-        let dist = match g.measure {
-            Measure::Mahalanobis => p.d2.sqrt(),
-            Measure::SquaredMahalanobis => p.d2,
-        };
-        if g.include_all || dist < g.missed_distance {
-            hyps[p.t].push((p.d, dist));
-            kept[p.t].push(p);
-        }
-    }
-    let assign = gnn_assign(&hyps, dets.len(), g.missed_distance)?;
-    let md = m.value();
-    let mut entry = Entry {
-        time: t,
-        is_update: false,
-        scan,
-        sensor: -1,
-        detection: -1,
-        nis: f64::NAN,
-        missed_probability: 1.0,
-        assoc: Vec::new(),
-    };
-    for (ti, ((xp, pp), tr)) in preds.into_iter().zip(tracks.iter_mut()).enumerate() {
-        entry.assoc.clear();
-        entry.assoc.extend(
-            hyps[ti]
-                .iter()
-                .map(|&(d, _)| (d as i64, if assign[ti] == Some(d) { 1.0 } else { 0.0 })),
-        );
-        let pair = assign[ti].and_then(|d| kept[ti].iter().find(|p| p.d == d));
-        match pair {
-            Some(p) => {
-                let d = p.d;
-                let s = dets.sensor[d];
-                let inn = innov.of(p, s);
-                if let Some(out) = ln_pdf.as_deref_mut() {
-                    const LN_2PI: f64 = 1.837_877_066_409_345_5;
-                    out.push(-0.5 * (p.d2 + inn.ln_det + md as f64 * LN_2PI));
-                }
-                let (xu, pu) = match &imm_preds {
-                    Some(ip) => {
-                        let hy = [(d, 1.0, 0.0)];
-                        let (st, (xu, pu)) = imm_update(
-                            &ip[ti],
-                            n,
-                            sensors,
-                            dets,
-                            form,
-                            0.0,
-                            &hy,
-                            f64::NEG_INFINITY,
-                        )?;
-                        tr.imm = Some(st);
-                        (xu, pu)
-                    }
-                    None => {
-                        let y = inn.residual(dets.row(d, md));
-                        (&xp + &inn.k * y, posterior_cov(&pp, inn, &sensors[s], form))
-                    }
-                };
-                entry.is_update = true;
-                entry.sensor = s as i64;
-                entry.detection = d as i64;
-                entry.nis = p.d2;
-                entry.missed_probability = 0.0;
-                tr.append_slices(xu.as_slice(), pu.as_slice(), &entry);
-            }
-            None => {
-                if let Some(out) = ln_pdf.as_deref_mut() {
-                    out.push(f64::NEG_INFINITY);
-                }
-                entry.is_update = false;
-                entry.sensor = -1;
-                entry.detection = -1;
-                entry.nis = f64::NAN;
-                entry.missed_probability = 1.0;
-                if let Some(ip) = &imm_preds {
-                    let (st, (xu, pu)) =
-                        imm_update(&ip[ti], n, sensors, dets, form, 1.0, &[], 0.0)?;
-                    tr.imm = Some(st);
-                    tr.append_slices(xu.as_slice(), pu.as_slice(), &entry);
-                } else {
-                    tr.append_slices(xp.as_slice(), pp.as_slice(), &entry);
-                }
-            }
-        }
-    }
-    Ok(assign)
 }
 
 /// The innovation of detection `d` of `dets` for the prediction `(x, p)` with its sensor's

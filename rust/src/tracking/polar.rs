@@ -19,7 +19,7 @@ use nalgebra::{Cholesky, DefaultAllocator, Dim, OMatrix, OVector, U1};
 use std::f64::consts::PI;
 
 /// How a polar measurement is turned into an innovation.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum PolarUpdate {
     /// Extended Kalman (Stone Soup `ExtendedKalmanUpdater`, analytic Jacobian).
     Extended,
@@ -34,7 +34,7 @@ pub enum PolarUpdate {
 
 /// A range–bearing sensor model: the state indices of the Cartesian `(x, y)` it observes and
 /// the update.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Polar {
     pub mapping: [usize; 2],
     pub update: PolarUpdate,

@@ -7,6 +7,12 @@
 //! no detection used twice; its weight is the product of the single-track weights. The
 //! marginal of (track, hypothesis) is the normalised sum of the weights of the joint
 //! hypotheses containing it — exactly what Stone Soup's `JPDA` and `JPDAwithEHM` compute.
+//!
+//! Bounded cost: [`marginals_within`] gives up an exact method once it has built more than a
+//! budget of hypotheses and then approximates the marginals by loopy belief propagation on the
+//! bipartite track–detection graph (Williams & Lau, "Approximate evaluation of marginal
+//! association probabilities with belief propagation", IEEE Trans. AES 50(4), 2014, eqs.
+//! 30–31), whose cost is linear in the number of gated pairs per iteration.
 
 use crate::error::{Error, Result};
 use std::collections::HashMap;
@@ -30,64 +36,33 @@ pub struct Marginals {
 }
 
 /// Which exact method computes the marginals of a cluster.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Method {
     /// Enumerate every joint hypothesis (exponential; reference implementation).
     BruteForce,
     /// Efficient Hypothesis Management (exact, polynomial when clusters are chain-like).
     Ehm,
+    /// Loopy belief propagation (approximate, linear in the gated pairs per iteration).
+    Lbp,
 }
 
-/// Groups track indices into clusters connected by shared detections (union-find). Tracks
-/// without detections are singleton clusters. Clusters come out ordered by their first track.
-pub fn clusters(tracks: &[TrackHypotheses], n_detections: usize) -> Vec<Vec<usize>> {
-    group_by_shared_detections(tracks.len(), n_detections, |t| {
-        tracks[t].detections.iter().map(|&(d, _)| d)
-    })
+/// Sweeps of belief propagation at most, and the message change (absolute, messages in
+/// (0, 1]) below which it has converged.
+pub const LBP_MAX_ITERATIONS: usize = 1000;
+/// See [`LBP_MAX_ITERATIONS`].
+pub const LBP_TOLERANCE: f64 = 1e-13;
+
+/// How the marginals of a cluster were obtained.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Exactness {
+    /// By the exact method asked for.
+    Exact,
+    /// By belief propagation (asked for, or the exact method exceeded its budget); the sweeps
+    /// it took.
+    Approximate { iterations: usize },
 }
 
-/// Union-find of `n_tracks` tracks connected when they share a detection; `detections_of(t)`
-/// lists the detection indices (< `n_detections`) of track `t`. Tracks without detections are
-/// singleton groups; groups come out ordered by their first track, tracks ascending.
-pub fn group_by_shared_detections<I: Iterator<Item = usize>>(
-    n_tracks: usize,
-    n_detections: usize,
-    detections_of: impl Fn(usize) -> I,
-) -> Vec<Vec<usize>> {
-    let mut parent: Vec<usize> = (0..n_tracks).collect();
-    fn find(p: &mut [usize], mut x: usize) -> usize {
-        while p[x] != x {
-            p[x] = p[p[x]];
-            x = p[x];
-        }
-        x
-    }
-    let mut owner = vec![usize::MAX; n_detections];
-    for t in 0..n_tracks {
-        for d in detections_of(t) {
-            if owner[d] == usize::MAX {
-                owner[d] = t;
-            } else {
-                let (a, b) = (find(&mut parent, owner[d]), find(&mut parent, t));
-                if a != b {
-                    parent[a.max(b)] = a.min(b);
-                }
-            }
-        }
-    }
-    // Group number of each root, in order of first track.
-    let mut index = vec![usize::MAX; n_tracks];
-    let mut out: Vec<Vec<usize>> = Vec::new();
-    for t in 0..n_tracks {
-        let r = find(&mut parent, t);
-        if index[r] == usize::MAX {
-            index[r] = out.len();
-            out.push(Vec::new());
-        }
-        out[index[r]].push(t);
-    }
-    out
-}
+pub use super::clustering::{clusters, group_by_shared_detections};
 
 fn check(cluster: &[TrackHypotheses]) -> Result<()> {
     for (t, h) in cluster.iter().enumerate() {
@@ -118,6 +93,14 @@ fn normalise(m: &mut [Marginals], total: f64) -> Result<()> {
 
 /// Exact marginals by enumerating all joint hypotheses of the cluster.
 pub fn marginals_brute_force(cluster: &[TrackHypotheses]) -> Result<Vec<Marginals>> {
+    brute_force_within(cluster, usize::MAX)?.ok_or_else(|| Error::param("likelihoods", "budget"))
+}
+
+/// [`marginals_brute_force`], or `None` once more than `budget` joint hypotheses are seen.
+fn brute_force_within(
+    cluster: &[TrackHypotheses],
+    budget: usize,
+) -> Result<Option<Vec<Marginals>>> {
     check(cluster)?;
     let mut out: Vec<Marginals> = cluster
         .iter()
@@ -129,6 +112,7 @@ pub fn marginals_brute_force(cluster: &[TrackHypotheses]) -> Result<Vec<Marginal
     let mut choice = vec![usize::MAX; cluster.len()];
     let mut used: Vec<usize> = Vec::new();
     let mut total = 0.0;
+    let mut left = budget;
     #[allow(clippy::too_many_arguments)]
     fn rec(
         c: &[TrackHypotheses],
@@ -138,8 +122,13 @@ pub fn marginals_brute_force(cluster: &[TrackHypotheses]) -> Result<Vec<Marginal
         used: &mut Vec<usize>,
         out: &mut [Marginals],
         total: &mut f64,
+        left: &mut usize,
     ) {
+        if *left == 0 {
+            return;
+        }
         if i == c.len() {
+            *left -= 1;
             *total += w;
             for (t, &k) in choice.iter().enumerate() {
                 if k == usize::MAX {
@@ -151,12 +140,12 @@ pub fn marginals_brute_force(cluster: &[TrackHypotheses]) -> Result<Vec<Marginal
             return;
         }
         choice[i] = usize::MAX;
-        rec(c, i + 1, w * c[i].missed, choice, used, out, total);
+        rec(c, i + 1, w * c[i].missed, choice, used, out, total, left);
         for (k, &(d, wd)) in c[i].detections.iter().enumerate() {
             if !used.contains(&d) {
                 used.push(d);
                 choice[i] = k;
-                rec(c, i + 1, w * wd, choice, used, out, total);
+                rec(c, i + 1, w * wd, choice, used, out, total, left);
                 used.pop();
             }
         }
@@ -169,9 +158,13 @@ pub fn marginals_brute_force(cluster: &[TrackHypotheses]) -> Result<Vec<Marginal
         &mut used,
         &mut out,
         &mut total,
+        &mut left,
     );
+    if left == 0 {
+        return Ok(None);
+    }
     normalise(&mut out, total)?;
-    Ok(out)
+    Ok(Some(out))
 }
 
 /// A set of local detection indices, as a bit set (inline for clusters of up to 128
@@ -262,6 +255,13 @@ pub(crate) type FastMap<K, V> = HashMap<K, V, std::hash::BuildHasherDefault<Fast
 /// still use, so equal histories merge. Cost is the number of distinct nodes, small when each
 /// detection is shared by tracks close in the order (order tracks spatially).
 pub fn marginals_ehm(cluster: &[TrackHypotheses]) -> Result<Vec<Marginals>> {
+    ehm_within(cluster, usize::MAX)?.ok_or_else(|| Error::param("likelihoods", "budget"))
+}
+
+/// [`marginals_ehm`], or `None` once the net's size passes `budget`: its edges (single-track
+/// hypotheses of its nodes, summed over the levels) times the 64-bit words of a node's key
+/// (one per 64 detections of the cluster) — its memory and work.
+fn ehm_within(cluster: &[TrackHypotheses], budget: usize) -> Result<Option<Vec<Marginals>>> {
     check(cluster)?;
     let mut local: HashMap<usize, usize> = HashMap::new();
     let hyps: Vec<Vec<(usize, f64)>> = cluster
@@ -277,9 +277,9 @@ pub fn marginals_ehm(cluster: &[TrackHypotheses]) -> Result<Vec<Marginals>> {
         })
         .collect();
     match local.len() {
-        0..=64 => ehm::<u64>(cluster, &hyps, local.len()),
-        65..=128 => ehm::<u128>(cluster, &hyps, local.len()),
-        _ => ehm::<Vec<u64>>(cluster, &hyps, local.len()),
+        0..=64 => ehm::<u64>(cluster, &hyps, local.len(), budget),
+        65..=128 => ehm::<u128>(cluster, &hyps, local.len(), budget),
+        _ => ehm::<Vec<u64>>(cluster, &hyps, local.len(), budget),
     }
 }
 
@@ -287,7 +287,8 @@ fn ehm<K: BitKey>(
     cluster: &[TrackHypotheses],
     hyps: &[Vec<(usize, f64)>],
     n_bits: usize,
-) -> Result<Vec<Marginals>> {
+    budget: usize,
+) -> Result<Option<Vec<Marginals>>> {
     let n = cluster.len();
     // acc[i]: detections of tracks i.. (as a bit set); acc[n] = ∅.
     let mut acc: Vec<K> = vec![K::empty(n_bits); n + 1];
@@ -308,7 +309,14 @@ fn ehm<K: BitKey>(
     let mut nodes: Vec<K> = vec![K::empty(n_bits)];
     fw[0].push(1.0);
     let mut index: FastMap<K, u32> = FastMap::default();
+    let mut n_edges = 0usize;
+    let words = n_bits.div_ceil(64).max(1);
     for i in 0..n {
+        let level = nodes.len().saturating_mul(hyps[i].len() + 1);
+        n_edges = n_edges.saturating_add(level.saturating_mul(words));
+        if n_edges > budget {
+            return Ok(None);
+        }
         index.clear();
         let mut next_nodes: Vec<K> = Vec::with_capacity(nodes.len());
         let mut next_fw: Vec<f64> = Vec::with_capacity(nodes.len());
@@ -391,7 +399,136 @@ fn ehm<K: BitKey>(
         out.push(m);
     }
     normalise(&mut out, total)?;
-    Ok(out)
+    Ok(Some(out))
+}
+
+/// Approximate marginals by loopy belief propagation (Williams & Lau 2014, eqs. 30–31): with
+/// track weights `w_i0` (missed) and `w_ij`, and weight 1 for a detection left to clutter,
+/// messages `μ_ij = w_ij / (w_i0 + Σ_{j'≠j} w_ij' ν_j'i)` (track → detection) and
+/// `ν_ji = 1 / (1 + Σ_{i'≠i} μ_i'j)` (detection → track) are iterated from `ν = 1` until no
+/// `ν` moves by more than [`LBP_TOLERANCE`] (or [`LBP_MAX_ITERATIONS`] sweeps); then
+/// `p_ij ∝ w_ij ν_ji`, `p_i0 ∝ w_i0`. Exact on trees (e.g. clusters where no two tracks share
+/// two detections); the iteration converges on every graph (their Theorem 1). Returns the
+/// marginals and the sweeps taken. Exclusive sums use prefix/suffix sums (no cancellation).
+pub fn marginals_lbp(cluster: &[TrackHypotheses]) -> Result<(Vec<Marginals>, usize)> {
+    check(cluster)?;
+    // Edges grouped by track (as given) and, through `by_det`, by detection.
+    let mut local: HashMap<usize, usize> = HashMap::new();
+    let mut edge_det: Vec<usize> = Vec::new();
+    let mut track_off = vec![0usize];
+    for h in cluster {
+        for &(d, _) in &h.detections {
+            let l = local.len();
+            edge_det.push(*local.entry(d).or_insert(l));
+        }
+        track_off.push(edge_det.len());
+    }
+    let ne = edge_det.len();
+    let nd = local.len();
+    let mut det_off = vec![0usize; nd + 1];
+    for &d in &edge_det {
+        det_off[d + 1] += 1;
+    }
+    for d in 0..nd {
+        det_off[d + 1] += det_off[d];
+    }
+    let mut fill = det_off.clone();
+    let mut by_det = vec![0usize; ne];
+    for (e, &d) in edge_det.iter().enumerate() {
+        by_det[fill[d]] = e;
+        fill[d] += 1;
+    }
+    let w: Vec<f64> = cluster
+        .iter()
+        .flat_map(|h| h.detections.iter().map(|&(_, w)| w))
+        .collect();
+    let mut nu = vec![1.0f64; ne];
+    let mut mu = vec![0.0f64; ne];
+    let mut scratch: Vec<f64> = Vec::new();
+    // Σ of `v` over a group except each member, by prefix and suffix sums, plus `base`.
+    fn exclusive(v: &[f64], base: f64, out: &mut Vec<f64>) {
+        out.clear();
+        let mut acc = base;
+        for &x in v {
+            out.push(acc);
+            acc += x;
+        }
+        let mut suf = 0.0;
+        for (o, &x) in out.iter_mut().zip(v).rev() {
+            *o += suf;
+            suf += x;
+        }
+    }
+    let mut vals: Vec<f64> = Vec::new();
+    let mut iterations = 0;
+    while iterations < LBP_MAX_ITERATIONS {
+        iterations += 1;
+        for (i, h) in cluster.iter().enumerate() {
+            let r = track_off[i]..track_off[i + 1];
+            vals.clear();
+            vals.extend(r.clone().map(|e| w[e] * nu[e]));
+            exclusive(&vals, h.missed, &mut scratch);
+            for (e, &den) in r.zip(&scratch) {
+                mu[e] = if den > 0.0 { w[e] / den } else { f64::INFINITY };
+            }
+        }
+        let mut change = 0.0f64;
+        for d in 0..nd {
+            let es = &by_det[det_off[d]..det_off[d + 1]];
+            vals.clear();
+            vals.extend(es.iter().map(|&e| mu[e]));
+            exclusive(&vals, 1.0, &mut scratch);
+            for (&e, &den) in es.iter().zip(&scratch) {
+                let v = 1.0 / den;
+                change = change.max((v - nu[e]).abs());
+                nu[e] = v;
+            }
+        }
+        if change <= LBP_TOLERANCE {
+            break;
+        }
+    }
+    let mut out = Vec::with_capacity(cluster.len());
+    for (i, h) in cluster.iter().enumerate() {
+        let r = track_off[i]..track_off[i + 1];
+        let mut m = Marginals {
+            missed: h.missed,
+            detections: r.map(|e| w[e] * nu[e]).collect(),
+        };
+        let tot = m.missed + m.detections.iter().sum::<f64>();
+        if !(tot > 0.0 && tot.is_finite()) {
+            return Err(Error::param(
+                "likelihoods",
+                format!("track {i} has zero weight for every hypothesis"),
+            ));
+        }
+        m.missed /= tot;
+        m.detections.iter_mut().for_each(|p| *p /= tot);
+        out.push(m);
+    }
+    Ok((out, iterations))
+}
+
+/// Marginals by `method` within a `budget` of hypotheses (EHM: net edges times key words, see
+/// `ehm_within`; brute force: joint hypotheses); past the budget, by belief propagation ([`marginals_lbp`]). `None`: no budget.
+pub fn marginals_within(
+    cluster: &[TrackHypotheses],
+    method: Method,
+    budget: Option<usize>,
+) -> Result<(Vec<Marginals>, Exactness)> {
+    let b = budget.unwrap_or(usize::MAX);
+    let exact = match method {
+        Method::BruteForce => brute_force_within(cluster, b)?,
+        Method::Ehm => ehm_within(cluster, b)?,
+        Method::Lbp => None,
+    };
+    match exact {
+        Some(m) => Ok((m, Exactness::Exact)),
+        None => {
+            let (m, iterations) = marginals_lbp(cluster)?;
+            Ok((m, Exactness::Approximate { iterations }))
+        }
+    }
 }
 
 /// A rough size of the EHM net for tracks taken in `order`: at each cut, the detections
@@ -437,6 +574,7 @@ pub fn marginals(cluster: &[TrackHypotheses], method: Method) -> Result<Vec<Marg
     match method {
         Method::BruteForce => marginals_brute_force(cluster),
         Method::Ehm => marginals_ehm(cluster),
+        Method::Lbp => marginals_lbp(cluster).map(|r| r.0),
     }
 }
 
@@ -473,6 +611,85 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// Random clusters: `n` tracks, `nd` detections, each pair gated with probability `pg`.
+    fn random_cluster(rng: &mut impl Rng, n: usize, nd: usize, pg: f64) -> Vec<TrackHypotheses> {
+        (0..n)
+            .map(|_| TrackHypotheses {
+                missed: rng.random_range(0.05..1.0),
+                detections: (0..nd)
+                    .filter(|_| rng.random_bool(pg))
+                    .collect::<Vec<_>>()
+                    .into_iter()
+                    .map(|d| (d, rng.random_range(0.0..5.0)))
+                    .collect(),
+            })
+            .collect()
+    }
+
+    #[test]
+    fn lbp_is_close_to_ehm_and_exact_on_trees() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(11);
+        let mut worst = 0.0f64;
+        for _ in 0..300 {
+            let n = rng.random_range(2..12);
+            let nd = rng.random_range(1..12);
+            let c = random_cluster(&mut rng, n, nd, 0.4);
+            let a = marginals_ehm(&c).unwrap();
+            let (b, it) = marginals_lbp(&c).unwrap();
+            assert!(it < LBP_MAX_ITERATIONS);
+            for (x, y) in a.iter().zip(&b) {
+                let s: f64 = y.missed + y.detections.iter().sum::<f64>();
+                assert!((s - 1.0).abs() < 1e-12);
+                worst = worst.max((x.missed - y.missed).abs());
+                for (p, q) in x.detections.iter().zip(&y.detections) {
+                    worst = worst.max((p - q).abs());
+                }
+            }
+        }
+        // Williams & Lau report errors of a few hundredths on dense clusters.
+        assert!(worst < 0.1, "{worst}");
+        // A chain (a tree): belief propagation is exact.
+        let chain: Vec<TrackHypotheses> = (0..30)
+            .map(|i| TrackHypotheses {
+                missed: 0.3,
+                detections: vec![(i, 1.0 + (i % 3) as f64), (i + 1, 0.5)],
+            })
+            .collect();
+        let a = marginals_ehm(&chain).unwrap();
+        let (b, _) = marginals_lbp(&chain).unwrap();
+        for (x, y) in a.iter().zip(&b) {
+            assert!((x.missed - y.missed).abs() < 1e-12);
+            for (p, q) in x.detections.iter().zip(&y.detections) {
+                assert!((p - q).abs() < 1e-12, "{p} {q}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_budget_switches_to_belief_propagation() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(5);
+        let c = random_cluster(&mut rng, 10, 10, 0.5);
+        let (exact, how) = marginals_within(&c, Method::Ehm, None).unwrap();
+        assert_eq!(how, Exactness::Exact);
+        let (approx, how) = marginals_within(&c, Method::Ehm, Some(10)).unwrap();
+        assert!(matches!(how, Exactness::Approximate { .. }));
+        assert_eq!(approx, marginals_lbp(&c).unwrap().0);
+        assert_ne!(approx, exact);
+        let (_, how) = marginals_within(&c, Method::BruteForce, Some(10)).unwrap();
+        assert!(matches!(how, Exactness::Approximate { .. }));
+        let (bf, how) = marginals_within(&c[..4], Method::BruteForce, Some(1 << 20)).unwrap();
+        assert_eq!(how, Exactness::Exact);
+        let e = marginals_ehm(&c[..4]).unwrap();
+        for (x, y) in bf.iter().zip(&e) {
+            assert!((x.missed - y.missed).abs() < 1e-12);
+        }
+        // A cluster far too large for EHM (200 tracks all gating 200 detections) finishes.
+        let big = random_cluster(&mut rng, 200, 200, 1.0);
+        let (m, how) = marginals_within(&big, Method::Ehm, Some(100_000)).unwrap();
+        assert!(matches!(how, Exactness::Approximate { .. }));
+        assert_eq!(m.len(), 200);
     }
 
     #[test]

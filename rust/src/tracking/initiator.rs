@@ -1,0 +1,327 @@
+//! The initiator (Stone Soup `MultiMeasurementInitiator` with `SimpleMeasurementInitiator`
+//! starts): tentative tracks, their GNN association and updates, confirmation (min points,
+//! M of N, existence), their deleter, new tentative tracks from free detections (with the
+//! per-scan cap), and the native duplicate suppression.
+
+use super::hypothesise::{
+    gate_pairs, gnn_step, sensors_t, Alloc, CovForm, Dets, Innovations, Pred, SensorT,
+};
+use super::tracker::Tracker;
+use crate::error::{Error, Result};
+use crate::gating::chi2_quantile;
+use crate::track::{Entry, Track};
+use crate::tracker_config::{Association, Confirmation, Measure};
+use nalgebra::{DMatrix, DVector, DefaultAllocator, Dim, Dyn};
+
+impl Tracker {
+    /// The initiator's scan (Stone Soup `MultiMeasurementInitiator`): GNN-associates the
+    /// tentative tracks with the `free` detections, updates them, confirms or drops them,
+    /// and starts a tentative track on every detection still left.
+    pub(super) fn initiate<N: Dim, M: Dim>(
+        &mut self,
+        t: f64,
+        dets: &Dets<'_, M>,
+        free: &[usize],
+        sensors: &[SensorT<N, M>],
+        dims: (N, M),
+    ) -> Result<()>
+    where
+        DefaultAllocator: Alloc<N, M>,
+    {
+        let m = self.m;
+        let init = self.cfg.initiator.clone();
+        let model = init
+            .motion_model
+            .clone()
+            .unwrap_or_else(|| self.cfg.motion_model.clone());
+        let det_sensor = dets.sensor;
+        let covs = dets.covs;
+        let mut used = vec![false; det_sensor.len()];
+        if !self.tentative.is_empty() {
+            let mut ln_pdf = Vec::new();
+            let assoc = gnn_step(
+                &mut self.tentative,
+                &model,
+                sensors,
+                &init.gnn,
+                CovForm {
+                    joseph: init.use_joseph_cov,
+                    symmetric: init.symmetric_covariance,
+                },
+                t,
+                dets,
+                dims,
+                free,
+                self.scan,
+                None,
+                Some(&mut ln_pdf),
+            )?;
+            // Existence of tentative tracks: L = 1 − P_D P_G (+ P_D N(z)/λ with a detection).
+            let ex_conf = match (&self.cfg.existence, &self.cfg.association) {
+                (Some(e), Association::Jpda(j)) if e.confirm.is_some() => Some((*e, *j)),
+                _ => None,
+            };
+            if let Some((e, j)) = ex_conf {
+                let lam = j.clutter_density.unwrap_or(1.0);
+                let ln_missed = (1.0 - j.prob_detect * j.prob_gate).ln();
+                for (tr, lp) in self.tentative.iter_mut().zip(&ln_pdf) {
+                    let lw = j.prob_detect.ln() - lam.ln() + lp;
+                    let mx = lw.max(ln_missed);
+                    let ln_l = mx + ((ln_missed - mx).exp() + (lw - mx).exp()).ln();
+                    let rv = tr.existence.unwrap_or((e.birth, 1.0));
+                    tr.existence = Some(e.update(rv, ln_l));
+                }
+            }
+            for d in assoc.into_iter().flatten() {
+                used[d] = true;
+            }
+            let mut keep = Vec::with_capacity(self.tentative.len());
+            let mut confirmed = Vec::new();
+            for tr in std::mem::take(&mut self.tentative) {
+                let (confirm, drop) = match init.confirmation {
+                    Confirmation::MinPoints {
+                        min_points,
+                        updates_only,
+                    } => {
+                        let count = if updates_only {
+                            tr.n_updates()
+                        } else {
+                            tr.history.len()
+                        };
+                        (count >= min_points, false)
+                    }
+                    Confirmation::MOfN { m: mm, n } => {
+                        let ups = tr.history.is_update.iter().take(n).filter(|u| **u).count();
+                        (ups >= mm, tr.history.len() >= n)
+                    }
+                };
+                let (confirm, drop) = match (ex_conf, tr.existence) {
+                    (Some((e, _)), Some((r, _))) => (
+                        confirm && r >= e.confirm.unwrap_or(0.0),
+                        drop || r < e.delete,
+                    ),
+                    _ => (confirm, drop),
+                };
+                if confirm {
+                    confirmed.push(tr);
+                } else if !drop {
+                    keep.push(tr);
+                }
+            }
+            if !self.cfg.initiate_in_gates {
+                confirmed = self.without_duplicates(confirmed)?;
+            }
+            for mut tr in confirmed {
+                tr.id = self.next_id;
+                self.next_id += 1;
+                tr.confirmed_time = t;
+                self.tracks.push(tr);
+            }
+            if matches!(init.confirmation, Confirmation::MinPoints { .. }) {
+                keep.retain(|tr| !init.deleter.check(tr));
+            }
+            self.tentative = keep;
+        }
+        // New tentative tracks from every detection left. Per sensor (computed once):
+        // H⁺, H⁺ R H⁺ᵀ and the mapped state axes; H⁺ R_d H⁺ᵀ per detection with its own
+        // covariance R_d (unless the sensor has its own initiation noise).
+        type InitModel = (DMatrix<f64>, DMatrix<f64>, Vec<bool>);
+        let mut init_of: Vec<Option<InitModel>> = vec![None; self.cfg.sensors.len()];
+        let mut started = 0usize;
+        for &d in free {
+            if used[d] {
+                continue;
+            }
+            if init.max_new_tentative.is_some_and(|cap| started >= cap) {
+                self.capped_detections += 1;
+                continue;
+            }
+            started += 1;
+            let s = det_sensor[d];
+            if let Some(pol) = self.cfg.sensors[s].polar {
+                // Stone Soup's SimpleMeasurementInitiator with a reversible model: positions
+                // from the inverse function, J⁺ R J⁺ᵀ on them, the prior elsewhere.
+                let sensor = &self.cfg.sensors[s];
+                let r: Vec<f64> = match covs {
+                    Some(c) if !sensor.init_noise_given => {
+                        c[d].transpose().iter().copied().collect()
+                    }
+                    _ => sensor.init.1.transpose().iter().copied().collect(),
+                };
+                let (pos, c) = pol.inverse(dets.row(d, m), &r, dets.origin(d))?;
+                let mut x = init.prior_state.clone();
+                let mut p = init.prior_covariance.clone();
+                let n = x.len();
+                for &c in &pol.mapping {
+                    x[c] = 0.0;
+                    for r in 0..n {
+                        p[(c, r)] = 0.0;
+                        p[(r, c)] = 0.0;
+                    }
+                }
+                let [i, j] = pol.mapping;
+                x[i] += pos[0];
+                x[j] += pos[1];
+                p[(i, i)] += c[0];
+                p[(i, j)] += c[1];
+                p[(j, i)] += c[2];
+                p[(j, j)] += c[3];
+                for i in 0..n {
+                    p[(i, i)] += init.diag_load;
+                }
+                self.push_tentative(t, x, p, s, d);
+                continue;
+            }
+            if init_of[s].is_none() {
+                let (hi, ri) = &self.cfg.sensors[s].init;
+                let pinv = hi
+                    .clone()
+                    .pseudo_inverse(1e-15)
+                    .map_err(|e| Error::param("initiation_measurement_matrix", e))?;
+                let cov = &pinv * ri * pinv.transpose();
+                let mapped = (0..hi.ncols())
+                    .map(|c| (0..hi.nrows()).any(|r| hi[(r, c)] != 0.0))
+                    .collect();
+                init_of[s] = Some((pinv, cov, mapped));
+            }
+            let Some((pinv, pcov, mapped)) = init_of[s].as_ref() else {
+                return Err(Error::param(
+                    "tracker",
+                    "internal error: no initiation model",
+                ));
+            };
+            let zd = DVector::from_column_slice(dets.row(d, m));
+            let mut x = init.prior_state.clone();
+            let mut p = init.prior_covariance.clone();
+            let n = x.len();
+            for c in 0..n {
+                if mapped[c] {
+                    x[c] = 0.0;
+                    for r in 0..n {
+                        p[(c, r)] = 0.0;
+                        p[(r, c)] = 0.0;
+                    }
+                }
+            }
+            x += pinv * zd;
+            match covs {
+                Some(c) if !self.cfg.sensors[s].init_noise_given => {
+                    let rd = DMatrix::from_iterator(m, m, c[d].iter().copied());
+                    p += pinv * rd * pinv.transpose();
+                }
+                _ => p += pcov,
+            }
+            for i in 0..n {
+                p[(i, i)] += init.diag_load;
+            }
+            self.push_tentative(t, x, p, s, d);
+        }
+        Ok(())
+    }
+
+    /// Starts a tentative track `(x, p)` from detection `d` of sensor `s` at time `t`.
+    fn push_tentative(&mut self, t: f64, x: DVector<f64>, p: DMatrix<f64>, s: usize, d: usize) {
+        let id = self.next_tentative_id;
+        self.next_tentative_id += 1;
+        self.tentative.push(Track::new(
+            id,
+            x,
+            p,
+            Entry {
+                time: t,
+                is_update: true,
+                scan: self.scan,
+                sensor: s as i64,
+                detection: d as i64,
+                nis: f64::NAN,
+                missed_probability: f64::NAN,
+                assoc: vec![(d as i64, 1.0)],
+            },
+        ));
+    }
+
+    /// Drops tentative tracks about to be confirmed whose position falls inside the gate of a
+    /// confirmed track or of a candidate accepted before them (native duplicate suppression;
+    /// the gate is the association gate widened to at least χ²_m(0.9999)).
+    fn without_duplicates(&self, cands: Vec<Track>) -> Result<Vec<Track>> {
+        if cands.is_empty() {
+            return Ok(cands);
+        }
+        let m = self.m;
+        let gate = match &self.cfg.association {
+            Association::Jpda(_) => self.gate,
+            Association::Gnn(g) => match g.measure {
+                Measure::Mahalanobis => g.missed_distance * g.missed_distance,
+                Measure::SquaredMahalanobis => g.missed_distance,
+            },
+        };
+        // A generous gate: a candidate is a duplicate unless clearly outside (P = 0.9999).
+        let wide = chi2_quantile(0.9999, m)?;
+        let gate = if gate.is_finite() {
+            gate.max(wide)
+        } else {
+            wide
+        };
+        // Each candidate as a pseudo-detection H x from the sensor of its last update.
+        let sens: Vec<usize> = cands
+            .iter()
+            .map(|c| {
+                let s = *c.history.sensor.last().unwrap_or(&0);
+                if s >= 0 {
+                    s as usize
+                } else {
+                    0
+                }
+            })
+            .collect();
+        let z: Vec<f64> = cands
+            .iter()
+            .zip(&sens)
+            .flat_map(|(c, &s)| {
+                (&self.cfg.sensors[s].h * &c.x)
+                    .iter()
+                    .copied()
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        let all: Vec<usize> = (0..cands.len()).collect();
+        let ns = self.cfg.sensors.len();
+        let (nd, md) = (Dyn(self.cfg.motion_model.ndim()), Dyn(m));
+        let sensors = sensors_t(&self.cfg.sensors, nd, md);
+        let existing: Vec<Pred<Dyn>> = self
+            .tracks
+            .iter()
+            .map(|t| (t.x.clone(), t.p.clone()))
+            .collect();
+        let mut innov = Innovations::new(existing.len(), ns);
+        let mut reject = vec![false; cands.len()];
+        let dets = Dets {
+            z: &z,
+            sensor: &sens,
+            covs: None,
+            origins: None,
+        };
+        for p in gate_pairs(&existing, &sensors, md, &dets, &all, gate, &mut innov)? {
+            reject[p.d] = true;
+        }
+        let own: Vec<Pred<Dyn>> = cands.iter().map(|t| (t.x.clone(), t.p.clone())).collect();
+        let mut innov = Innovations::new(own.len(), ns);
+        let mut gated_by: Vec<Vec<usize>> = vec![Vec::new(); cands.len()];
+        for p in gate_pairs(&own, &sensors, md, &dets, &all, gate, &mut innov)? {
+            if p.t != p.d {
+                gated_by[p.d].push(p.t);
+            }
+        }
+        let mut accepted = vec![false; cands.len()];
+        for c in 0..cands.len() {
+            if !reject[c] && !gated_by[c].iter().any(|&i| accepted[i]) {
+                accepted[c] = true;
+            }
+        }
+        Ok(cands
+            .into_iter()
+            .zip(accepted)
+            .filter_map(|(c, a)| a.then_some(c))
+            .collect())
+    }
+}

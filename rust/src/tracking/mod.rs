@@ -1,0 +1,27 @@
+//! Multi-target tracking, organised by Stone Soup role:
+//!
+//! | role | module | Stone Soup |
+//! |---|---|---|
+//! | predict / update | [`crate::kalman`], [`hypothesise`] (innovations, posterior covariance), [`imm`], [`polar`] | `KalmanPredictor`, `KalmanUpdater`, `Extended/UnscentedKalmanUpdater` |
+//! | gating | [`gating`] (χ² gate, spatial grid), [`hypothesise`] (`gate_pairs`) | `PDAHypothesiser` / `DistanceHypothesiser` gates |
+//! | clustering | [`clustering`] | `JPDA` clusters |
+//! | JPDA | [`jpda`] (EHM, brute force, belief propagation past a budget) | `JPDA`, `JPDAwithEHM` |
+//! | GNN | [`gnn`], [`assign`] | `GNNWith2DAssignment` |
+//! | initiator | [`initiator`] | `MultiMeasurementInitiator` |
+//! | deleters | [`deleters`] | `UpdateTimeStepsDeleter`, `CovarianceBasedDeleter`, ... |
+//! | the tracker | [`tracker`] (one scan), [`run`] (a whole recording), [`config`], [`track`] | `MultiTargetMixtureTracker`, `MultiTargetTracker` |
+
+pub mod assign;
+pub mod clustering;
+pub mod config;
+pub mod deleters;
+pub mod gating;
+pub mod gnn;
+pub mod hypothesise;
+pub mod imm;
+mod initiator;
+pub mod jpda;
+pub mod polar;
+pub mod run;
+pub mod track;
+pub mod tracker;
