@@ -104,7 +104,7 @@ def augment(
         b = boxes[rng.integers(len(boxes))]
         cx = (b[0] + b[2]) / 2 + rng.uniform(-0.35, 0.35) * cw
         cy = (b[1] + b[3]) / 2 + rng.uniform(-0.35, 0.35) * ch
-        x0, y0 = int(round(cx - cw / 2)), int(round(cy - ch / 2))
+        x0, y0 = round(cx - cw / 2), round(cy - ch / 2)
     else:
         x0 = int(rng.integers(min(0, nw - cw), max(0, nw - cw) + 1))
         y0 = int(rng.integers(min(0, nh - ch), max(0, nh - ch) + 1))

@@ -62,7 +62,7 @@ class ReflectionFilter:
             if x1 - x0 < 4 or y1 - y0 < 4:
                 continue
             kps = orb.detect(np.ascontiguousarray(gray[y0:y1, x0:x1]), None)
-            pts = np.array([k.pt for k in kps], dtype=float).reshape(-1, 2) + [x0, y0]
+            pts = np.array([k.pt for k in kps], dtype=float).reshape(-1, 2) + np.array([x0, y0])
             inside = (pts[:, 0] >= x) & (pts[:, 0] < x + bw) & (pts[:, 1] >= y)
             out[i] = int(np.sum(inside & (pts[:, 1] < y + bh)))
         return out
@@ -105,6 +105,12 @@ class WakeFilter:
         if len(wins):
             out[ok] = self.stage.accepts(wins)
         return out
+
+    def save(self, path) -> None:
+        """Write the stage as OpenCV cascade XML (`ShoreConfig.wake_model` reads it)."""
+        from pathlib import Path
+
+        Path(path).write_text(self.stage.to_opencv_xml(), encoding="utf-8")
 
     @staticmethod
     def train(
