@@ -1,11 +1,11 @@
 """Train the shore CNN boat detector (HarbourNet, one class "boat") with torch on annotated
 frames (MarDCT layout: `NAME_FRAME.png` + `NAME_FRAME.txt`), and export it for both backends.
 
-    python -m usvfast.shore.cnn_train ANNOTATIONS_DIR --out DIR [--seed 0] [--steps 700]
+    python -m usvfast.shore.cnn_train ANNOTATIONS_DIR --out DIR [--seed 0] [--steps 900]
         [--exclude VIDEO ...]
 
 A few hundred boxes are enough because every training sample is a fresh random view of a
-frame: random scale (0.55–1.7 × the size the frame has at the network input), random crop
+frame: random scale (0.6–1.5 × the size the frame has at the network input), random crop
 near a boat or anywhere, left–right flip, contrast, brightness and per-channel colour gain,
 occasional grey, blur and noise. Reproducible from `seed` (torch.manual_seed, a seeded numpy
 generator, a fixed thread count). Writes `NAME.onnx` (:class:`usvfast.camera.dnn.OnnxDetector`,
@@ -38,18 +38,18 @@ class CnnTrainConfig:
     pixels; `scale_range` multiplies the letterbox scale of a frame to `input_size`."""
 
     seed: int = 0
-    input_size: tuple[int, int] = (320, 256)
-    crop_size: tuple[int, int] = (256, 192)
+    input_size: tuple[int, int] = (224, 176)
+    crop_size: tuple[int, int] = (224, 176)
     width: int = 16
-    steps: int = 700
+    steps: int = 900
     batch: int = 12
     lr: float = 4e-3
-    scale_range: tuple[float, float] = (0.55, 1.7)
+    scale_range: tuple[float, float] = (0.6, 1.5)
     near_box: float = 0.7
     min_visible: float = 0.5
     min_box_px: float = 6.0
     threads: int = 1
-    conf_threshold: float = 0.5
+    conf_threshold: float = 0.3
 
     def __post_init__(self) -> None:
         for name in ("input_size", "crop_size"):

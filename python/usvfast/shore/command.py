@@ -94,7 +94,7 @@ def shore_train_command(
         typer.Option(help="What to train: cnn or cascade (default: cascade for --out *.xml)"),
     ] = None,
     max_stages: Annotated[int, typer.Option(help="Cascade: most stages (the last on wakes)")] = 14,
-    steps: Annotated[int, typer.Option(help="CNN: training steps")] = 700,
+    steps: Annotated[int, typer.Option(help="CNN: training steps")] = 900,
     wake_filter: Annotated[
         bool, typer.Option(help="CNN: also train the wake-filter stage (wake-filter.xml)")
     ] = False,

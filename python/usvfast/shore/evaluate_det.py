@@ -43,6 +43,9 @@ from usvfast.shore.horizon import HorizonConfig, HorizonLine, detect_horizon, ho
 from usvfast.shore.mardct import AnnotatedFrame, load_mardct
 from usvfast.shore.scores import DetectionCounts
 
+#: CNN confidence thresholds also scored (horizon on, no filter) beside the card's own.
+CNN_SWEEP: tuple[float, ...] = (0.2, 0.3, 0.4)
+
 #: EO thresholds tried when fitting the Bayes detector's level on the training videos.
 THRESHOLD_GRID: tuple[float, ...] = (40, 60, 80, 100, 120, 140, 160, 180, 200, 220)
 
@@ -168,9 +171,12 @@ def cnn_rows(
     from usvfast.shore.cnn import CnnDetector
 
     path = cnn_model(data, held, models, steps, log)
-    det = CnnDetector(path)
-    dets = [det.detect(im) for im in videos[held].images]
     card = json.loads(path.with_suffix(".json").read_text(encoding="utf-8"))
+    conf = float(card.get("conf_threshold", 0.3))
+    low = CnnDetector(path, conf_threshold=min(CNN_SWEEP))
+    swept = [low.detect(im) for im in videos[held].images]
+    det = CnnDetector(path)
+    dets = [d.subset(d.scores >= conf) for d in swept]
     train_frames = [f for v in mardct if v != held for f in mardct[v]]
     t0 = time.perf_counter()
     wake = WakeFilter.train(train_frames, det.detect)
@@ -188,8 +194,20 @@ def cnn_rows(
         ("reflection+wake", both),
     ):
         rows += [
-            {"detector": "cnn", **r} for r in both_horizons(videos[held], dets, hcfg, extra, label)
+            {"detector": f"cnn (confidence {conf:g})", **r}
+            for r in both_horizons(videos[held], dets, hcfg, extra, label)
         ]
+    for c in CNN_SWEEP:
+        if c != conf:
+            sub = [d.subset(d.scores >= c) for d in swept]
+            rows.append(
+                {
+                    "detector": f"cnn (confidence {c:g})",
+                    "horizon": True,
+                    "filters": "",
+                    **score(videos[held], sub, hcfg, True),
+                }
+            )
     info = {"cnn_train_s": card.get("train_seconds"), "wake_train_s": round(wake_s, 1)}
     return rows, info
 
