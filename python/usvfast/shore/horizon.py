@@ -140,7 +140,7 @@ def detect_horizon(
     if 0 < cfg.max_width < gray.shape[1]:
         scale = cfg.max_width / gray.shape[1]
         size = (cfg.max_width, max(1, round(gray.shape[0] * scale)))
-        gray = cv2.resize(gray, size, interpolation=cv2.INTER_AREA)
+        gray = cv2.resize(gray, size, interpolation=cv2.INTER_LINEAR)
     smooth = cv2.medianBlur(gray, cfg.median_kernel) if cfg.median_kernel > 1 else gray
     edges = cv2.Canny(smooth, cfg.canny_low, cfg.canny_high)
     h, w = gray.shape
