@@ -149,9 +149,10 @@ def train_cnn(
     from usvfast.camera.harbour_net import HarbourNet, loss
 
     cfg = config or CnnTrainConfig()
-    data = [f if isinstance(f, TrainFrame) else None for f in frames]
-    if any(d is None for d in data):
-        data = load_frames(frames)  # type: ignore[arg-type]
+    if all(isinstance(f, TrainFrame) for f in frames):
+        data: list[TrainFrame] = [f for f in frames if isinstance(f, TrainFrame)]
+    else:
+        data = load_frames([f for f in frames if isinstance(f, AnnotatedFrame)])
     if not data or not sum(len(f.boxes) for f in data):
         raise ValueError("frames: no annotated boat to train on")
     torch.set_num_threads(cfg.threads)  # one thread: steady under a shared, loaded CPU
@@ -249,7 +250,7 @@ def train_and_export(
 def main(argv: Sequence[str] | None = None) -> None:
     """Command-line entry point (module doc)."""
     ap = argparse.ArgumentParser(
-        prog="python -m usvfast.shore.cnn_train", description=__doc__.splitlines()[0]
+        prog="python -m usvfast.shore.cnn_train", description=(__doc__ or "").splitlines()[0]
     )
     ap.add_argument("annotations", type=Path)
     ap.add_argument("--out", type=Path, required=True)

@@ -138,6 +138,8 @@ class WakeFilter:
         negs: list[np.ndarray] = []
         for f in frames:
             image = cv2.imread(str(f.path), cv2.IMREAD_COLOR)
+            if image is None:
+                raise ValueError(f"frames: cannot read {f.path}")
             gray = preprocess(image, cfg)
             h, w = gray.shape
             cand = []
