@@ -212,3 +212,33 @@ def test_bayes_otsu_level_maximises_between_class_variance():
     np.testing.assert_array_equal(b > 0, img > best)
     with pytest.raises(ValueError, match="threshold_mode"):
         BayesDetectorConfig(threshold_mode="mean")
+
+
+def test_shore_train_cnn_command_writes_model_and_wake_stage(tmp_path):
+    ann = tmp_path / "ann"
+    ann.mkdir()
+    for k, f in enumerate(synthetic_frames(6, 7)):
+        cv2.imwrite(str(ann / f"sea_{10 * k}.png"), f.image)
+        lines = [f"boat {x1:g} {y1:g} {x2 - x1:g} {y2 - y1:g}" for x1, y1, x2, y2 in f.boxes]
+        (ann / f"sea_{10 * k}.txt").write_text("\n".join(lines) + "\n")
+    models = tmp_path / "models"
+    runner = CliRunner()
+    args = ["shore-train", str(ann), "--out", str(models), "--steps", "3", "--wake-filter"]
+    res = runner.invoke(app, args)
+    assert res.exit_code == 0, res.output
+    card = json.loads((models / "shore-cnn.json").read_text())
+    assert card["videos"] == ["sea"] and card["train"]["steps"] == 3
+    assert (models / "shore-cnn.onnx").is_file() and (models / "wake-filter.xml").is_file()
+    out = tmp_path / "out"
+    args = ["shore", str(ann), "--out", str(out), "--detector", "cnn"]
+    args += [
+        "--model",
+        str(models / "shore-cnn.onnx"),
+        "--wake-model",
+        str(models / "wake-filter.xml"),
+    ]
+    res = runner.invoke(app, [*args, "--no-progress", "--no-video"])
+    assert res.exit_code == 0, res.output
+    assert json.loads((out / "summary.json").read_text())["frames"] == 6
+    bad = runner.invoke(app, ["shore-train", str(ann), "--detector", "svm"])
+    assert bad.exit_code != 0 and "detector" in bad.output
