@@ -88,9 +88,12 @@ def test_training_is_reproducible_and_backends_agree(tmp_path):
     for f in synthetic_frames(3, 9):
         d1, d2, d3 = onnx.detect(f.image), ts.detect(f.image), mem.detect(f.image)
         assert len(d1) > 0 and len(d1) == len(d2) == len(d3)
-        np.testing.assert_allclose(d1.boxes, d2.boxes, atol=0.01)
-        np.testing.assert_allclose(d2.boxes, d3.boxes, atol=1e-3)
-        np.testing.assert_allclose(d1.scores, d2.scores, atol=1e-4)
+        # an almost untrained network scores many boxes alike (NMS ties): compare the raw
+        # network outputs here, the final boxes on a trained network in the next test
+        batch, _ = onnx.grid.preprocess([f.image])
+        r1, r2, r3 = (d.grid.forward(batch) for d in (onnx, ts, mem))
+        np.testing.assert_allclose(r1, r2, atol=1e-3, rtol=1e-4)
+        np.testing.assert_allclose(r2, r3, atol=1e-4, rtol=1e-5)
         # x, y, w, h px inside the frame
         assert np.all(d1.boxes[:, 2:] >= 0) and np.all(d1.boxes[:, 0] + d1.boxes[:, 2] <= 320.01)
     card = json.loads((tmp_path / "m.json").read_text())
@@ -103,9 +106,13 @@ def test_cnn_learns_synthetic_hulls_and_the_command_runs_it(tmp_path, monkeypatc
     net = train_cnn(frames, cfg, log=lambda s: None)
     export_model(net, tmp_path / "models", model_card(cfg, ["synthetic"], 1.0, net))
     det = CnnDetector(tmp_path / "models" / "shore-cnn.onnx", conf_threshold=0.3)
+    det_torch = CnnDetector(tmp_path / "models" / "shore-cnn.pt", conf_threshold=0.3)
     hits = total = 0
     for f in synthetic_frames(6, 2):
         d = det.detect(f.image)
+        dt = det_torch.detect(f.image)  # the same boxes through torch
+        assert len(d) == len(dt) and len(d) > 0
+        np.testing.assert_allclose(d.boxes, dt.boxes, atol=0.01)
         xywh = np.column_stack([f.boxes[:, :2], f.boxes[:, 2:] - f.boxes[:, :2]])
         from usvfast.shore.scores import matched_pairs
 
@@ -242,3 +249,11 @@ def test_shore_train_cnn_command_writes_model_and_wake_stage(tmp_path):
     assert json.loads((out / "summary.json").read_text())["frames"] == 6
     bad = runner.invoke(app, ["shore-train", str(ann), "--detector", "svm"])
     assert bad.exit_code != 0 and "detector" in bad.output
+
+
+def test_training_leaves_the_process_float_and_thread_state_alone():
+    before = (torch.get_num_threads(), cv2.getNumThreads())
+    train_cnn(synthetic_frames(2, 3), CnnTrainConfig(steps=1, batch=2), log=lambda s: None)
+    assert (torch.get_num_threads(), cv2.getNumThreads()) == before
+    tiny = np.float64(5e-324)  # the smallest subnormal survives (no flush-to-zero left on)
+    assert tiny * 1.0 > 0.0 and float(torch.tensor(1e-40, dtype=torch.float32)) > 0.0

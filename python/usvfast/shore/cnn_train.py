@@ -146,8 +146,6 @@ def train_cnn(
     returns the network (eval mode) sized for `config.input_size`."""
     import torch
 
-    from usvfast.camera.harbour_net import HarbourNet, loss
-
     cfg = config or CnnTrainConfig()
     if all(isinstance(f, TrainFrame) for f in frames):
         data: list[TrainFrame] = [f for f in frames if isinstance(f, TrainFrame)]
@@ -155,9 +153,27 @@ def train_cnn(
         data = load_frames([f for f in frames if isinstance(f, AnnotatedFrame)])
     if not data or not sum(len(f.boxes) for f in data):
         raise ValueError("frames: no annotated boat to train on")
+    threads = (torch.get_num_threads(), cv2.getNumThreads())
     torch.set_num_threads(cfg.threads)  # one thread: steady under a shared, loaded CPU
     cv2.setNumThreads(1)
-    torch.set_flush_denormal(True)  # denormal weights slow CPU convolutions many-fold
+    # flush denormals to zero while training (as the evaluated models were trained), and
+    # restore the process-wide state afterwards (it would change float behaviour elsewhere)
+    torch.set_flush_denormal(True)
+    try:
+        net = _fit(data, cfg, log)
+    finally:
+        torch.set_flush_denormal(False)
+        torch.set_num_threads(threads[0])
+        cv2.setNumThreads(threads[1])
+    return net
+
+
+def _fit(data: Sequence[TrainFrame], cfg: CnnTrainConfig, log: Callable[[str], None]):
+    """The training loop of :func:`train_cnn` (global thread and float state already set)."""
+    import torch
+
+    from usvfast.camera.harbour_net import HarbourNet, loss
+
     torch.manual_seed(cfg.seed)
     rng = np.random.default_rng(cfg.seed)
     net = HarbourNet(1, cfg.input_size, cfg.width)
