@@ -15,6 +15,11 @@ Frames: MarDCT's regDTV9 frames resized to each size when ../shared/data is pres
   particle tracker, and the chain's FPS with each tracker.
 * One local-tier step of the particle filter (propagate, proposals, weights, SIR, KClusterize):
   usvfast's Rust vs the plain numpy version of tests/particle_reference.py, same numbers.
+* With `--cnn shore-cnn.onnx` (from `usvfast shore-train --detector cnn`), the CNN detector run
+  by OpenCV DNN at the model's small input (the frame is letterboxed once), alone and with
+  the reflection filter; without `--cnn`, an untrained network of the same architecture and
+  input size is timed (same cost per frame; it finds nothing, so NMS and tracking are idle).
+  Per-stage milliseconds (detect / horizon / track) are printed for each run.
 
 Run: python benches/bench_shore.py [--frames N] [--repeat R] [--cascade boat.xml]
 """
@@ -24,6 +29,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import tempfile
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -63,17 +69,42 @@ def frames_at(size: tuple[int, int], n: int) -> list[np.ndarray]:
 
 
 def chain_fps(
-    frames: list[np.ndarray], keypoints: str, model: Path | None = None, tracker: str = "sort"
-) -> float:
-    cfg = ShoreConfig(tracker=tracker, bayes=replace(BayesDetectorConfig(), keypoints=keypoints))
+    frames: list[np.ndarray],
+    keypoints: str,
+    model: Path | None = None,
+    config: ShoreConfig | None = None,
+    tracker: str = "sort",
+) -> tuple[float, dict[str, float]]:
+    """(frames per second of ShoreChain.step, milliseconds per frame of each stage)."""
+    cfg = ShoreConfig(
+        detector="bayes",
+        tracker=tracker,
+        bayes=replace(BayesDetectorConfig(), keypoints=keypoints),
+    )
     if model is not None:
         cfg = replace(cfg, detector="cascade", cascade_model=model)
-    chain = ShoreChain(cfg)
+    chain = ShoreChain(config or cfg)
     chain.step(frames[0])  # warm-up
+    chain.seconds.clear()
     t0 = time.perf_counter()
     for f in frames:
         chain.step(f)
-    return len(frames) / (time.perf_counter() - t0)
+    stages = {k: 1e3 * v / len(frames) for k, v in chain.seconds.items()}
+    return len(frames) / (time.perf_counter() - t0), stages
+
+
+def untrained_cnn(folder: Path) -> Path:
+    """An untrained one-class HarbourNet at the shore model's input size, as ONNX."""
+    import torch
+
+    from usvfast.camera.harbour_net import HarbourNet
+    from usvfast.shore.cnn_train import CnnTrainConfig, export_model, model_card
+
+    cfg = CnnTrainConfig()
+    torch.manual_seed(0)
+    net = HarbourNet(1, cfg.input_size, cfg.width).eval()
+    export_model(net, folder, model_card(cfg, [], 0.0, net), name="untrained")
+    return folder / "untrained.onnx"
 
 
 def kalman_step_compare(k: int, repeat: int) -> None:
@@ -172,18 +203,41 @@ def main() -> None:
     ap.add_argument(
         "--cascade", type=Path, default=None, help="Cascade XML (usvfast shore-train) to time"
     )
+    ap.add_argument("--cnn", type=Path, default=None, help="CNN ONNX (shore-train) to time")
     a = ap.parse_args()
+    cv2.setNumThreads(2)
+    tmp = tempfile.TemporaryDirectory()
+    cnn = a.cnn or untrained_cnn(Path(tmp.name))
+    cnn_name = "cnn onnx" if a.cnn else "cnn (untrained)"
     print(f"{'frame size':>12} {'detector':>16} {'FPS (2 cores)':>14} {'vs paper':>9}")
     print(f"{'319x261':>12} {'paper cascade':>16} {PAPER_FPS:>14.1f} {'(paper)':>9}")
     for size in ((320, 240), (704, 576)):
         frames = frames_at(size, a.frames)
-        runs = [(f"bayes {kp}", kp, None, "sort") for kp in ("sift", "fast")]
-        runs.append(("bayes fast+pf", "fast", None, "particle"))
+        runs = [(f"bayes {kp}", kp, None, None) for kp in ("sift", "fast")]
+        runs.append(
+            (
+                "bayes fast+pf",
+                "fast",
+                None,
+                ShoreConfig(
+                    detector="bayes",
+                    tracker="particle",
+                    bayes=replace(BayesDetectorConfig(), keypoints="fast"),
+                ),
+            )
+        )
         if a.cascade is not None:
-            runs.append(("cascade", "sift", a.cascade, "sort"))
-        for name, kp, model, tracker in runs:
-            fps = chain_fps(frames, kp, model, tracker)
-            print(f"{size[0]}x{size[1]:<8} {name:>16} {fps:>14.1f} {fps / PAPER_FPS:>8.2f}x")
+            runs.append(("cascade", "sift", a.cascade, None))
+        cnn_cfg = ShoreConfig(detector="cnn", cnn_model=cnn, tracker="sort")
+        runs.append((cnn_name, "sift", None, cnn_cfg))
+        runs.append((f"{cnn_name} +refl", "sift", None, replace(cnn_cfg, reflection_filter=True)))
+        for name, kp, model, cfg in runs:
+            fps, stages = chain_fps(frames, kp, model, cfg)
+            ms = " ".join(f"{k} {v:.2f}" for k, v in stages.items())
+            print(
+                f"{size[0]}x{size[1]:<8} {name:>16} {fps:>14.1f} {fps / PAPER_FPS:>8.2f}x"
+                f"   ms/frame: {ms}"
+            )
         ms = tracking_ms(frames, size)
         print(
             f"{size[0]}x{size[1]:<8} tracking alone, 5 boats: "

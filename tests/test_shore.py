@@ -224,7 +224,8 @@ def test_shore_command_writes_mot_files(tmp_path):
         cv2.rectangle(img, (30 + 5 * k, 50), (70 + 5 * k, 65), (5, 5, 5), -1)
         cv2.imwrite(str(frames / f"f_{k:03d}.png"), img)
     out = tmp_path / "out"
-    res = CliRunner().invoke(app, ["shore", str(frames), "--out", str(out), "--no-progress"])
+    args = ["shore", str(frames), "--out", str(out), "--no-progress", "--detector", "bayes"]
+    res = CliRunner().invoke(app, args)
     assert res.exit_code == 0, res.output
     det, trk = read_mot(out / "detections.txt"), read_mot(out / "tracks.txt")
     assert len(det) == 6 and np.all(det[:, 1] == -1) and det[:, 0].tolist() == [1, 2, 3, 4, 5, 6]

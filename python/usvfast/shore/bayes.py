@@ -25,6 +25,7 @@ from usvfast.shore.daynight import DayNightClassifier, FrameClass
 
 KeypointDetector = Literal["sift", "star", "orb", "fast"]
 Grouping = Literal["extent", "clusters"]
+ThresholdMode = Literal["paper", "otsu"]
 
 
 def make_keypoint_detector(kind: KeypointDetector, max_keypoints: int = 500) -> cv2.Feature2D:
@@ -53,7 +54,10 @@ class BayesDetectorConfig:
     this give no detection; border_px: keypoints this close to the image border are ignored
     (the threshold's frame edge); grouping: 'extent' (the paper: one box around all
     keypoints, one vessel per frame) or 'clusters' (ours, for several vessels: keypoints
-    grouped by single linkage within cluster_px, one box per group of min_keypoints or more).
+    grouped by single linkage within cluster_px, one box per group of min_keypoints or more);
+    threshold_mode: 'paper' (the fixed `thresholds` of eq. 4) or 'otsu' (data-driven, per
+    frame: Otsu's level that best splits the grey histogram in two, for footage on which the
+    fixed levels find nothing).
     """
 
     thresholds: dict[str, float] = field(default_factory=lambda: {"eo": 23.0, "ir": 203.0})
@@ -64,7 +68,14 @@ class BayesDetectorConfig:
     min_keypoints: int = 3
     border_px: int = 4
     grouping: Grouping = "extent"
+    threshold_mode: ThresholdMode = "paper"
     cluster_px: float = 15.0
+
+    def __post_init__(self) -> None:
+        if self.threshold_mode not in ("paper", "otsu"):
+            raise ValueError(
+                f"threshold_mode: expected 'paper' or 'otsu', got {self.threshold_mode!r}"
+            )
 
 
 class BayesDetector:
@@ -96,7 +107,11 @@ class BayesDetector:
         cfg = self.config
         gray = cv2.cvtColor(image, cv2.COLOR_BGR2GRAY) if image.ndim == 3 else image
         # s = max_value if r > threshold else 0  (eq. 4)
-        _, b = cv2.threshold(gray, cfg.thresholds[frame_class], cfg.max_value, cv2.THRESH_BINARY)
+        if cfg.threshold_mode == "otsu":
+            _, b = cv2.threshold(gray, 0, cfg.max_value, cv2.THRESH_BINARY | cv2.THRESH_OTSU)
+        else:
+            level = cfg.thresholds[frame_class]
+            _, b = cv2.threshold(gray, level, cfg.max_value, cv2.THRESH_BINARY)
         # erode(f, g) = θ(f * g, S), dilate(f, g) = θ(f * g, 1) with g the 3×3 window (eq. 8)
         b = cv2.erode(b, self.kernel, iterations=cfg.morph_iterations)
         return cv2.dilate(b, self.kernel, iterations=cfg.morph_iterations)

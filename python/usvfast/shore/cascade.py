@@ -35,8 +35,9 @@ class CascadeConfig:
     min_hit_rate, max_false_alarm, max_weak, max_stages, negatives_per_stage, feature_step,
     target_false_alarm: as `HaarCascade.train`. initial_stages: stages trained on the random
     pool before hard-negative mining. pool_size: negative windows cut from the boat-free
-    regions; seed: their random draw. wake_stage: train the final stage on water
-    false positives. scale_factor, step_px, min_neighbors, group_iou: detection."""
+    regions; seed: their random draw. augment_copies: jittered copies of each boat (more
+    positives, `positives`). wake_stage: train the final stage on water false positives.
+    scale_factor, step_px, min_neighbors, group_iou: detection."""
 
     median_kernel: int = 3
     min_hit_rate: float = 0.995
@@ -50,6 +51,7 @@ class CascadeConfig:
     pool_size: int = 20000
     seed: int = 0
     wake_stage: bool = True
+    augment_copies: int = 0
     scale_factor: float = 1.15
     step_px: int = 2
     min_neighbors: int = 3
@@ -74,7 +76,10 @@ def crop_window(gray: np.ndarray, box: np.ndarray) -> np.ndarray | None:
 
 
 def positives(frames: Sequence[AnnotatedFrame], cfg: CascadeConfig) -> np.ndarray:
-    """(p, 30, 60) uint8 windows of every annotated boat and of its mirror image."""
+    """(p, 30, 60) uint8 windows of every annotated boat and of its mirror image, and
+    `augment_copies` more per boat: the box shifted (± 8 % of its size), rescaled (± 10 %)
+    and the window's contrast and brightness jittered (× 0.7–1.3, ± 25 levels), seeded."""
+    rng = np.random.default_rng([cfg.seed, 1])
     out = []
     for f in frames:
         gray = preprocess(read_image(f.path, cv2.IMREAD_COLOR), cfg)
@@ -82,6 +87,17 @@ def positives(frames: Sequence[AnnotatedFrame], cfg: CascadeConfig) -> np.ndarra
             win = crop_window(gray, b)
             if win is not None:
                 out += [win, win[:, ::-1]]
+            for _ in range(cfg.augment_copies):
+                s = rng.uniform(0.9, 1.1)
+                w, h = b[2] * s, b[3] * s
+                x = b[0] + b[2] / 2 - w / 2 + rng.uniform(-0.08, 0.08) * b[2]
+                y = b[1] + b[3] / 2 - h / 2 + rng.uniform(-0.08, 0.08) * b[3]
+                jit = crop_window(gray, np.array([x, y, w, h]))
+                if jit is None:
+                    continue
+                v = (jit.astype(float) - 127.5) * rng.uniform(0.7, 1.3) + 127.5
+                jit = np.clip(v + rng.uniform(-25, 25), 0, 255).astype(np.uint8)
+                out.append(jit[:, ::-1] if rng.random() < 0.5 else jit)
     return np.ascontiguousarray(np.array(out, dtype=np.uint8).reshape(-1, WINDOW[1], WINDOW[0]))
 
 

@@ -19,9 +19,25 @@ def shore_command(
         Path, typer.Argument(metavar="INPUT", help="A video file or a folder of frames")
     ],
     out: Annotated[Path, typer.Option("--out", help="Output folder")],
-    detector: Annotated[str, typer.Option(help=f"Detector: {', '.join(DETECTORS)}")] = "bayes",
+    detector: Annotated[
+        str,
+        typer.Option(
+            help=f"Detector: {', '.join(DETECTORS)} (auto: the CNN when a model is trained, "
+            "else bayes)"
+        ),
+    ] = "auto",
     model: Annotated[
-        Path | None, typer.Option(help="Cascade XML for --detector cascade (shore-train)")
+        Path | None,
+        typer.Option(
+            help="Cascade XML (--detector cascade) or CNN .onnx/.pt (--detector cnn; default "
+            "the model shore-train wrote, or $USVFAST_SHORE_MODEL)"
+        ),
+    ] = None,
+    reflection_filter: Annotated[
+        bool, typer.Option(help="Drop boxes with few ORB keypoints (reflections)")
+    ] = False,
+    wake_model: Annotated[
+        Path | None, typer.Option(help="Wake-filter stage XML (shore-train --wake-filter)")
     ] = None,
     tracker: Annotated[str, typer.Option(help=f"Tracker: {', '.join(TRACKERS)}")] = "sort",
     horizon_filter: Annotated[
@@ -38,7 +54,10 @@ def shore_command(
             detector=detector,  # pyright: ignore[reportArgumentType]  # (ShoreConfig checks it)
             tracker=tracker,  # pyright: ignore[reportArgumentType]
             horizon_filter=horizon_filter,
-            cascade_model=model,
+            cascade_model=model if detector == "cascade" else None,
+            cnn_model=model if detector in ("cnn", "auto") else None,
+            reflection_filter=reflection_filter,
+            wake_model=wake_model,
         )
         s = run_shore(
             input_path, out, config, video=video, progress=progress, max_frames=max_frames
@@ -62,20 +81,64 @@ def shore_train_command(
     annotations: Annotated[
         Path, typer.Argument(help="Folder of NAME_FRAME.png + NAME_FRAME.txt (boat X Y W H)")
     ],
-    out: Annotated[Path, typer.Option("--out", help="Cascade XML file to write")],
-    max_stages: Annotated[int, typer.Option(help="Most stages (the last on wakes)")] = 14,
-    seed: Annotated[int, typer.Option(help="Seed of the negative windows")] = 0,
+    out: Annotated[
+        Path | None,
+        typer.Option(
+            "--out",
+            help="Cascade: the XML file to write. CNN: the model folder (default: the user "
+            "model folder `usvfast shore` looks in)",
+        ),
+    ] = None,
+    detector: Annotated[
+        str | None,
+        typer.Option(help="What to train: cnn or cascade (default: cascade for --out *.xml)"),
+    ] = None,
+    max_stages: Annotated[int, typer.Option(help="Cascade: most stages (the last on wakes)")] = 14,
+    steps: Annotated[int, typer.Option(help="CNN: training steps")] = 900,
+    wake_filter: Annotated[
+        bool, typer.Option(help="CNN: also train the wake-filter stage (wake-filter.xml)")
+    ] = False,
+    seed: Annotated[int, typer.Option(help="Seed of the training draws")] = 0,
 ) -> None:
-    """Train the Haar boat cascade (60 × 30 window) on annotated frames; write OpenCV XML
-    (loadable by `cv2.CascadeClassifier` and by `usvfast shore --detector cascade`)."""
+    """Train a boat detector on annotated frames: the CNN (HarbourNet, ONNX + TorchScript +
+    model card, found by `usvfast shore` by default) or the Haar cascade (60 × 30 window,
+    OpenCV XML loadable by `cv2.CascadeClassifier` and `usvfast shore --detector cascade`)."""
+    console = Console()
+    if detector is None:
+        detector = "cascade" if out is not None and out.suffix == ".xml" else "cnn"
     try:
+        if detector == "cnn":
+            from usvfast.shore.cnn import CnnDetector, user_model_dir
+            from usvfast.shore.cnn_train import CnnTrainConfig, train_and_export
+            from usvfast.shore.filters import WakeFilter
+
+            folder = out or user_model_dir()
+            card = train_and_export(
+                annotations, folder, CnnTrainConfig(seed=seed, steps=steps), log=console.print
+            )
+            console.print(
+                f"CNN trained on {', '.join(card['videos'])} in {card['train_seconds']:.1f} s; "
+                f"wrote {folder}"
+            )
+            if wake_filter:
+                frames = [f for v in load_mardct(annotations).values() for f in v]
+                det = CnnDetector(Path(folder) / "shore-cnn.onnx")
+                WakeFilter.train(frames, det.detect, seed=seed).save(
+                    Path(folder) / "wake-filter.xml"
+                )
+                console.print(f"wrote {Path(folder) / 'wake-filter.xml'}")
+            return
+        if detector != "cascade":
+            raise ValueError(f"detector: expected 'cnn' or 'cascade', got {detector!r}")
+        if out is None:
+            raise ValueError("out: the cascade needs --out FILE.xml")
         frames = [f for v in load_mardct(annotations).values() for f in v]
         t0 = time.perf_counter()
-        detector, report = train_detector(frames, CascadeConfig(max_stages=max_stages, seed=seed))
+        cascade, report = train_detector(frames, CascadeConfig(max_stages=max_stages, seed=seed))
     except ValueError as exc:
         raise typer.BadParameter(str(exc)) from exc
-    save_cascade(detector, out)
-    Console().print(
+    save_cascade(cascade, out)
+    console.print(
         f"{len(report['stages'])} stages from {report['positives']} positive windows in "
         f"{time.perf_counter() - t0:.1f} s; wrote {out}"
     )

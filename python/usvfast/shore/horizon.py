@@ -36,6 +36,8 @@ class HorizonConfig:
     90 %). coast_edge_density: edge-pixel share in the band above the line from which the line
     is water–coast. drop_margin: a detection is dropped when its bottom lies more than this
     fraction of the image height above the line. max_candidates: Hough lines examined.
+    max_width: frames wider than this are searched at this width (px; 0: always full size)
+    and the line scaled back: the pixel parameters above hold at that working size.
     """
 
     canny_low: float = 50.0
@@ -50,6 +52,7 @@ class HorizonConfig:
     coast_edge_density: float = 0.04
     drop_margin: float = 0.05
     max_candidates: int = 40
+    max_width: int = 360
 
     def __post_init__(self) -> None:
         if self.median_kernel < 1 or self.median_kernel % 2 == 0:
@@ -139,6 +142,11 @@ def detect_horizon(
         raise TypeError(f"image: expected uint8, got {gray.dtype}")
     if infrared:
         gray = normalise_ir(gray)
+    scale = 1.0
+    if 0 < cfg.max_width < gray.shape[1]:
+        scale = cfg.max_width / gray.shape[1]
+        size = (cfg.max_width, max(1, round(gray.shape[0] * scale)))
+        gray = cv2.resize(gray, size, interpolation=cv2.INTER_LINEAR)
     smooth = cv2.medianBlur(gray, cfg.median_kernel) if cfg.median_kernel > 1 else gray
     edges = cv2.Canny(smooth, cfg.canny_low, cfg.canny_high)
     h, w = gray.shape
@@ -165,7 +173,7 @@ def detect_horizon(
     rho, theta, share = best
     density = _edge_density_above(edges, (rho, theta), band=max(8, h // 6))
     kind: HorizonKind = "water-coast" if density > cfg.coast_edge_density else "water-sky"
-    return HorizonLine(rho, theta, kind, share, density)
+    return HorizonLine(rho / scale, theta, kind, share, density)
 
 
 def horizon_keep(

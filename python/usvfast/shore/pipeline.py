@@ -25,6 +25,7 @@ from usvfast.shore.bayes import BayesDetector, BayesDetectorConfig
 from usvfast.shore.boxes import Detections
 from usvfast.shore.cascade import CascadeConfig, CascadeDetector
 from usvfast.shore.daynight import DayNightClassifier
+from usvfast.shore.filters import ReflectionFilter, WakeFilter
 from usvfast.shore.frames import FrameSource
 from usvfast.shore.horizon import HorizonConfig, HorizonLine, detect_horizon, horizon_keep
 from usvfast.shore.mot import mot_rows, write_mot
@@ -32,9 +33,9 @@ from usvfast.shore.particle import ParticleConfig, ParticleTracker
 from usvfast.shore.pixel_kalman import AdaptiveConfig, AdaptiveTracker
 from usvfast.shore.sort import SortConfig, SortTracker
 
-DetectorName = Literal["bayes", "cascade"]
+DetectorName = Literal["auto", "bayes", "cascade", "cnn"]
 TrackerName = Literal["sort", "adaptive", "particle"]
-DETECTORS: tuple[str, ...] = ("bayes", "cascade")
+DETECTORS: tuple[str, ...] = ("auto", "bayes", "cascade", "cnn")
 TRACKERS: tuple[str, ...] = ("sort", "adaptive", "particle")
 
 
@@ -42,16 +43,22 @@ TRACKERS: tuple[str, ...] = ("sort", "adaptive", "particle")
 class ShoreConfig:
     """The chain: `detector` ('bayes': Kim, Chung and Lee's threshold + keypoints; 'cascade':
     Bloisi et al.'s Haar cascade, from the OpenCV XML file `cascade_model` that
-    `usvfast shore-train` writes), `tracker`
+    `usvfast shore-train` writes; 'cnn': a YOLO-layout network, `cnn_model` an ONNX or
+    TorchScript file, default :func:`usvfast.shore.cnn.default_model`; 'auto': 'cnn' when a
+    CNN model is available, else 'bayes'), `reflection_filter` (drop boxes with few ORB
+    keypoints), `wake_model` (a one-stage cascade XML from `WakeFilter`, drops wakes), `tracker`
     ('sort': Kalman + IoU assignment + colour re-identification; 'adaptive': the same paper's
     single-vessel adaptive Kalman tracker; 'particle': Bloisi et al.'s two-tier particle
     filter), `horizon_filter` (drop detections well above the
     horizon line) and the parameters of each part."""
 
-    detector: DetectorName = "bayes"
+    detector: DetectorName = "auto"
     tracker: TrackerName = "sort"
     horizon_filter: bool = True
     cascade_model: Path | None = None
+    cnn_model: Path | None = None
+    reflection_filter: bool = False
+    wake_model: Path | None = None
     horizon: HorizonConfig = field(default_factory=HorizonConfig)
     bayes: BayesDetectorConfig = field(default_factory=BayesDetectorConfig)
     sort: SortConfig = field(default_factory=SortConfig)
@@ -64,6 +71,19 @@ class ShoreConfig:
             raise ValueError(f"detector: expected one of {DETECTORS}, got {self.detector!r}")
         if self.tracker not in TRACKERS:
             raise ValueError(f"tracker: expected one of {TRACKERS}, got {self.tracker!r}")
+        if self.detector in ("auto", "cnn") and self.cnn_model is None:
+            from usvfast.shore.cnn import default_model
+
+            self.cnn_model = default_model()
+            if self.detector == "auto":
+                self.detector = "cnn" if self.cnn_model is not None else "bayes"
+            elif self.cnn_model is None:
+                raise ValueError(
+                    "cnn_model: no CNN model given and none trained "
+                    "(usvfast shore-train --detector cnn ANNOTATIONS --out MODEL_DIR)"
+                )
+        elif self.detector == "auto":
+            self.detector = "cnn"
         if self.detector == "cascade" and self.cascade_model is None:
             raise ValueError(
                 "cascade_model: the cascade detector needs a model (usvfast shore-train)"
@@ -100,6 +120,19 @@ class ShoreChain:
                 raise ValueError(f"cascade_model: {path} is not a file")
             text = path.read_text(encoding="utf-8")
             self.cascade = CascadeDetector(HaarCascade.from_opencv_xml(text), cfg.cascade)
+        self.cnn = None
+        if cfg.detector == "cnn":
+            from usvfast.shore.cnn import CnnDetector
+
+            self.cnn = CnnDetector(cfg.cnn_model)
+        self.reflection = ReflectionFilter() if cfg.reflection_filter else None
+        self.wake = None
+        if cfg.wake_model is not None:
+            path = Path(cfg.wake_model)
+            if not path.is_file():
+                raise ValueError(f"wake_model: {path} is not a file")
+            stage = HaarCascade.from_opencv_xml(path.read_text(encoding="utf-8"))
+            self.wake = WakeFilter(stage, cfg.cascade)
         self.tracker: SortTracker | AdaptiveTracker | ParticleTracker = (
             SortTracker(cfg.sort) if cfg.tracker == "sort" else AdaptiveTracker(cfg.adaptive)
         )
@@ -115,12 +148,19 @@ class ShoreChain:
             )
         cfg = self.config
         t0 = time.perf_counter()
-        if self.cascade is None:
+        if self.cnn is not None:
+            raw = self.cnn.detect(image)
+            frame_class = self.classifier.classify(image)
+        elif self.cascade is None:
             raw = self.detector.detect(image)
             frame_class = self.detector.last_class
         else:
             raw = self.cascade.detect(image)
             frame_class = self.classifier.classify(image)
+        if self.reflection is not None and len(raw):
+            raw = raw.subset(self.reflection.keep(image, raw))
+        if self.wake is not None and len(raw):
+            raw = raw.subset(self.wake.keep(image, raw))
         t1 = time.perf_counter()
         horizon = detect_horizon(image, infrared=frame_class == "ir", config=cfg.horizon)
         kept = raw

@@ -1,0 +1,327 @@
+"""Leave-one-video-out detection scores of every shore detector on the MarDCT annotated
+frames, in the layout of Bloisi et al.'s Tables I–II (per video: horizon filter NO/YES, TPR,
+FAR, real and detection size).
+
+    python -m usvfast.shore.evaluate_det [--data DIR] [--detectors bayes cnn cascade]
+        [--models DIR] [--steps N] [--json OUT.json]
+
+For each video, every trained part is fitted on the three other videos only:
+
+* bayes (Kim, Chung and Lee): the paper's fixed 23/203 thresholds with one box from the
+  keypoints' extent; the data-driven Otsu threshold per frame (one box per keypoint cluster);
+  the EO threshold fitted on the three other videos (grid value of best F1, horizon on).
+* cnn: HarbourNet trained by :mod:`usvfast.shore.cnn_train` on the three other videos
+  (cached as `shore-cnn-without-VIDEO.onnx` in `--models`, trained when absent); scored at
+  its card's confidence threshold, then with the reflection filter (ORB keypoints), the wake
+  filter (a boosted stage trained on the three other videos) and both.
+* cascade: the Haar cascade of :mod:`usvfast.shore.cascade` trained on the three other
+  videos with 4 jittered copies of every boat as extra positives (slow: minutes per video),
+  with and without the reflection filter.
+
+Scores (eqs. 4–5 of Bloisi et al.): TPR = TP/(TP+FN), FAR = FP/(TP+FP), one-to-one matching
+at IoU ≥ 0.5 per frame.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+from rich.console import Console
+from rich.table import Table
+
+from usvfast.shore.bayes import BayesDetector, BayesDetectorConfig
+from usvfast.shore.boxes import Detections
+from usvfast.shore.daynight import DayNightClassifier
+from usvfast.shore.filters import ReflectionFilter, WakeFilter
+from usvfast.shore.horizon import HorizonConfig, HorizonLine, detect_horizon, horizon_keep
+from usvfast.shore.mardct import AnnotatedFrame, load_mardct
+from usvfast.shore.scores import DetectionCounts
+
+#: CNN confidence thresholds also scored (horizon on, no filter) beside the card's own.
+CNN_SWEEP: tuple[float, ...] = (0.2, 0.3, 0.4)
+
+#: EO thresholds tried when fitting the Bayes detector's level on the training videos.
+THRESHOLD_GRID: tuple[float, ...] = (40, 60, 80, 100, 120, 140, 160, 180, 200, 220)
+
+
+@dataclass
+class VideoFrames:
+    """The frames of one video in memory with their horizons (None: no valid line)."""
+
+    frames: list[AnnotatedFrame]
+    images: list[np.ndarray]
+    horizons: list[HorizonLine | None]
+
+
+def load_video(frames: Sequence[AnnotatedFrame], hcfg: HorizonConfig) -> VideoFrames:
+    """Read a video's frames and find each frame's horizon (IR frames normalised first)."""
+    classifier = DayNightClassifier.default()
+    images, horizons = [], []
+    for f in frames:
+        image = cv2.imread(str(f.path), cv2.IMREAD_COLOR)
+        if image is None:
+            raise ValueError(f"data: cannot read {f.path}")
+        images.append(image)
+        ir = classifier.classify(image) == "ir"
+        horizons.append(detect_horizon(image, infrared=ir, config=hcfg))
+    return VideoFrames(list(frames), images, horizons)
+
+
+def score(
+    video: VideoFrames,
+    dets: Sequence[Detections],
+    hcfg: HorizonConfig,
+    use_horizon: bool,
+    extra: Callable[[np.ndarray, Detections], np.ndarray] | None = None,
+) -> dict:
+    """TPR, FAR, TP, FP, FN of per-frame detections after the horizon filter (when
+    `use_horizon`) and an extra filter `extra(image, detections) -> keep mask`."""
+    c = DetectionCounts()
+    for f, im, hz, d in zip(video.frames, video.images, video.horizons, dets, strict=True):
+        if use_horizon:
+            d = d.subset(horizon_keep(d, hz, im.shape[0], hcfg))
+        if extra is not None and len(d):
+            d = d.subset(extra(im, d))
+        c.add(f.boxes, d.boxes)
+    return {"tpr": c.tpr, "far": c.far, "tp": c.tp, "fp": c.fp, "fn": c.fn}
+
+
+def f1(s: dict) -> float:
+    """2 TP / (2 TP + FP + FN) (0 without any box)."""
+    n = 2 * s["tp"] + s["fp"] + s["fn"]
+    return 2 * s["tp"] / n if n else 0.0
+
+
+def both_horizons(video, dets, hcfg, extra=None, label: str = "") -> list[dict]:
+    """Rows with the horizon filter off and on."""
+    return [
+        {"horizon": h, "filters": label, **score(video, dets, hcfg, h, extra)}
+        for h in (False, True)
+    ]
+
+
+def bayes_rows(
+    videos: dict[str, VideoFrames], held: str, hcfg: HorizonConfig, cache: dict
+) -> list[dict]:
+    """The Bayes detector's rows for held-out video `held` (paper, Otsu, fitted level)."""
+    settings = {
+        "bayes 23/203 extent (paper)": BayesDetectorConfig(),
+        "bayes Otsu clusters": BayesDetectorConfig(threshold_mode="otsu", grouping="clusters"),
+    }
+    for thr in THRESHOLD_GRID:
+        settings[f"t{thr:g}"] = BayesDetectorConfig(
+            thresholds={"eo": float(thr), "ir": 203.0}, grouping="clusters"
+        )
+    for name, cfg in settings.items():
+        if name not in cache:
+            det = BayesDetector(cfg)
+            cache[name] = {v: [det.detect(im) for im in vf.images] for v, vf in videos.items()}
+    train = [v for v in videos if v != held]
+
+    def train_f1(thr: float) -> float:
+        tot = {"tp": 0, "fp": 0, "fn": 0}
+        for v in train:
+            s = score(videos[v], cache[f"t{thr:g}"][v], hcfg, True)
+            tot = {k: tot[k] + s[k] for k in tot}
+        return f1(tot)
+
+    best = max(THRESHOLD_GRID, key=lambda t: (train_f1(t), -t))
+    rows = []
+    for name in ("bayes 23/203 extent (paper)", "bayes Otsu clusters"):
+        rows += [
+            {"detector": name, **r} for r in both_horizons(videos[held], cache[name][held], hcfg)
+        ]
+    fitted = f"bayes {best:g} clusters (fitted)"
+    rows += [
+        {"detector": fitted, **r}
+        for r in both_horizons(videos[held], cache[f"t{best:g}"][held], hcfg)
+    ]
+    return rows
+
+
+def cnn_model(data: Path, held: str, models: Path, steps: int | None, log) -> Path:
+    """The ONNX model trained without `held` (trained and saved when absent)."""
+    from usvfast.shore.cnn_train import CnnTrainConfig, train_and_export
+
+    name = f"shore-cnn-without-{held}"
+    path = models / f"{name}.onnx"
+    if not path.is_file():
+        cfg = CnnTrainConfig() if steps is None else CnnTrainConfig(steps=steps)
+        train_and_export(data, models, cfg, exclude=[held], name=name, log=log)
+    return path
+
+
+def cnn_rows(
+    data: Path,
+    videos: dict[str, VideoFrames],
+    mardct: dict[str, list[AnnotatedFrame]],
+    held: str,
+    hcfg: HorizonConfig,
+    models: Path,
+    steps: int | None,
+    log,
+) -> tuple[list[dict], dict]:
+    """The CNN's rows for held-out video `held`, with and without the filters."""
+    from usvfast.shore.cnn import CnnDetector
+
+    path = cnn_model(data, held, models, steps, log)
+    card = json.loads(path.with_suffix(".json").read_text(encoding="utf-8"))
+    conf = float(card.get("conf_threshold", 0.3))
+    low = CnnDetector(path, conf_threshold=min(CNN_SWEEP))
+    swept = [low.detect(im) for im in videos[held].images]
+    det = CnnDetector(path)
+    dets = [d.subset(d.scores >= conf) for d in swept]
+    train_frames = [f for v in mardct if v != held for f in mardct[v]]
+    t0 = time.perf_counter()
+    wake = WakeFilter.train(train_frames, det.detect)
+    wake_s = time.perf_counter() - t0
+    refl = ReflectionFilter()
+
+    def both(image, d):
+        return refl.keep(image, d) & wake.keep(image, d)
+
+    rows = []
+    for label, extra in (
+        ("", None),
+        ("reflection", refl.keep),
+        ("wake", wake.keep),
+        ("reflection+wake", both),
+    ):
+        rows += [
+            {"detector": f"cnn (confidence {conf:g})", **r}
+            for r in both_horizons(videos[held], dets, hcfg, extra, label)
+        ]
+    for c in CNN_SWEEP:
+        if c != conf:
+            sub = [d.subset(d.scores >= c) for d in swept]
+            rows.append(
+                {
+                    "detector": f"cnn (confidence {c:g})",
+                    "horizon": True,
+                    "filters": "",
+                    **score(videos[held], sub, hcfg, True),
+                }
+            )
+    info = {"cnn_train_s": card.get("train_seconds"), "wake_train_s": round(wake_s, 1)}
+    return rows, info
+
+
+def cascade_rows(
+    videos: dict[str, VideoFrames],
+    mardct: dict[str, list[AnnotatedFrame]],
+    held: str,
+    hcfg: HorizonConfig,
+    augment: int = 4,
+) -> tuple[list[dict], dict]:
+    """The Haar cascade's rows for held-out video `held` (trained on the other videos)."""
+    from usvfast.shore.cascade import CascadeConfig, train_detector
+
+    t0 = time.perf_counter()
+    train_frames = [f for v in mardct if v != held for f in mardct[v]]
+    detector, report = train_detector(train_frames, CascadeConfig(augment_copies=augment))
+    seconds = time.perf_counter() - t0
+    dets = [detector.detect(im) for im in videos[held].images]
+    refl = ReflectionFilter()
+    name = f"cascade (+{augment} jittered copies per boat)"
+    rows = [{"detector": name, **r} for r in both_horizons(videos[held], dets, hcfg)]
+    rows += [
+        {"detector": name, **r}
+        for r in both_horizons(videos[held], dets, hcfg, refl.keep, "reflection")
+    ]
+    return rows, {"cascade_train_s": round(seconds, 1), "cascade_stages": len(report["stages"])}
+
+
+def evaluate(
+    data: Path,
+    detectors: Sequence[str] = ("bayes", "cnn"),
+    models: Path | None = None,
+    steps: int | None = None,
+    held_out: Sequence[str] | None = None,
+    log=print,
+) -> dict:
+    """Leave-one-video-out rows per video (module doc); a JSON-ready dict."""
+    mardct = load_mardct(data)
+    hcfg = HorizonConfig()
+    videos = {v: load_video(f, hcfg) for v, f in mardct.items()}
+    models = models or Path("shore-models")
+    out: dict = {}
+    cache: dict = {}
+    for held in held_out or list(mardct):
+        vf = videos[held]
+        h, w = vf.images[0].shape[:2]
+        entry: dict = {
+            "frames": len(vf.frames),
+            "boxes": int(sum(len(f.boxes) for f in vf.frames)),
+            "size": [w, h],
+            "rows": [],
+        }
+        if "bayes" in detectors:
+            entry["rows"] += bayes_rows(videos, held, hcfg, cache)
+        if "cnn" in detectors:
+            rows, info = cnn_rows(data, videos, mardct, held, hcfg, models, steps, log)
+            entry["rows"] += rows
+            entry.update(info)
+        if "cascade" in detectors:
+            rows, info = cascade_rows(videos, mardct, held, hcfg)
+            entry["rows"] += rows
+            entry.update(info)
+        out[held] = entry
+        log(f"{held}: done")
+    return out
+
+
+def print_tables(results: dict, console: Console | None = None) -> None:
+    """Tables I–II layout: video, detector, filters, horizon, TPR, FAR, counts, size."""
+    console = console or Console(width=140)
+    t = Table(title="Detection, MarDCT leave one video out (IoU ≥ 0.5)")
+    for col in ("video", "detector", "filters", "horizon", "TPR", "FAR", "TP", "FP", "FN", "size"):
+        t.add_column(col)
+    for v, e in results.items():
+        for r in e["rows"]:
+            t.add_row(
+                v,
+                r["detector"],
+                r["filters"] or "-",
+                "YES" if r["horizon"] else "NO",
+                f"{r['tpr']:.3f}",
+                f"{r['far']:.3f}",
+                str(r["tp"]),
+                str(r["fp"]),
+                str(r["fn"]),
+                f"{e['size'][0]}×{e['size'][1]}",
+            )
+    console.print(t)
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    """Command-line entry point (module doc)."""
+    from usvfast.shore.evaluate import default_data
+
+    p = argparse.ArgumentParser(
+        prog="python -m usvfast.shore.evaluate_det", description=(__doc__ or "").split("\n")[0]
+    )
+    p.add_argument("--data", type=Path, default=None, help="MarDCT training/annotations folder")
+    p.add_argument("--detectors", nargs="*", default=["bayes", "cnn"])
+    p.add_argument("--models", type=Path, default=Path("shore-models"), help="CNN model cache")
+    p.add_argument("--steps", type=int, default=None, help="CNN training steps")
+    p.add_argument("--videos", nargs="*", default=None, help="Score only these videos")
+    p.add_argument("--json", type=Path, default=None, help="Write the results as JSON here")
+    a = p.parse_args(argv)
+    unknown = set(a.detectors) - {"bayes", "cnn", "cascade"}
+    if unknown:
+        p.error(f"--detectors: unknown {sorted(unknown)}")
+    results = evaluate(a.data or default_data(), a.detectors, a.models, a.steps, a.videos)
+    print_tables(results)
+    if a.json:
+        a.json.write_text(json.dumps(results, indent=2, default=float), encoding="utf-8")
+
+
+if __name__ == "__main__":
+    main()
