@@ -48,7 +48,7 @@ class ReflectionFilter:
         """(k,) ORB keypoints whose centres lie inside each box of a BGR or grey frame."""
         gray = cv2.cvtColor(image, cv2.COLOR_BGR2GRAY) if image.ndim == 3 else image
         h, w = gray.shape
-        orb = cv2.ORB_create(
+        orb = cv2.ORB_create(  # pyright: ignore[reportAttributeAccessIssue]  # (not in the contrib stubs)
             nfeatures=self.max_keypoints,
             edgeThreshold=8,
             patchSize=15,
