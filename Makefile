@@ -30,7 +30,7 @@ dev: $(VENV)/bin/maturin ## Create .venv, build the Rust extension (release) and
 torch: dev ## Install the CPU-usable torch for the YOLO tests and benches (the `yolo` extra)
 	bash .ci/install-torch.sh $(VENV)/bin/python
 
-lint: dev ## cargo fmt/clippy, ruff check/format, pyright (static types of python/usvfast)
+lint: dev torch ## cargo fmt/clippy, ruff check/format, pyright (static types of python/usvfast; it reads torch)
 	cargo fmt --check
 	cargo clippy --all-targets -- -D warnings
 	cargo clippy --all-targets --features python -- -D warnings
