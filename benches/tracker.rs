@@ -5,10 +5,10 @@
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
 use nalgebra::{DMatrix, DVector};
 use std::hint::black_box;
-use usvfast_core::jpda::Method;
 use usvfast_core::models::MotionModel;
-use usvfast_core::track::Deleter;
-use usvfast_core::tracker::{
+use usvfast_core::tracking::jpda::Method;
+use usvfast_core::tracking::track::Deleter;
+use usvfast_core::tracking::tracker::{
     Association, Confirmation, GnnParams, InitiatorConfig, JpdaParams, Measure, OutOfOrder, Sensor,
     Tracker, TrackerConfig,
 };

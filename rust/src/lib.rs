@@ -18,10 +18,6 @@ pub mod models;
 pub mod nms;
 pub mod particle;
 pub mod tracking;
-// The tracking modules under their earlier top-level paths.
-pub use tracking::config as tracker_config;
-pub use tracking::run as tracker_run;
-pub use tracking::{assign, gating, hypothesise, imm, jpda, polar, track, tracker};
 
 #[cfg(feature = "python")]
 pub mod py;

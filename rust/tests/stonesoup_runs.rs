@@ -5,10 +5,10 @@
 
 use nalgebra::{DMatrix, DVector};
 use serde::Deserialize;
-use usvfast_core::jpda::Method;
 use usvfast_core::models::MotionModel;
-use usvfast_core::track::Deleter;
-use usvfast_core::tracker::{
+use usvfast_core::tracking::jpda::Method;
+use usvfast_core::tracking::track::Deleter;
+use usvfast_core::tracking::tracker::{
     Association, Confirmation, GnnParams, InitiatorConfig, JpdaParams, Measure, OutOfOrder, Sensor,
     Tracker, TrackerConfig,
 };
@@ -127,7 +127,7 @@ fn config(run: &Run) -> TrackerConfig {
 }
 
 /// Our tracks of a run as `(born, died, track)`, ordered like the fixture's records.
-fn replay(run: &Run) -> Vec<(usize, Option<usize>, usvfast_core::track::Track)> {
+fn replay(run: &Run) -> Vec<(usize, Option<usize>, usvfast_core::tracking::track::Track)> {
     let mut tr = Tracker::new(config(run)).unwrap();
     let mut born = std::collections::BTreeMap::new();
     let mut died = std::collections::BTreeMap::new();
@@ -150,7 +150,7 @@ fn replay(run: &Run) -> Vec<(usize, Option<usize>, usvfast_core::track::Track)> 
         .chain(&tr.deleted)
         .map(|t| (born[&t.id], died.get(&t.id).copied(), t.clone()))
         .collect();
-    let key = |t: &usvfast_core::track::Track| {
+    let key = |t: &usvfast_core::tracking::track::Track| {
         let h = &t.history;
         (h.times[0], h.states[0], h.states[2])
     };

@@ -14,8 +14,8 @@ use super::kcluster::{kclusterize, Cluster, ClusterParams};
 use super::rng::Stream;
 use super::sir::{gather, propagate, sample_around, systematic_resample, weights};
 use super::DIM;
-use crate::assign::linear_sum_assignment;
 use crate::error::{Error, Result};
+use crate::tracking::assign::linear_sum_assignment;
 
 /// Parameters of [`ParticleTracker`] (units: px, px/frame, frames).
 #[derive(Debug, Clone, Copy, PartialEq)]

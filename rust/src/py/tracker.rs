@@ -5,12 +5,12 @@
 use super::kalman::motion_model_from_spec;
 use super::to_py_err;
 use crate::error::Error;
-use crate::gating::chi2_quantile;
-use crate::imm::{ImmConfig, Mode};
-use crate::jpda::{marginals, Method, TrackHypotheses};
-use crate::polar::{Polar, PolarUpdate};
-use crate::track::{Deleter, Track};
-use crate::tracker::{
+use crate::tracking::gating::chi2_quantile;
+use crate::tracking::imm::{ImmConfig, Mode};
+use crate::tracking::jpda::{marginals, Method, TrackHypotheses};
+use crate::tracking::polar::{Polar, PolarUpdate};
+use crate::tracking::track::{Deleter, Track};
+use crate::tracking::tracker::{
     Association, Confirmation, GnnParams, InitiatorConfig, JpdaParams, Measure, OutOfOrder, Sensor,
     Tracker, TrackerConfig,
 };
@@ -446,7 +446,7 @@ impl TrackerCore {
             max_deleted,
             existence: existence.map(
                 |(survival, initial, delete, vis_stay, invis_stay, confirm, birth)| {
-                    crate::tracker_config::Existence {
+                    crate::tracking::config::Existence {
                         survival,
                         initial,
                         delete,
@@ -490,7 +490,7 @@ impl TrackerCore {
             py.detach(|| inner.step_interruptible(t, z, &ids, covs, orig, &mut || signals.poll()));
         let r = signals.result(res)?;
         Ok((
-            r.outcome == crate::tracker::StepOutcome::Processed,
+            r.outcome == crate::tracking::tracker::StepOutcome::Processed,
             r.clusters,
             r.approximated_clusters,
             r.largest_cluster,
@@ -567,7 +567,7 @@ impl TrackerCore {
         }
         let n = self.inner.config().motion_model.ndim();
         let inner = &mut self.inner;
-        let input = crate::tracker_run::RunInput {
+        let input = crate::tracking::run::RunInput {
             times: t,
             z,
             sensor_ids: &ids,
@@ -698,7 +698,7 @@ impl TrackerCore {
         )?;
         // The newest history entry's association data, flattened over the tracks.
         let last = |t: &Track| t.history.len().saturating_sub(1);
-        let lasti = |f: fn(&crate::track::History) -> &Vec<i64>| -> Vec<i64> {
+        let lasti = |f: fn(&crate::tracking::track::History) -> &Vec<i64>| -> Vec<i64> {
             list.iter().map(|t| f(&t.history)[last(t)]).collect()
         };
         d.set_item("scan", arr_i(py, lasti(|h| &h.scan), &[k])?)?;
@@ -879,7 +879,7 @@ fn linear_sum_assignment<'py>(
     let (nr, nc) = (s[0], s[1]);
     let c = slice("cost", &cost)?;
     let sol = py
-        .detach(|| crate::assign::linear_sum_assignment(c, nr, nc))
+        .detach(|| crate::tracking::assign::linear_sum_assignment(c, nr, nc))
         .map_err(to_py_err)?;
     arr_i(py, sol.into_iter().map(|j| j as i64).collect(), &[nr])
 }

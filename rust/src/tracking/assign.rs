@@ -119,7 +119,7 @@ pub fn gnn_assign(
 ) -> Result<Vec<Option<usize>>> {
     let n = hyps.len();
     let mut out = vec![None; n];
-    let groups = crate::jpda::group_by_shared_detections(n, n_detections, |t| {
+    let groups = crate::tracking::jpda::group_by_shared_detections(n, n_detections, |t| {
         hyps[t].iter().map(|&(d, _)| d)
     });
     let mut local = vec![usize::MAX; n_detections];

@@ -1,11 +1,11 @@
 //! Configuration of the multi-target tracker: sensors, association (JPDA / GNN), initiator,
-//! deleters and policies, with their validation. See [`crate::tracker`] for the step.
+//! deleters and policies, with their validation. See [`crate::tracking::tracker`] for the step.
 
 use crate::error::{check_finite, Error, Result};
-use crate::jpda::Method;
 use crate::kalman::check_covariance;
 use crate::models::MotionModel;
-use crate::track::Deleter;
+use crate::tracking::jpda::Method;
+use crate::tracking::track::Deleter;
 use nalgebra::{DMatrix, DVector};
 
 /// A sensor's linear-Gaussian measurement model `z = H x + w`, `w ~ N(0, R)`.
@@ -24,7 +24,7 @@ pub struct Sensor {
     /// A range–bearing sensor: measurements `(φ, ρ)` (rad, m) of the mapped positions, `r` in
     /// rad², m²; `h` (and the initiation `H`) then only select the mapped positions. `None`:
     /// linear `z = H x + w`.
-    pub polar: Option<crate::polar::Polar>,
+    pub polar: Option<crate::tracking::polar::Polar>,
 }
 
 impl Sensor {
@@ -85,7 +85,7 @@ impl Sensor {
     /// with noise `r` (rad², m²; Stone Soup's `CartesianToBearingRange` with `noise_covar`)
     /// and the initiation noise `init_r` (default `r`).
     pub fn polar(
-        polar: crate::polar::Polar,
+        polar: crate::tracking::polar::Polar,
         r: DMatrix<f64>,
         init_r: Option<DMatrix<f64>>,
         ndim: usize,
@@ -98,7 +98,8 @@ impl Sensor {
                 format!("needs two distinct state indices < {ndim}, got ({i}, {j})"),
             ));
         }
-        if let crate::polar::PolarUpdate::Unscented { alpha, beta, kappa } = polar.update {
+        if let crate::tracking::polar::PolarUpdate::Unscented { alpha, beta, kappa } = polar.update
+        {
             if !(alpha > 0.0 && alpha.is_finite() && beta.is_finite())
                 || kappa.is_some_and(|k| !k.is_finite() || ndim as f64 + k <= 0.0)
             {
@@ -161,7 +162,7 @@ pub struct JpdaParams {
     /// Per-cluster budget of the exact method (EHM: edges of its net, i.e. single-track
     /// hypotheses summed over its levels, times the 64-bit words of a node key, one per 64
     /// detections of the cluster — its memory and work; brute force: joint hypotheses). A cluster past it gets belief-propagation marginals
-    /// ([`crate::jpda::marginals_lbp`]) and is counted in [`crate::tracker::StepReport`].
+    /// ([`crate::tracking::jpda::marginals_lbp`]) and is counted in [`crate::tracking::tracker::StepReport`].
     /// `None`: always exact (unbounded).
     pub max_hypotheses: Option<usize>,
 }
@@ -286,7 +287,7 @@ pub struct TrackerConfig {
     pub out_of_order: OutOfOrder,
     /// An IMM bank for the confirmed tracks (`None`: `motion_model` alone). Tentative tracks
     /// use the initiator's model; a confirmed track starts every mode at its state.
-    pub imm: Option<crate::imm::ImmConfig>,
+    pub imm: Option<crate::tracking::imm::ImmConfig>,
     /// Existence and visibility of confirmed tracks (JPDA only; `None`: not modelled).
     pub existence: Option<Existence>,
     /// Keep at most this many deleted tracks (the oldest are dropped; take them earlier with
@@ -315,7 +316,12 @@ impl TrackerConfig {
                 ));
             }
             let joseph = self.use_joseph_cov || self.initiator.use_joseph_cov;
-            if joseph && matches!(p.update, crate::polar::PolarUpdate::Unscented { .. }) {
+            if joseph
+                && matches!(
+                    p.update,
+                    crate::tracking::polar::PolarUpdate::Unscented { .. }
+                )
+            {
                 return Err(Error::param(
                     "use_joseph_cov",
                     format!(

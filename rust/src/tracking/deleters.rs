@@ -2,7 +2,7 @@
 //! `CovarianceBasedDeleter`, `CompositeDeleter`).
 
 use crate::error::{Error, Result};
-use crate::track::Track;
+use crate::tracking::track::Track;
 
 /// When a track is deleted.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]

@@ -8,7 +8,7 @@
 //! ones) in time linear in tracks + detections + candidates when gates are small.
 
 use crate::error::{Error, Result};
-use crate::jpda::FastMap;
+use crate::tracking::jpda::FastMap;
 
 /// `ln Γ(x)` for `x > 0` (Lanczos approximation, relative error < 1e-14).
 fn ln_gamma(x: f64) -> f64 {

@@ -2,11 +2,11 @@
 //! optimal assignment (`GNNWith2DAssignment`) and the Kalman update or prediction of each track.
 
 use super::hypothesise::*;
-use crate::assign::gnn_assign;
 use crate::error::Result;
 use crate::models::MotionModel;
-use crate::track::{Entry, Track};
-use crate::tracker_config::{GnnParams, Measure};
+use crate::tracking::assign::gnn_assign;
+use crate::tracking::config::{GnnParams, Measure};
+use crate::tracking::track::{Entry, Track};
 use nalgebra::{DefaultAllocator, Dim};
 
 /// Distance hypotheses + GNN + update/predict on `tracks` (confirmed or tentative) with the
@@ -25,7 +25,7 @@ pub(crate) fn gnn_step<N: Dim, M: Dim>(
     (n, m): (N, M),
     which: &[usize],
     scan: i64,
-    imm: Option<&crate::imm::ImmConfig>,
+    imm: Option<&crate::tracking::imm::ImmConfig>,
     mut ln_pdf: Option<&mut Vec<f64>>,
 ) -> Result<Vec<Option<usize>>>
 where

@@ -5,10 +5,10 @@
 pub(crate) use super::gnn::gnn_step;
 
 use crate::error::{Error, Result};
-use crate::gating::CandidateGrid;
 use crate::models::MotionModel;
-use crate::track::Track;
-use crate::tracker_config::Sensor;
+use crate::tracking::config::Sensor;
+use crate::tracking::gating::CandidateGrid;
+use crate::tracking::track::Track;
 use nalgebra::allocator::Allocator;
 use nalgebra::{Cholesky, DefaultAllocator, Dim, OMatrix, OVector, U1};
 
@@ -45,7 +45,7 @@ where
     pub h: OMatrix<f64, M, N>,
     pub r: OMatrix<f64, M, M>,
     /// A range–bearing sensor (its `h` then only selects the mapped positions).
-    pub polar: Option<crate::polar::Polar>,
+    pub polar: Option<crate::tracking::polar::Polar>,
 }
 
 /// The configured sensors converted to the kernel's dimensions (once per scan).
@@ -100,7 +100,7 @@ where
         let (m, _) = self.zhat.shape_generic();
         let mut y = OVector::<f64, M>::from_column_slice_generic(m, U1, z) - &self.zhat;
         if self.angle {
-            y[0] = crate::polar::wrap(y[0]);
+            y[0] = crate::tracking::polar::wrap(y[0]);
         }
         y
     }
@@ -566,11 +566,11 @@ where
 /// state with `imm.initial`), and the combined predictions `Σ c̄_j N(x_j⁻, P_j⁻)` used for
 /// gating and association.
 pub(crate) fn imm_predict_all<N: Dim>(
-    imm: &crate::imm::ImmConfig,
+    imm: &crate::tracking::imm::ImmConfig,
     tracks: &mut [Track],
     t: f64,
     n: N,
-) -> (Vec<crate::imm::ImmPrediction>, Vec<Pred<N>>)
+) -> (Vec<crate::tracking::imm::ImmPrediction>, Vec<Pred<N>>)
 where
     DefaultAllocator: Allocator<N, N> + Allocator<N>,
 {
@@ -579,9 +579,9 @@ where
     for tr in tracks.iter_mut() {
         let st = tr
             .imm
-            .get_or_insert_with(|| crate::imm::ImmState::new(&tr.x, &tr.p, &imm.initial));
-        let pr = crate::imm::predict(imm, st, t - tr.t);
-        let (x, p) = crate::imm::combine(&pr.cbar, &pr.x, &pr.p);
+            .get_or_insert_with(|| crate::tracking::imm::ImmState::new(&tr.x, &tr.p, &imm.initial));
+        let pr = crate::tracking::imm::predict(imm, st, t - tr.t);
+        let (x, p) = crate::tracking::imm::combine(&pr.cbar, &pr.x, &pr.p);
         preds.push((
             OVector::<f64, N>::from_column_slice_generic(n, U1, x.as_slice()),
             OMatrix::<f64, N, N>::from_column_slice_generic(n, n, p.as_slice()),
@@ -599,7 +599,7 @@ where
 /// IMM state and its combined Gaussian (column-major slices of the output state).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn imm_update<N: Dim, M: Dim>(
-    pred: &crate::imm::ImmPrediction,
+    pred: &crate::tracking::imm::ImmPrediction,
     n: N,
     sensors: &[SensorT<N, M>],
     dets: &Dets<'_, M>,
@@ -607,7 +607,7 @@ pub(crate) fn imm_update<N: Dim, M: Dim>(
     b0: f64,
     hyps: &[(usize, f64, f64)],
     ln_missed: f64,
-) -> Result<(crate::imm::ImmState, Pred<N>)>
+) -> Result<(crate::tracking::imm::ImmState, Pred<N>)>
 where
     DefaultAllocator: Alloc<N, M>,
 {
@@ -663,9 +663,9 @@ where
             cov.as_slice(),
         ));
     }
-    let mu = crate::imm::mode_probabilities(&pred.cbar, &ln_lik);
-    let (x, p) = crate::imm::combine(&mu, &xs, &ps);
-    let st = crate::imm::ImmState { mu, x: xs, p: ps };
+    let mu = crate::tracking::imm::mode_probabilities(&pred.cbar, &ln_lik);
+    let (x, p) = crate::tracking::imm::combine(&mu, &xs, &ps);
+    let st = crate::tracking::imm::ImmState { mu, x: xs, p: ps };
     Ok((
         st,
         (

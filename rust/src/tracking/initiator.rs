@@ -8,9 +8,9 @@ use super::hypothesise::{
 };
 use super::tracker::Tracker;
 use crate::error::{Error, Result};
-use crate::gating::chi2_quantile;
-use crate::track::{Entry, Track};
-use crate::tracker_config::{Association, Confirmation, Measure};
+use crate::tracking::config::{Association, Confirmation, Measure};
+use crate::tracking::gating::chi2_quantile;
+use crate::tracking::track::{Entry, Track};
 use nalgebra::{DMatrix, DVector, DefaultAllocator, Dim, Dyn};
 
 impl Tracker {

@@ -14,7 +14,7 @@
 //! weighted mean of the bearings).
 
 use crate::error::{Error, Result};
-use crate::hypothesise::{finish, Alloc, Innovation};
+use crate::tracking::hypothesise::{finish, Alloc, Innovation};
 use nalgebra::{Cholesky, DefaultAllocator, Dim, OMatrix, OVector, U1};
 use std::f64::consts::PI;
 

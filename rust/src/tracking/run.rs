@@ -2,7 +2,7 @@
 //! with the confirmed tracks after every scan gathered into flat, row-major arrays.
 
 use crate::error::{Error, Result};
-use crate::tracker::{StepOutcome, Tracker};
+use crate::tracking::tracker::{StepOutcome, Tracker};
 
 /// A recording: detection rows `z` `(d, m)` row-major, each with its sensor, its scan
 /// (index into `times`), and optionally its own noise covariance `(d, m, m)` and sensor

@@ -135,7 +135,7 @@ pub struct Track {
     pub deleted_time: f64,
     /// Mode probabilities and mode-conditioned states under an IMM (`None` without one, or
     /// until the first IMM prediction).
-    pub imm: Option<crate::imm::ImmState>,
+    pub imm: Option<crate::tracking::imm::ImmState>,
     /// Existence and visibility probabilities `(r, v)` (`None` without an existence model, or
     /// until the first scan as a confirmed track).
     pub existence: Option<(f64, f64)>,

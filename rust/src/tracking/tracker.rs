@@ -19,24 +19,24 @@
 //!
 //! All detections of a scan share the scan time. Time must not go backwards.
 //!
-//! Configuration types live in [`crate::tracker_config`] (re-exported here), the per-scan
-//! kernels (prediction, gating, GNN) in [`crate::hypothesise`].
+//! Configuration types live in [`crate::tracking::config`] (re-exported here), the per-scan
+//! kernels (prediction, gating, GNN) in [`crate::tracking::hypothesise`].
 
 use crate::error::{check_finite, Error, Result};
-use crate::gating::{chi2_quantile, validation_volume};
-use crate::hypothesise::{
-    axis_orders, gate_pairs, gnn_step, order_cluster, posterior_cov, predict_all, sensors_t, Alloc,
-    CovForm, Dets, Innovations, SensorT, NO_OWN,
-};
-use crate::jpda::{
-    clusters, ehm_size_estimate, marginals_within, Exactness, Method, TrackHypotheses,
-};
 use crate::kalman::check_covariance;
-use crate::track::{Entry, Track};
-pub use crate::tracker_config::{
+pub use crate::tracking::config::{
     Association, Confirmation, GnnParams, InitiatorConfig, JpdaParams, Measure, OutOfOrder, Sensor,
     TrackerConfig,
 };
+use crate::tracking::gating::{chi2_quantile, validation_volume};
+use crate::tracking::hypothesise::{
+    axis_orders, gate_pairs, gnn_step, order_cluster, posterior_cov, predict_all, sensors_t, Alloc,
+    CovForm, Dets, Innovations, SensorT, NO_OWN,
+};
+use crate::tracking::jpda::{
+    clusters, ehm_size_estimate, marginals_within, Exactness, Method, TrackHypotheses,
+};
+use crate::tracking::track::{Entry, Track};
 use nalgebra::{DMatrix, DVector, DefaultAllocator, Dim, Dyn, OMatrix, OVector, U2, U4, U6};
 
 /// `ln(2π)`.
@@ -469,7 +469,8 @@ impl Tracker {
         let ns = sensors.len();
         let (imm_preds, preds) = match &self.cfg.imm {
             Some(c) => {
-                let (a, b) = crate::hypothesise::imm_predict_all(c, &mut self.tracks, t, n);
+                let (a, b) =
+                    crate::tracking::hypothesise::imm_predict_all(c, &mut self.tracks, t, n);
                 (Some(a), b)
             }
             None => (
@@ -518,7 +519,7 @@ impl Tracker {
                 }
             })
             .collect();
-        let mut marg = vec![crate::jpda::Marginals::default(); th.len()];
+        let mut marg = vec![crate::tracking::jpda::Marginals::default(); th.len()];
         let mut stats = ClusterStats::default();
         for c in clusters(&th, k) {
             stats.clusters += 1;
@@ -529,7 +530,7 @@ impl Tracker {
             if c.len() == 1 {
                 let h = &th[c[0]];
                 let tot = h.missed + h.detections.iter().map(|d| d.1).sum::<f64>();
-                marg[c[0]] = crate::jpda::Marginals {
+                marg[c[0]] = crate::tracking::jpda::Marginals {
                     missed: h.missed / tot,
                     detections: h.detections.iter().map(|d| d.1 / tot).collect(),
                 };
@@ -653,7 +654,7 @@ impl Tracker {
                         Ok((e.0, b / tot, e.1 - logpdf))
                     })
                     .collect::<Result<_>>()?;
-                let (st, (xu, pu)) = crate::hypothesise::imm_update(
+                let (st, (xu, pu)) = crate::tracking::hypothesise::imm_update(
                     &ip[ti],
                     n,
                     sensors,
@@ -682,7 +683,7 @@ impl Tracker {
 mod tests {
     use super::*;
     use crate::models::MotionModel;
-    use crate::track::Deleter;
+    use crate::tracking::track::Deleter;
 
     fn config(assoc: Association) -> TrackerConfig {
         let h = DMatrix::from_row_slice(2, 4, &[1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0]);
