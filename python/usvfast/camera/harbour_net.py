@@ -19,6 +19,10 @@ L1 of the centre offsets and log sizes at the positives + (1 - GIoU) at the posi
 
 from __future__ import annotations
 
+import time
+from collections.abc import Callable
+
+import numpy as np
 import torch
 from torch import nn
 from torch.nn import functional as F
@@ -192,3 +196,50 @@ def loss(
     total = l_cls + l_l1 + 2.0 * l_iou
     parts = {"cls": l_cls, "l1": l_l1, "giou": l_iou}
     return total, {k: float(v.detach()) for k, v in parts.items()}
+
+
+def fit(
+    n_classes: int,
+    input_size: tuple[int, int],
+    crop_size: tuple[int, int],
+    width: int,
+    *,
+    steps: int,
+    lr: float,
+    seed: int,
+    batch: Callable[[np.random.Generator], list[tuple[np.ndarray, np.ndarray, np.ndarray]]],
+    log: Callable[[str], None],
+    log_every: int,
+) -> HarbourNet:
+    """Train a HarbourNet of `input_size` on crops of `crop_size` (same weights, grids sized
+    for the crops): AdamW + one-cycle learning rate over `steps`, seeded by `seed` (torch and
+    the numpy generator handed to `batch`). `batch(rng)` returns the step's samples, each
+    (image (h, w, 3) float32 RGB in [0, 1], boxes (k, 4) px, classes (k,)). Returns the
+    `input_size` network in eval mode."""
+    torch.manual_seed(seed)
+    rng = np.random.default_rng(seed)
+    net = HarbourNet(n_classes, input_size, width)
+    crop_net = HarbourNet(n_classes, crop_size, width)
+    crop_net.load_state_dict(net.state_dict())
+    opt = torch.optim.AdamW(crop_net.parameters(), lr=lr, weight_decay=1e-4)
+    sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=lr, total_steps=steps, pct_start=0.1)
+    crop_net.train()
+    t0 = time.perf_counter()
+    for step in range(steps):
+        samples = batch(rng)
+        x = torch.from_numpy(np.stack([s[0] for s in samples]).transpose(0, 3, 1, 2).copy())
+        boxes = [torch.from_numpy(s[1].astype(np.float32)) for s in samples]
+        classes = [torch.from_numpy(s[2].astype(np.int64)) for s in samples]
+        total, parts = loss(crop_net, x.float(), boxes, classes)
+        opt.zero_grad()
+        total.backward()
+        opt.step()
+        sched.step()
+        if step % log_every == 0 or step == steps - 1:
+            log(
+                f"step {step:4d}/{steps}  loss {float(total.detach()):.3f}  "
+                + "  ".join(f"{k} {v:.3f}" for k, v in parts.items())
+                + f"  {time.perf_counter() - t0:.0f} s"
+            )
+    net.load_state_dict(crop_net.state_dict())
+    return net.eval()

@@ -249,48 +249,29 @@ def train(
 ) -> object:
     """Train a :class:`usvfast.camera.harbour_net.HarbourNet` on `train_frames`; returns the
     network in eval mode."""
-    import torch
+    from usvfast.camera.harbour_net import fit
 
-    from usvfast.camera.harbour_net import HarbourNet, loss
-
-    torch.manual_seed(config.seed)
-    rng = np.random.default_rng(config.seed)
     samples = [to_sample(f, config.input_size) for f in train_frames]
     # The first three classes are the small floating objects (usvfast.sim.FLOAT_KINDS).
     weights = None
     if config.trash_weight != 1.0:
         weights = np.ones(len(config.classes))
         weights[:3] = config.trash_weight
-    net = HarbourNet(len(config.classes), config.input_size, config.width)
-    crop_net = HarbourNet(len(config.classes), config.crop_size, config.width)
-    crop_net.load_state_dict(net.state_dict())  # same weights; grids sized for the crops
-    opt = torch.optim.AdamW(crop_net.parameters(), lr=config.lr, weight_decay=1e-4)
-    sched = torch.optim.lr_scheduler.OneCycleLR(
-        opt, max_lr=config.lr, total_steps=config.steps, pct_start=0.1
-    )
-    crop_net.train()
-    t0 = time.perf_counter()
-    for step in range(config.steps):
-        batch = [
+    return fit(
+        len(config.classes),
+        config.input_size,
+        config.crop_size,
+        config.width,
+        steps=config.steps,
+        lr=config.lr,
+        seed=config.seed,
+        batch=lambda rng: [
             random_crop(samples[i], config.crop_size, rng, weights)
             for i in rng.integers(len(samples), size=config.batch)
-        ]
-        x = torch.from_numpy(np.stack([b[0] for b in batch]).transpose(0, 3, 1, 2).copy())
-        boxes = [torch.from_numpy(b[1].astype(np.float32)) for b in batch]
-        classes = [torch.from_numpy(b[2].astype(np.int64)) for b in batch]
-        total, parts = loss(crop_net, x.float(), boxes, classes)
-        opt.zero_grad()
-        total.backward()
-        opt.step()
-        sched.step()
-        if step % 50 == 0 or step == config.steps - 1:
-            log(
-                f"step {step:4d}/{config.steps}  loss {float(total.detach()):.3f}  "
-                + "  ".join(f"{k} {v:.3f}" for k, v in parts.items())
-                + f"  {time.perf_counter() - t0:.0f} s"
-            )
-    net.load_state_dict(crop_net.state_dict())
-    return net.eval()
+        ],
+        log=log,
+        log_every=50,
+    )
 
 
 # ---------------------------------------------------------------------------------------------

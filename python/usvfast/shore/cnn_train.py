@@ -170,39 +170,24 @@ def train_cnn(
 
 def _fit(data: Sequence[TrainFrame], cfg: CnnTrainConfig, log: Callable[[str], None]):
     """The training loop of :func:`train_cnn` (global thread and float state already set)."""
-    import torch
+    from usvfast.camera.harbour_net import fit
 
-    from usvfast.camera.harbour_net import HarbourNet, loss
+    def batch(rng: np.random.Generator) -> list:
+        views = [augment(data[i], cfg, rng) for i in rng.integers(len(data), size=cfg.batch)]
+        return [(img, boxes, np.zeros(len(boxes), np.int64)) for img, boxes in views]
 
-    torch.manual_seed(cfg.seed)
-    rng = np.random.default_rng(cfg.seed)
-    net = HarbourNet(1, cfg.input_size, cfg.width)
-    crop_net = HarbourNet(1, cfg.crop_size, cfg.width)
-    crop_net.load_state_dict(net.state_dict())  # same weights; grids sized for the crops
-    opt = torch.optim.AdamW(crop_net.parameters(), lr=cfg.lr, weight_decay=1e-4)
-    sched = torch.optim.lr_scheduler.OneCycleLR(
-        opt, max_lr=cfg.lr, total_steps=cfg.steps, pct_start=0.1
+    return fit(
+        1,
+        cfg.input_size,
+        cfg.crop_size,
+        cfg.width,
+        steps=cfg.steps,
+        lr=cfg.lr,
+        seed=cfg.seed,
+        batch=batch,
+        log=log,
+        log_every=100,
     )
-    crop_net.train()
-    t0 = time.perf_counter()
-    for step in range(cfg.steps):
-        batch = [augment(data[i], cfg, rng) for i in rng.integers(len(data), size=cfg.batch)]
-        x = torch.from_numpy(np.stack([b[0] for b in batch]).transpose(0, 3, 1, 2).copy())
-        boxes = [torch.from_numpy(b[1].astype(np.float32)) for b in batch]
-        classes = [torch.zeros(len(b[1]), dtype=torch.int64) for b in batch]
-        total, parts = loss(crop_net, x, boxes, classes)
-        opt.zero_grad()
-        total.backward()
-        opt.step()
-        sched.step()
-        if step % 100 == 0 or step == cfg.steps - 1:
-            log(
-                f"step {step:4d}/{cfg.steps}  loss {float(total.detach()):.3f}  "
-                + "  ".join(f"{k} {v:.3f}" for k, v in parts.items())
-                + f"  {time.perf_counter() - t0:.0f} s"
-            )
-    net.load_state_dict(crop_net.state_dict())
-    return net.eval()
 
 
 def model_card(cfg: CnnTrainConfig, videos: Sequence[str], seconds: float, net) -> dict:
