@@ -52,3 +52,10 @@ def shared_data(name: str) -> Path:
             pytest.fail(f"{path} is missing and USVFAST_REQUIRE_SHARED=1")
         pytest.skip(f"{path} is absent (data not vendored; see tests/data/README.md)")
     return path
+
+
+@pytest.fixture(scope="session")
+def mardct_annotations() -> Path:
+    """MarDCT's annotated training frames (GPL, in shared/data only): skipped or failed as
+    :func:`shared_data` says."""
+    return shared_data("mardct") / "training" / "annotations"

@@ -34,11 +34,6 @@ from usvfast.shore.mot import read_mot
 from usvfast.shore.pixel_kalman import AdaptiveTracker, paper_model
 from usvfast.shore.scores import DetectionCounts, matched_pairs
 
-from conftest import SHARED_DATA
-
-MARDCT = SHARED_DATA / "mardct" / "training" / "annotations"
-needs_mardct = pytest.mark.skipif(not MARDCT.is_dir(), reason="MarDCT frames not present")
-
 
 def test_iou_matrix_equals_pixel_counts():
     # integer boxes: IoU by counting the pixels of rasterised masks
@@ -248,9 +243,8 @@ def test_derived_truth_ids_link_nearby_boxes():
     assert ids[0].tolist() == [1] and ids[1].tolist() == [2, 1] and len(ids[2]) == 0
 
 
-@needs_mardct
-def test_mardct_frames_classify_eo_and_horizon_meets_the_boats():
-    videos = load_mardct(MARDCT)
+def test_mardct_frames_classify_eo_and_horizon_meets_the_boats(mardct_annotations):
+    videos = load_mardct(mardct_annotations)
     assert {k: len(v) for k, v in videos.items()} == {"2": 14, "3": 5, "regDTV9": 70, "video3": 103}
     frames = videos["regDTV9"][::7]
     clf = DayNightClassifier.default()
@@ -271,9 +265,8 @@ def test_mardct_frames_classify_eo_and_horizon_meets_the_boats():
     assert found >= 7 and hits >= 0.8 * found
 
 
-@needs_mardct
-def test_default_classifier_is_the_fit_on_mardct():
-    files = sorted(MARDCT.glob("*.png"))[::8]
+def test_default_classifier_is_the_fit_on_mardct(mardct_annotations):
+    files = sorted(mardct_annotations.glob("*.png"))[::8]
     eo = [cv2.imread(str(p)) for p in files]
     ir = [cv2.cvtColor(cv2.cvtColor(i, cv2.COLOR_BGR2GRAY), cv2.COLOR_GRAY2BGR) for i in eo]
     fit = DayNightClassifier.fit(eo, ir)
@@ -281,13 +274,12 @@ def test_default_classifier_is_the_fit_on_mardct():
     np.testing.assert_allclose(fit.means, d.means, atol=3.0)
 
 
-@needs_mardct
-def test_leave_one_out_runs_on_the_small_videos(tmp_path):
+def test_leave_one_out_runs_on_the_small_videos(mardct_annotations, tmp_path):
     sub = tmp_path / "ann"
     sub.mkdir()
-    for p in MARDCT.glob("3_*"):
+    for p in mardct_annotations.glob("3_*"):
         (sub / p.name).symlink_to(p)
-    for p in MARDCT.glob("2_*"):
+    for p in mardct_annotations.glob("2_*"):
         (sub / p.name).symlink_to(p)
     with warnings.catch_warnings():
         warnings.simplefilter("error")

@@ -17,9 +17,6 @@ from usvfast.shore.mardct import load_mardct
 from usvfast.shore.mot import read_mot
 from usvfast.shore.scores import DetectionCounts
 
-from conftest import SHARED_DATA
-
-MARDCT = SHARED_DATA / "mardct" / "training" / "annotations"
 has_cascade_module = hasattr(cv2, "CascadeClassifier")
 
 
@@ -105,9 +102,8 @@ def test_group_boxes_needs_neighbours():
     assert len(d) == 1 and np.allclose(d.boxes[0], [11, 10.333333, 60, 30])
 
 
-@pytest.mark.skipif(not MARDCT.is_dir(), reason="MarDCT frames not present")
-def test_cascade_trains_and_detects_on_mardct():
-    frames = [f for v in ("2", "3") for f in load_mardct(MARDCT)[v]]
+def test_cascade_trains_and_detects_on_mardct(mardct_annotations):
+    frames = [f for v in ("2", "3") for f in load_mardct(mardct_annotations)[v]]
     cfg = CascadeConfig(max_stages=6, pool_size=4000, negatives_per_stage=400, max_weak=20)
     det, report = train_detector(frames, cfg)
     assert report["positives"] == 2 * sum(len(f.boxes) for f in frames)
@@ -117,11 +113,10 @@ def test_cascade_trains_and_detects_on_mardct():
     assert c.tpr > 0.5
 
 
-@pytest.mark.skipif(not MARDCT.is_dir(), reason="MarDCT frames not present")
-def test_shore_train_then_shore_with_the_cascade(tmp_path):
+def test_shore_train_then_shore_with_the_cascade(mardct_annotations, tmp_path):
     ann = tmp_path / "ann"
     ann.mkdir()
-    for p in MARDCT.glob("3_*"):
+    for p in mardct_annotations.glob("3_*"):
         (ann / p.name).symlink_to(p)
     model = tmp_path / "boat.xml"
     runner = CliRunner()
@@ -133,7 +128,7 @@ def test_shore_train_then_shore_with_the_cascade(tmp_path):
     np.testing.assert_array_equal(again.accepts(windows), cascade.accepts(windows))
     frames = tmp_path / "frames"
     frames.mkdir()
-    for p in MARDCT.glob("3_*.png"):
+    for p in mardct_annotations.glob("3_*.png"):
         (frames / p.name).symlink_to(p)
     out = tmp_path / "out"
     args = ["shore", str(frames), "--out", str(out), "--detector", "cascade", "--model", str(model)]

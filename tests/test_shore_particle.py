@@ -19,10 +19,6 @@ from usvfast.shore.mardct import load_mardct
 from usvfast.shore.mot_eval import mot_scores, run_tracker, truth_detections, truth_sequence
 from usvfast.shore.particle import ParticleConfig, ParticleTracker
 
-from conftest import SHARED_DATA
-
-MARDCT = SHARED_DATA / "mardct" / "training" / "annotations"
-
 
 def test_random_stream_equals_numpy_splitmix():
     np.testing.assert_array_equal(_core.particle_uniforms(42, 7, 1000), ref.uniforms(42, 7, 1000))
@@ -187,8 +183,8 @@ def test_same_seed_same_tracks_and_bad_input():
 
 
 @pytest.fixture(scope="module")
-def mardct():
-    return load_mardct(MARDCT)
+def mardct(mardct_annotations):
+    return load_mardct(mardct_annotations)
 
 
 @pytest.mark.parametrize("video", ["video3", "regDTV9"])
