@@ -12,6 +12,7 @@ import json
 import cv2
 import numpy as np
 import pytest
+import torch
 from typer.testing import CliRunner
 
 from usvfast.cli import app
@@ -32,8 +33,6 @@ from usvfast.shore.mot import read_mot
 from usvfast.shore.pipeline import ShoreConfig
 
 from conftest import shared_data
-
-torch = pytest.importorskip("torch")
 
 
 def synthetic_frames(n: int, seed: int) -> list[TrainFrame]:
