@@ -1,8 +1,9 @@
 """`usvfast track PLOTS --config CFG --out DIR`: track position plots from a file.
 
 PLOTS is the Joyride `.mat` recording (`usvfast.datasets.load_joyride`) or a CSV with header
-`time,north,east[,sensor]` (seconds, metres in a local north/east plane; rows of equal time are
-one scan; damaged rows are skipped and counted). CFG is a TOML file or the name of a shipped
+`time,north,east[,sensor][,own_north,own_east]` (seconds, metres in a local north/east plane;
+rows of equal time are one scan; damaged rows are skipped and counted; `own_*` the radar's
+position, needed by `polar_noise` and `bearing_correction_deg`). CFG is a TOML file or the name of a shipped
 preset (`python/usvfast/presets/NAME.toml`, e.g. `joyride`); its `[tracker]` table is read by
 `tracker_from_config`. Writes DIR/tracks.csv (`time,track_id,north,east,v_north,v_east,cov_nn,
 cov_ne,cov_ee`, one row per confirmed track per scan) and DIR/summary.json (counts, time per
@@ -37,6 +38,8 @@ _TOP = {
     "missed_distance",
     "delete_steps",
     "initiate_in_gates",
+    "polar_noise",
+    "bearing_correction_deg",
     "initiator",
     "imm",
     "existence",
@@ -69,7 +72,8 @@ def _check_keys(table: dict[str, Any], allowed: set[str], where: str) -> None:
 
 def tracker_from_config(cfg: dict[str, Any]) -> tk.Tracker:
     """A position-plot `Tracker` (state [n, v_n, e, v_e], one sensor with R = sigma² I) from a
-    `[tracker]` table; unknown keys raise ValueError naming them."""
+    `[tracker]` table; unknown keys raise ValueError naming them. With `polar_noise` the plots'
+    own covariances (`plot_covariances`) replace R: pass them to `run`/`step`."""
     _check_keys(cfg, _TOP, "tracker")
     init = dict(cfg.get("initiator", {}))
     _check_keys(init, _INIT, "tracker.initiator")
@@ -123,7 +127,8 @@ def tracker_from_config(cfg: dict[str, Any]) -> tk.Tracker:
 @dataclass(frozen=True)
 class Plots:
     """Scans of plots: times (s,), plots (d, 2) north/east m, scan_index (d,), sensor (d,);
-    truth (s, 2) north/east when the file has it; skipped damaged rows."""
+    truth (s, 2) north/east when the file has it; skipped damaged rows; origins (d, 2) the
+    radar's north/east at each plot when known."""
 
     times: np.ndarray
     plots: np.ndarray
@@ -131,6 +136,66 @@ class Plots:
     sensor: np.ndarray
     truth: np.ndarray | None = None
     skipped: int = 0
+    origins: np.ndarray | None = None
+
+
+def polar_covariances(
+    plots: np.ndarray, origins: np.ndarray, range_std: float, bearing_std_deg: float
+) -> np.ndarray:
+    """(d, 2, 2) north/east covariance (m²) of each radar plot (d, 2) seen from its radar
+    position origins (d, 2), for independent range and bearing errors of standard deviations
+    range_std (m) and bearing_std_deg (degrees): J diag(σ_ρ², σ_φ²) Jᵀ with J the Jacobian of
+    (φ, ρ) -> (n, e) = origin + ρ (cos φ, sin φ) at the plot (the converted-measurement
+    covariance, Bar-Shalom, Li & Kirubarajan 2001, §10.4.3). Plots closer than 1 m to their
+    origin use ρ = 1 m."""
+    rel = np.asarray(plots, float) - np.asarray(origins, float)
+    rng = np.maximum(np.hypot(rel[:, 0], rel[:, 1]), 1.0)
+    c, s = rel[:, 0] / rng, rel[:, 1] / rng
+    rr, tt = range_std**2, (rng * np.radians(bearing_std_deg)) ** 2
+    cov = np.empty((len(rel), 2, 2))
+    cov[:, 0, 0] = c * c * rr + s * s * tt
+    cov[:, 1, 1] = s * s * rr + c * c * tt
+    cov[:, 0, 1] = cov[:, 1, 0] = c * s * (rr - tt)
+    return cov
+
+
+def plot_covariances(cfg: dict[str, Any], plots: Plots) -> np.ndarray | None:
+    """Per-plot covariances of `cfg`'s `polar_noise = [range_std m, bearing_std deg]` (None
+    without it: every plot then has R = sigma² I)."""
+    if "polar_noise" not in cfg:
+        return None
+    pn = cfg["polar_noise"]
+    if not (isinstance(pn, list) and len(pn) == 2 and all(float(v) > 0 for v in pn)):
+        raise ValueError(
+            f"tracker.polar_noise: [range_std m, bearing_std deg], both > 0, got {pn!r}"
+        )
+    if plots.origins is None:
+        raise ValueError("tracker.polar_noise: the plots need radar positions (own_north/east)")
+    z = corrected_plots(cfg, plots)
+    return polar_covariances(z, plots.origins, float(pn[0]), float(pn[1]))
+
+
+def corrected_plots(cfg: dict[str, Any], plots: Plots) -> np.ndarray:
+    """(d, 2) plots turned about their radar positions by `cfg`'s `bearing_correction_deg`
+    (degrees added to every plot's compass bearing; default 0: the plots as given). This is
+    a calibration of the radar's heading alignment, measured against a reference (AIS or GNSS
+    of a known target) outside the tracker: the tracker cannot estimate it, since a turned
+    picture of a boat's track is as likely under its motion models as the true one."""
+    deg = float(cfg.get("bearing_correction_deg", 0.0))
+    if not np.isfinite(deg) or abs(deg) > 180.0:
+        raise ValueError(f"tracker.bearing_correction_deg: degrees in [-180, 180], got {deg}")
+    if deg == 0.0:
+        return plots.plots
+    if plots.origins is None:
+        raise ValueError(
+            "tracker.bearing_correction_deg: the plots need radar positions (own_north/east)"
+        )
+    c, s = np.cos(np.radians(deg)), np.sin(np.radians(deg))
+    rel = plots.plots - plots.origins
+    # Compass bearings (clockwise from north) grow by deg: (n, e) -> R(deg) (n, e).
+    return plots.origins + np.stack(
+        [c * rel[:, 0] - s * rel[:, 1], s * rel[:, 0] + c * rel[:, 1]], axis=1
+    )
 
 
 def read_plots(path: Path) -> Plots:
@@ -147,13 +212,16 @@ def read_plots(path: Path) -> Plots:
             np.zeros(len(plots), np.int64),
             rec.target[:, [0, 2]],
             rec.skipped_scans + rec.skipped_plots,
+            rec.ownship[si][:, [0, 2]],
         )
     rows, skipped = [], 0
     with path.open(newline="") as fh:
         reader = csv.DictReader(fh)
         need = {"time", "north", "east"}
-        if not need <= set(reader.fieldnames or ()):
+        cols = set(reader.fieldnames or ())
+        if not need <= cols:
             raise ValueError(f"plots: {path} needs columns time,north,east[,sensor]")
+        own = {"own_north", "own_east"} <= cols
         for r in reader:
             try:
                 v = (
@@ -161,11 +229,13 @@ def read_plots(path: Path) -> Plots:
                     float(r["north"]),
                     float(r["east"]),
                     int(r.get("sensor") or 0),
+                    float(r["own_north"]) if own else 0.0,
+                    float(r["own_east"]) if own else 0.0,
                 )
             except (TypeError, ValueError):
                 skipped += 1
                 continue
-            if not all(np.isfinite(v[:3])) or v[3] != 0:
+            if not all(np.isfinite(v[:3] + v[4:])) or v[3] != 0:
                 skipped += 1  # one position sensor (R = sigma² I) is configured
                 continue
             rows.append(v)
@@ -175,7 +245,13 @@ def read_plots(path: Path) -> Plots:
     a = a[np.argsort(a[:, 0], kind="stable")]
     times, si = np.unique(a[:, 0], return_inverse=True)
     return Plots(
-        times, a[:, 1:3].copy(), si.astype(np.int64), np.zeros(len(a), np.int64), None, skipped
+        times,
+        a[:, 1:3].copy(),
+        si.astype(np.int64),
+        np.zeros(len(a), np.int64),
+        None,
+        skipped,
+        a[:, 4:6].copy() if own else None,
     )
 
 
@@ -184,7 +260,14 @@ def run_tracking(plots: Plots, cfg: dict[str, Any]) -> tuple[tk.RunResult, float
     its time per scan (ms)."""
     tracker = tracker_from_config(cfg)
     t0 = time.perf_counter()
-    res = tracker.run(plots.times - plots.times[0], plots.plots, plots.sensor, plots.scan_index)
+    cov = plot_covariances(cfg, plots)
+    res = tracker.run(
+        plots.times - plots.times[0],
+        corrected_plots(cfg, plots),
+        plots.sensor,
+        plots.scan_index,
+        covariances=cov,
+    )
     ms = (time.perf_counter() - t0) / max(len(plots.times), 1) * 1e3
     return res, ms
 
