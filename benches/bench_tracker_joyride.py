@@ -1,11 +1,18 @@
 """Joyride (real radar, 238 scans): the usvfast tracker with a constant-velocity model only
 (preset `joyride-cv`), the IMM alone (preset `joyride` without its existence table),
-IMM + existence (preset `joyride`, and `joyride-accurate` that trades coverage for RMSE)
+IMM + existence (preset `joyride`, `joyride-accurate` that trades coverage for RMSE, and
+`joyride-polar` with per-plot range/bearing covariances)
 against Stone Soup's JPDA with the anchor parameters, in
 one process: time per scan and the track-quality figures of `usvfast.metrics.track_quality`
 (gate 50 m) over the whole recording and over its two halves (scans 0-118 and 119-237, scored
 from the same run), so that a configuration good on one half only shows. Time per scan: best
 wall clock and best process CPU time of 30 runs.
+
+Then where the error comes from (tests/test_joyride_errors.py): the target's plots against
+the GNSS truth fitted by a bearing bias about the own ship and by other error shapes, the
+`joyride` track's error split into range / bearing and along / across the target's heading,
+and - a diagnostic, not a shipped setting - the presets on plots whose bias was measured on
+one half against the truth, scored on the other half.
 
     USVFAST_SHARED_DATA=/work/shared/data PYTHONPATH=python python benches/bench_tracker_joyride.py
 """
@@ -20,8 +27,17 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
+import numpy as np
+import test_joyride_errors as E
+
 from usvfast.metrics import track_quality
-from usvfast.trackcmd import load_config, read_plots, tracker_from_config
+from usvfast.trackcmd import (
+    corrected_plots,
+    load_config,
+    plot_covariances,
+    read_plots,
+    tracker_from_config,
+)
 
 import ssharness as H
 from timing import best_of
@@ -63,6 +79,7 @@ def main() -> None:
         "IMM (joyride, no existence)": {k: v for k, v in cfg.items() if k != "existence"},
         "IMM + existence (joyride)": cfg,
         "IMM + existence (-accurate)": load_config("joyride-accurate"),
+        "IMM + existence + polar R": load_config("joyride-polar"),
     }
     t0 = time.perf_counter()
     ss, _ = H.build_stonesoup(H.JOYRIDE_ANCHOR, detector=H.joyride_scans(plots_rec(path), 10.0))
@@ -80,10 +97,12 @@ def main() -> None:
         f"{'Stone Soup JPDA (anchor)':30s} {ss_ms:9.3f} {'':8s} {1:6d}  " + "  ".join(map(fmt, q))
     )
     for name, c in runs.items():
+        z, cov = corrected_plots(c, plots), plot_covariances(c, plots)
 
-        def go(c=c):
+        def go(c=c, z=z, cov=cov):
             tr = tracker_from_config(c)
-            return tr.run(plots.times - plots.times[0], plots.plots, plots.sensor, plots.scan_index)
+            t = plots.times - plots.times[0]
+            return tr.run(t, z, plots.sensor, plots.scan_index, covariances=cov)
 
         best, res = best_of(go, 30)
         cpu = best_cpu(go, 30)
@@ -96,6 +115,113 @@ def main() -> None:
     print(
         "\n(cov% coverage, fr fragments on the target, ft false tracks; aims on all scans: "
         "cov >= 96 %, RMSE <= 20.5 m, fr = 1, ft <= 2, <= 0.02 ms per scan)"
+    )
+    error_sources(path, plots, cfg)
+
+
+def error_sources(path: Path, plots, cfg: dict) -> None:
+    """Print the decomposition of the plots' and the `joyride` track's errors and the
+    calibrated-radar diagnostic (see the module doc)."""
+    rec = plots_rec(path)
+    scans, errs = E.target_plot_errors(rec)
+    terms = E.error_terms(rec, scans)
+    print(f"\nTarget plots against the GNSS truth ({len(scans)} scans with a plot within 60 m):")
+    print(f"  {'error model fitted':52s} {'parameters':>26s}  RMS left, m")
+    fits = [
+        ("none", []),
+        ("constant north / east offset (m)", ["north offset", "east offset"]),
+        ("offset along / across the target's heading (m)", ["along target", "across target"]),
+        ("time lag (s)", ["time lag"]),
+        ("turn about the plane's origin (deg)", ["turn about origin"]),
+        ("turn about the own ship = bearing bias (deg)", ["turn about own ship"]),
+        ("bearing bias (deg) + time lag (s)", ["turn about own ship", "time lag"]),
+        (
+            "bearing bias (deg) + antenna offset (m)",
+            ["turn about own ship", "along target", "across target"],
+        ),
+    ]
+    for name, names in fits:
+        sol, left = E.fit_errors(errs, [terms[n] for n in names])
+        sol = [
+            np.degrees(v) if n.startswith("turn") else v for v, n in zip(sol, names, strict=True)
+        ]
+        print(f"  {name:52s} {' '.join(f'{v:8.3f}' for v in sol):>26s}  {left:6.2f}")
+    for lo, hi in ((0, E.HALF), (E.HALF, rec.n_scans)):
+        print(f"  bearing bias on scans {lo}-{hi - 1}: {E.bearing_bias_deg(rec, lo, hi):+.3f} deg")
+    own = rec.ownship[scans][:, [0, 2]]
+    rel = rec.target[scans][:, [0, 2]] - own
+    rng = np.hypot(rel[:, 0], rel[:, 1])
+    ur = rel / rng[:, None]
+    ub = np.stack([-ur[:, 1], ur[:, 0]], axis=1)
+    er, eb = (errs * ur).sum(1), (errs * ub).sum(1)
+    print(
+        f"  range error {er.mean():+.2f} +- {er.std():.2f} m; bearing error {eb.mean():+.2f} +- "
+        f"{eb.std():.2f} m at ranges {rng.min():.0f}-{rng.max():.0f} m"
+    )
+    target = E.track_plots(plots, _run(plots, cfg))
+    ll = {d: E.plots_log_likelihood(plots, target, d) for d in (-3.0, 0.0, 1.85, 6.0)}
+    print(
+        "  log-likelihood of the plots the tracker follows, turned by "
+        + ", ".join(f"{d:+.2f} deg: {v:.2f}" for d, v in ll.items())
+        + " (flat: the bias cannot be estimated from the plots)"
+    )
+    res = _run(plots, cfg)
+    q = track_quality(plots.truth, res.scan, res.track_id, res.state[:, [0, 2]])
+    k = np.flatnonzero(np.isfinite(q.errors))
+    row = {
+        int(s): x
+        for s, i, x in zip(res.scan, res.track_id, res.state, strict=True)
+        if i == q.counted_ids[s]
+    }
+    e = np.array([[row[s][0], row[s][2]] for s in k]) - plots.truth[k]
+    own = rec.ownship[k][:, [0, 2]]
+    rel = plots.truth[k] - own
+    rng = np.hypot(rel[:, 0], rel[:, 1])
+    ur = rel / rng[:, None]
+    ub = np.stack([-ur[:, 1], ur[:, 0]], axis=1)
+    v = rec.target[k][:, [1, 3]]
+    u = v / np.hypot(v[:, 0], v[:, 1])[:, None]
+    un = np.stack([-u[:, 1], u[:, 0]], axis=1)
+    bias = np.radians(E.bearing_bias_deg(rec)) * rng
+    left = e - bias[:, None] * ub
+    print(f"\n`joyride` track against the truth ({len(k)} covered scans, RMSE {q.rmse:.2f} m):")
+    print(
+        f"  range {(e * ur).sum(1).mean():+.2f} +- {(e * ur).sum(1).std():.2f} m, bearing "
+        f"{(e * ub).sum(1).mean():+.2f} +- {(e * ub).sum(1).std():.2f} m; along "
+        f"{(e * u).sum(1).mean():+.2f} +- {(e * u).sum(1).std():.2f} m, across "
+        f"{(e * un).sum(1).mean():+.2f} +- {(e * un).sum(1).std():.2f} m"
+    )
+    print(
+        f"  RMS of the bearing bias at these ranges {np.sqrt(np.mean(bias**2)):.2f} m; RMS left "
+        f"without it {np.sqrt(np.mean((left**2).sum(1))):.2f} m (along "
+        f"{(left * u).sum(1).mean():+.2f} +- {(left * u).sum(1).std():.2f}, across "
+        f"{(left * un).sum(1).mean():+.2f} +- {(left * un).sum(1).std():.2f})"
+    )
+    print(
+        "\nDiagnostic (NOT a shipped setting): plots corrected by the bias measured against "
+        "the truth on one half,\nscored on the other (held-out) half; whole = bias of the "
+        "whole recording."
+    )
+    head = "RMSE m  cov%  fr  ft"
+    print(f"  {'preset':18s} {'held-out 119-237':20s}  {'held-out 0-118':20s}  whole: {head}")
+    for name in ("joyride", "joyride-accurate", "joyride-cv", "joyride-polar"):
+        c = load_config(name)
+        cells = []
+        for (lo, hi), part in (((0, E.HALF), 2), ((E.HALF, rec.n_scans), 1), ((0, rec.n_scans), 0)):
+            r = _run(plots, c | {"bearing_correction_deg": -E.bearing_bias_deg(rec, lo, hi)})
+            cells.append(fmt(parts(plots.truth, r.scan, r.track_id, r.state[:, [0, 2]])[part]))
+        print(f"  {name:18s} {cells[0]:20s}  {cells[1]:20s}  {cells[2]}")
+
+
+def _run(plots, c: dict):
+    tr = tracker_from_config(c)
+    t = plots.times - plots.times[0]
+    return tr.run(
+        t,
+        corrected_plots(c, plots),
+        plots.sensor,
+        plots.scan_index,
+        covariances=plot_covariances(c, plots),
     )
 
 

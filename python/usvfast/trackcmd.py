@@ -3,11 +3,12 @@
 PLOTS is the Joyride `.mat` recording (`usvfast.datasets.load_joyride`) or a CSV with header
 `time,north,east[,sensor][,own_north,own_east]` (seconds, metres in a local north/east plane;
 rows of equal time are one scan; damaged rows are skipped and counted; `own_*` the radar's
-position, needed by `polar_noise` and `bearing_correction_deg`). CFG is a TOML file or the name of a shipped
-preset (`python/usvfast/presets/NAME.toml`, e.g. `joyride`); its `[tracker]` table is read by
-`tracker_from_config`. Writes DIR/tracks.csv (`time,track_id,north,east,v_north,v_east,cov_nn,
-cov_ne,cov_ee`, one row per confirmed track per scan) and DIR/summary.json (counts, time per
-scan, and with Joyride's GNSS truth the figures of `usvfast.metrics.track_quality`).
+position, needed by `polar_noise` and `bearing_correction_deg`). CFG is a TOML file or the
+name of a shipped preset (`python/usvfast/presets/NAME.toml`, e.g. `joyride`); its
+`[tracker]` table is read by `tracker_from_config`. Writes DIR/tracks.csv (`time,track_id,
+north,east,v_north,v_east,cov_nn,cov_ne,cov_ee`, one row per confirmed track per scan) and
+DIR/summary.json (counts, time per scan, and with Joyride's GNSS truth the figures of
+`usvfast.metrics.track_quality`).
 """
 
 from __future__ import annotations
