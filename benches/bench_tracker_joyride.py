@@ -29,6 +29,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 import numpy as np
 import test_joyride_errors as E
+from scipy.spatial import cKDTree
 
 from usvfast.metrics import track_quality
 from usvfast.trackcmd import (
@@ -157,6 +158,16 @@ def error_sources(path: Path, plots, cfg: dict) -> None:
     print(
         f"  range error {er.mean():+.2f} +- {er.std():.2f} m; bearing error {eb.mean():+.2f} +- "
         f"{eb.std():.2f} m at ranges {rng.min():.0f}-{rng.max():.0f} m"
+    )
+    si, d = plots.scan_index, np.hypot(*(plots.plots - plots.truth[plots.scan_index]).T)
+    tree = cKDTree(plots.plots)
+    seen = [
+        any(si[j] < si[i] - 5 for j in tree.query_ball_point(plots.plots[i], 30.0))
+        for i in np.flatnonzero(d > 60.0)
+    ]
+    print(
+        f"  clutter plots (> 60 m from the truth) with a plot of an earlier scan (> 5 back) "
+        f"within 30 m: {sum(seen)} of {len(seen)} (a clutter map has little to learn)"
     )
     target = E.track_plots(plots, _run(plots, cfg))
     ll = {d: E.plots_log_likelihood(plots, target, d) for d in (-3.0, 0.0, 1.85, 6.0)}
