@@ -166,7 +166,9 @@ def plot_covariances(cfg: dict[str, Any], plots: Plots) -> np.ndarray | None:
     if "polar_noise" not in cfg:
         return None
     pn = cfg["polar_noise"]
-    if not (isinstance(pn, list) and len(pn) == 2 and all(float(v) > 0 for v in pn)):
+    ok = isinstance(pn, list) and len(pn) == 2
+    ok = ok and all(isinstance(v, int | float) and not isinstance(v, bool) for v in pn)
+    if not (ok and all(np.isfinite(v) and v > 0 for v in pn)):
         raise ValueError(
             f"tracker.polar_noise: [range_std m, bearing_std deg], both > 0, got {pn!r}"
         )
@@ -182,9 +184,10 @@ def corrected_plots(cfg: dict[str, Any], plots: Plots) -> np.ndarray:
     a calibration of the radar's heading alignment, measured against a reference (AIS or GNSS
     of a known target) outside the tracker: the tracker cannot estimate it, since a turned
     picture of a boat's track is as likely under its motion models as the true one."""
-    deg = float(cfg.get("bearing_correction_deg", 0.0))
+    raw = cfg.get("bearing_correction_deg", 0.0)
+    deg = float(raw) if isinstance(raw, int | float) and not isinstance(raw, bool) else np.nan
     if not np.isfinite(deg) or abs(deg) > 180.0:
-        raise ValueError(f"tracker.bearing_correction_deg: degrees in [-180, 180], got {deg}")
+        raise ValueError(f"tracker.bearing_correction_deg: degrees in [-180, 180], got {raw!r}")
     if deg == 0.0:
         return plots.plots
     if plots.origins is None:
