@@ -22,6 +22,7 @@ from usvfast.stonesoup import (
     detection_model,
     read_components,
 )
+from usvfast.stonesoup_lazy import LazyList
 from usvfast.stonesoup_objects import StoneSoupObjects
 
 
@@ -32,7 +33,7 @@ def _raw_core(tracker: Any) -> Any:
     thread, so it can skip the wrapper's argument checks (the core validates again) and its
     dataclass snapshot: ~20 µs per scan."""
     raw = getattr(tracker, "_core", None)
-    ok = callable(getattr(raw, "step", None)) and callable(getattr(raw, "snapshot", None))
+    ok = all(callable(getattr(raw, k, None)) for k in ("step", "snapshot", "track_ids", "history"))
     return raw if ok else None
 
 
@@ -66,6 +67,9 @@ def _core_sensor(spec: tuple) -> Any:
 # Scans between two looks at the tentative tracks to free old detections (a look costs a
 # snapshot of the tentative tracks).
 _FREE_EVERY = 4
+# A track's states are built when first read, or at the latest this many scans later (so
+# that the detections they refer to can be freed).
+_LAZY_HORIZON = 64
 
 
 class _DropInTracker:
@@ -122,8 +126,12 @@ class _DropInTracker:
         # Detections per scan; scans no history entry can refer to any more are freed (None).
         self._scan_dets: list[list[Any] | None] = []
         self._freed = 0
-        self._tracks: dict[int, Any] = {}
-        self._prev: dict[int, tuple[float, np.ndarray, np.ndarray]] = {}
+        self._tracks: dict[int, Any] = {}  # alive confirmed tracks by core id
+        self._fillers: dict[int, _Filler] = {}  # of the alive tracks
+        # Fillers of tracks that may lack states (alive ones, deleted ones not read since).
+        self._pending: dict[int, _Filler] = {}
+        self._scan_md: dict[int, bool] = {}  # scan -> a detection of it carries metadata
+        self._history_start = True  # the core's history(track_id, start) is available
 
     # -- Stone Soup's Tracker protocol -------------------------------------------------------
 
@@ -268,20 +276,20 @@ class _DropInTracker:
             for args in self._replay:
                 self._core.step(*args)
             self._replay.clear()
-        snap = None
+        alive = None
         if self._raw is not None:
             # The core's own validation applies (NaN, sensor ids, covariances).
             self._raw.step(t, z, sids, covs, origins)
-            snap = self._raw.snapshot()
+            alive = self._raw.track_ids()[0].tolist()
         elif self._core is not None:
-            snap = vars(self._core.step(t, z, sids, covs, origins))
+            alive = self._core.step(t, z, sids, covs, origins).ids.tolist()
         else:
             self._replay.append((t, z, sids))
         self._scan_time.append(time)
         self._scan_dets.append(dets)
         self._scan += 1
-        if snap is not None:
-            self._collect(time, snap)
+        if alive is not None:
+            self._collect(alive)
             if self._scan % _FREE_EVERY == 0:
                 self._free_scans()
         return time, self.tracks
@@ -319,112 +327,154 @@ class _DropInTracker:
         return hit
 
     def _free_scans(self) -> None:
-        # Later states refer to this scan's detections or to those of the tentative tracks'
-        # first scans (a track confirmed later brings its whole tentative history).
+        # Unbuilt states refer to the detections of their scans; so do the states of the
+        # tentative tracks (a track confirmed later brings its whole tentative history). A
+        # track confirmed since the last look was tentative then or started later: its first
+        # scan is at least the boundary of that look (`_freed`).
         if self._raw is not None:
             first = self._raw.snapshot(tentative=True)["first_scan"]
         else:
             first = self._core.tentative_tracks.first_scan
         oldest = min(int(first.min()) if len(first) else self._scan, self._scan - 1)
+        pending = self._pending
+        stale = [f for f in pending.values() if f.next_scan < self._scan - _LAZY_HORIZON]
+        for f in stale:  # unread for long: built now, so that memory stays bounded
+            f.force()
+        for tid in [tid for tid, f in pending.items() if f.done]:
+            del pending[tid]
+        if pending:
+            oldest = min(oldest, min(f.next_scan for f in pending.values()))
         for k in range(self._freed, max(oldest, self._freed)):
             self._scan_dets[k] = None
         self._freed = max(oldest, self._freed)
 
-    def _collect(self, time: Any, snap: Any) -> None:
+    def _collect(self, alive: list[int]) -> None:
+        """Follow the confirmed tracks of the newest scan (core ids `alive`): new tracks get
+        a lazy Track, deleted ones keep theirs (built when read) and every alive one is armed
+        to build its newest state when read."""
         from stonesoup.types.track import Track
 
-        core = self._core
-        alive = snap["ids"].tolist()
-        alive_set = set(alive)
-        xs, ps, is_update = snap["states"], snap["covariances"], snap["is_update"]
-        t_now = (time - self._t0).total_seconds()
-        # Deleted this scan: their final state(s) come from the core's history.
-        for tid in [k for k in self._tracks if k not in alive_set]:
-            tr = self._tracks.pop(tid)
-            hist = vars(core.history(tid))
-            n_have = len(tr.states)
-            for j in range(n_have, len(hist["times"])):
-                tr.append(self._state_from_history(hist, j, tid))
-            self._prev.pop(tid, None)
-        updated = []  # (row, track) of known tracks, in snapshot order
-        for row, tid in enumerate(alive):
-            tr = self._tracks.get(tid)
-            if tr is None:
-                hist = vars(core.history(tid))
-                states = [self._state_from_history(hist, j, tid) for j in range(len(hist["times"]))]
-                tr = Track(states)
-                self._tracks[tid] = tr
-                self._prev[tid] = (
-                    float(hist["times"][-1]),
-                    hist["states"][-1],
-                    hist["covariances"][-1],
-                )
-                continue
-            updated.append((row, tid, tr))
-        upd = is_update.tolist()
-        hyps = self._hypotheses(snap, [(r, tid) for r, tid, _ in updated if upd[r]], time, t_now)
-        ob = self._objects
-        # Stone Soup's Track.append merges the metadata of the hypotheses' detections into
-        # the track's; without any (the usual case) it only copies it.
-        plain = not any(d.metadata for d in self._dets_of(-1) if d.metadata is not None)
-        append = ob.append_plain if plain else Track.append
-        for row, tid, tr in updated:
-            hyp = None
-            if upd[row]:
-                hyp = hyps.get(row)
-                if hyp is None:
-                    hyp = self._placeholder(time)
-            x, p = xs[row], ps[row]
-            append(tr, ob.state(upd[row], x, p, time, hyp))
-            # Plain arrays (fresh per snapshot): Stone Soup's matrix types are slow in `@`.
-            self._prev[tid] = (t_now, x, p)
+        tracks = self._tracks
+        if len(alive) != len(tracks) or any(tid not in tracks for tid in alive):
+            alive_set = set(alive)
+            for tid in [k for k in tracks if k not in alive_set]:
+                del tracks[tid]
+                # Its last state(s) are built when read; the filler stays pending until then.
+                self._fillers.pop(tid).arm()
+            for tid in alive:
+                if tid not in tracks:
+                    tr = Track()
+                    d = tr.__dict__
+                    states, mds = LazyList(), LazyList()
+                    d["_property_states"], d["metadatas"] = states, mds
+                    f = _Filler(self, tid, tr, self._scan - 1, self._freed)
+                    tracks[tid] = tr
+                    self._fillers[tid] = f
+                    self._pending[tid] = f
+        fillers = self._fillers
+        for tid in alive:
+            fillers[tid].arm()
 
     def _dets_of(self, scan: int) -> list:
-        """The detections of a scan still kept (the newest scan's and those a tentative
-        history can refer to, see `_free_scans`)."""
+        """The detections of a scan still kept (see `_free_scans`)."""
         dets = self._scan_dets[scan]
         if dets is None:
             raise RuntimeError(f"usvfast.stonesoup: detections of scan {scan} already freed")
         return dets
 
+    def _has_metadata(self, scan: int) -> bool:
+        """Whether a detection of `scan` carries metadata (Track.append then merges it)."""
+        hit = self._scan_md.get(scan)
+        if hit is None:
+            hit = any(d.metadata for d in self._dets_of(scan) if d.metadata is not None)
+            self._scan_md[scan] = hit
+            if len(self._scan_md) > 4 * _LAZY_HORIZON:
+                self._scan_md.clear()
+                self._scan_md[scan] = hit
+        return hit
+
+    def _history(self, tid: int, start: int) -> dict:
+        """History entries `start`.. of core track `tid` (dict of arrays; assoc_offsets from
+        0)."""
+        if self._raw is not None:
+            if self._history_start:
+                try:
+                    return self._raw.history(tid, start)
+                except TypeError:  # a core without `start`
+                    self._history_start = False
+            hist = self._raw.history(tid)
+        else:
+            hist = vars(self._core.history(tid))
+        if start == 0:
+            return hist
+        offs = hist["assoc_offsets"]
+        a = int(offs[start])
+        out = {k: v[start:] for k, v in hist.items() if isinstance(v, np.ndarray)}
+        out["assoc_offsets"] = offs[start:] - a
+        out["assoc_detection"] = hist["assoc_detection"][a:]
+        out["assoc_probability"] = hist["assoc_probability"][a:]
+        return out
+
+    def _build(self, f: _Filler) -> None:
+        """Append the states of track `f.tid` the Stone Soup track lacks (history entries
+        f.have..), with their hypotheses and metadata, as Stone Soup's tracker appends them."""
+        from stonesoup.types.track import Track
+
+        hist = self._history(f.tid, f.have)
+        n = len(hist["times"])
+        if n == 0:
+            return
+        ob = self._objects
+        track = f.track
+        times, xs, ps = hist["times"], hist["states"], hist["covariances"]
+        scans, upds, dets = hist["scan"].tolist(), hist["is_update"].tolist(), hist["detection"]
+        offs, missed = hist["assoc_offsets"], hist["missed_probability"]
+        fast = ob.append_plain
+        for j in range(n):
+            scan = scans[j]
+            if not 0 <= scan < len(self._scan_time):
+                raise RuntimeError(
+                    f"usvfast.stonesoup: history entry of track {f.tid} at unknown scan"
+                )
+            time = self._scan_time[scan]
+            hyp = None
+            if upds[j]:
+                det = int(dets[j])
+                scan_dets = self._dets_of(scan)
+                if self.hypotheses:
+                    if f.prev is None:
+                        if det >= 0:
+                            hyp = ob.single(None, scan_dets[det])
+                        pred = None
+                    else:
+                        # States up to the confirmation come from the initiator's models.
+                        t0, x0, p0 = f.prev
+                        fm, q = self._transition(scan <= f.birth_scan, float(times[j]) - t0)
+                        pred = ob.state(False, fm @ x0, fm @ p0 @ fm.T + q, time)
+                    if hyp is None:
+                        a, b = int(offs[j]), int(offs[j + 1])
+                        hyp = self._make_hypothesis(
+                            pred,
+                            scan_dets,
+                            time,
+                            hist["assoc_detection"][a:b],
+                            hist["assoc_probability"][a:b],
+                            float(missed[j]),
+                            det,
+                        )
+                if hyp is None:
+                    hyp = self._placeholder(time)
+            state = ob.state(upds[j], xs[j], ps[j], time, hyp)
+            if upds[j] and self._has_metadata(scan):
+                Track.append(track, state)
+            else:
+                fast(track, state)
+            f.prev = (float(times[j]), xs[j], ps[j])
+        f.have += n
+        f.next_scan = scans[-1] + 1
+
     def _placeholder(self, time: Any) -> Any:
         return self._objects.single(None, self._objects.missed(time))
-
-    def _hypotheses(self, snap: dict, rows: list[tuple[int, int]], time: Any, t: float) -> dict:
-        """{row: hypothesis} of the updated tracks (row, id) of a snapshot: each track's
-        prediction from its previous state (batched per time step) and its association
-        probabilities from the snapshot; empty with hypotheses=False."""
-        if not self.hypotheses or not rows:
-            return {}
-        by_dt: dict[float, list[int]] = {}
-        prevs = []
-        for i, (_, tid) in enumerate(rows):
-            t0, x0, p0 = self._prev[tid]
-            prevs.append((x0, p0))
-            by_dt.setdefault(t - t0, []).append(i)
-        preds: list[Any] = [None] * len(rows)
-        ob = self._objects
-        for dt, idx in by_dt.items():
-            f, q = self._transition(False, dt)
-            x0 = np.array([prevs[i][0] for i in idx])
-            p0 = np.array([prevs[i][1] for i in idx])
-            xp = x0 @ f.T
-            pp = f @ p0 @ f.T + q
-            for k, i in enumerate(idx):
-                preds[i] = ob.state(False, xp[k], pp[k], time)
-        offs = snap["assoc_offsets"].tolist()
-        det_all = snap["assoc_detection"].tolist()
-        prob_all = snap["assoc_probability"].tolist()
-        missed = snap["missed_probability"].tolist()
-        best = snap["detection"].tolist()
-        scan_dets = self._dets_of(-1)
-        out = {}
-        for i, (row, _) in enumerate(rows):
-            a, b = offs[row], offs[row + 1]
-            out[row] = self._make_hypothesis(
-                preds[i], scan_dets, time, det_all[a:b], prob_all[a:b], missed[row], best[row]
-            )
-        return out
 
     def _make_hypothesis(self, pred, scan_dets, time, dets, probs, missed, det) -> Any:
         ob = self._objects
@@ -439,39 +489,40 @@ class _DropInTracker:
             return ob.single(pred, scan_dets[det])
         return None
 
-    def _state_from_history(self, hist: dict, j: int, tid: int) -> Any:
-        scan = int(hist["scan"][j])
-        time = self._scan_time[scan] if 0 <= scan < len(self._scan_time) else None
-        if time is None:
-            raise RuntimeError(f"usvfast.stonesoup: history entry of track {tid} at unknown scan")
-        upd = bool(hist["is_update"][j])
-        hyp = None
-        if upd:
-            det = int(hist["detection"][j])
-            scan_dets = self._dets_of(scan)
-            if self.hypotheses:
-                if j == 0 and det >= 0:
-                    hyp = self._objects.single(None, scan_dets[det])
-                else:
-                    pred = None
-                    if j > 0:
-                        t_prev = float(hist["times"][j - 1])
-                        f, q = self._transition(True, float(hist["times"][j]) - t_prev)
-                        x0, p0 = hist["states"][j - 1], hist["covariances"][j - 1]
-                        pred = self._objects.state(False, f @ x0, f @ p0 @ f.T + q, time)
-                    a, b = hist["assoc_offsets"][j], hist["assoc_offsets"][j + 1]
-                    hyp = self._make_hypothesis(
-                        pred,
-                        scan_dets,
-                        time,
-                        hist["assoc_detection"][a:b],
-                        hist["assoc_probability"][a:b],
-                        float(hist["missed_probability"][j]),
-                        det,
-                    )
-            if hyp is None:
-                hyp = self._placeholder(time)
-        return self._objects.state(upd, hist["states"][j], hist["covariances"][j], time, hyp)
+
+class _Filler:
+    """Builds the missing states of one drop-in track when its lists are first read (see
+    `usvfast.stonesoup_lazy`): `have` history entries built so far, `prev` (t, x, P) of the
+    last of them, `next_scan` a scan index no unbuilt entry is older than."""
+
+    __slots__ = ("birth_scan", "done", "have", "next_scan", "owner", "prev", "tid", "track")
+
+    def __init__(self, owner: Any, tid: int, track: Any, birth_scan: int, first: int) -> None:
+        self.owner = owner
+        self.tid = tid
+        self.track = track
+        self.birth_scan = birth_scan
+        self.have = 0
+        self.prev: tuple[float, np.ndarray, np.ndarray] | None = None
+        self.next_scan = first
+        self.done = False  # built, and not alive any more
+
+    def arm(self) -> None:
+        d = self.track.__dict__
+        d["_property_states"]._fill = self
+        d["metadatas"]._fill = self
+
+    def __call__(self) -> None:
+        self.force()
+
+    def force(self) -> None:
+        """Build now what is missing (the lists are plain lists meanwhile)."""
+        d = self.track.__dict__
+        d["_property_states"]._fill = None
+        d["metadatas"]._fill = None
+        self.owner._build(self)
+        if self.tid not in self.owner._tracks:
+            self.done = True  # deleted: its history does not grow any more
 
 
 class MultiTargetMixtureTracker(_DropInTracker):
