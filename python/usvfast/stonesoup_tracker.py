@@ -37,6 +37,17 @@ def _raw_core(tracker: Any) -> Any:
     return raw if ok else None
 
 
+# The snapshot entries `_DropInTracker._newest` reads, as lists.
+_NEWEST_LISTS = (
+    "ids",
+    "is_update",
+    "detection",
+    "missed_probability",
+    "assoc_offsets",
+    "assoc_detection",
+    "assoc_probability",
+)
+
 # At most this many measurement models remembered by identity (one per detection when a radar
 # moves and each detection carries its own translation).
 _MODEL_CACHE = 4096
@@ -132,6 +143,7 @@ class _DropInTracker:
         self._pending: dict[int, _Filler] = {}
         self._scan_md: dict[int, bool] = {}  # scan -> a detection of it carries metadata
         self._history_start = True  # the core's history(track_id, start) is available
+        self._newest_cache: dict | None = None  # see `_newest`
 
     # -- Stone Soup's Tracker protocol -------------------------------------------------------
 
@@ -420,6 +432,15 @@ class _DropInTracker:
         f.have..), with their hypotheses and metadata, as Stone Soup's tracker appends them."""
         from stonesoup.types.track import Track
 
+        if (
+            f.prev is not None
+            and f.next_scan == self._scan - 1
+            and self._raw is not None
+            and f.tid in self._tracks
+        ):
+            # Only the newest scan's state is missing: from this scan's snapshot.
+            self._build_newest(f)
+            return
         hist = self._history(f.tid, f.have)
         n = len(hist["times"])
         if n == 0:
@@ -472,6 +493,71 @@ class _DropInTracker:
             f.prev = (float(times[j]), xs[j], ps[j])
         f.have += n
         f.next_scan = scans[-1] + 1
+
+    def _newest(self) -> dict:
+        """The newest scan's snapshot of the confirmed tracks (lists), with `row` (track id ->
+        row) and `pred` (row -> predicted mean and covariance, from each track's previous
+        state; batched over the tracks whose previous state is built), made once per scan."""
+        nw = self._newest_cache
+        if nw is not None and nw["scan"] == self._scan:
+            return nw
+        snap = self._raw.snapshot()
+        nw = {k: snap[k].tolist() for k in _NEWEST_LISTS}
+        nw["states"], nw["covariances"] = snap["states"], snap["covariances"]
+        nw["scan"] = self._scan
+        nw["row"] = row = {tid: r for r, tid in enumerate(nw["ids"])}
+        nw["pred"] = pred = {}
+        if self.hypotheses:
+            t = (self._scan_time[-1] - self._t0).total_seconds()
+            by_dt: dict[float, list[Any]] = {}
+            for tid, r in row.items():
+                f = self._fillers.get(tid)
+                if f is not None and f.prev is not None and f.next_scan == self._scan - 1:
+                    by_dt.setdefault(t - f.prev[0], []).append((r, f.prev))
+            for dt, group in by_dt.items():
+                fm, q = self._transition(False, dt)
+                xp = np.array([g[1][1] for g in group]) @ fm.T
+                pp = fm @ np.array([g[1][2] for g in group]) @ fm.T + q
+                for k, (r, _) in enumerate(group):
+                    pred[r] = (xp[k], pp[k])
+        self._newest_cache = nw
+        return nw
+
+    def _build_newest(self, f: _Filler) -> None:
+        """Append the newest scan's state of alive track `f` (see `_build`)."""
+        from stonesoup.types.track import Track
+
+        nw = self._newest()
+        r = nw["row"][f.tid]
+        scan = self._scan - 1
+        time = self._scan_time[scan]
+        ob = self._objects
+        x, p, upd = nw["states"][r], nw["covariances"][r], nw["is_update"][r]
+        hyp = None
+        if upd:
+            if self.hypotheses:
+                px, pp = nw["pred"][r]
+                pred = ob.state(False, px, pp, time)
+                a, b = nw["assoc_offsets"][r], nw["assoc_offsets"][r + 1]
+                hyp = self._make_hypothesis(
+                    pred,
+                    self._dets_of(scan),
+                    time,
+                    nw["assoc_detection"][a:b],
+                    nw["assoc_probability"][a:b],
+                    nw["missed_probability"][r],
+                    nw["detection"][r],
+                )
+            if hyp is None:
+                hyp = self._placeholder(time)
+        state = ob.state(upd, x, p, time, hyp)
+        if upd and self._has_metadata(scan):
+            Track.append(f.track, state)
+        else:
+            ob.append_plain(f.track, state)
+        f.prev = ((time - self._t0).total_seconds(), x, p)
+        f.have += 1
+        f.next_scan = scan + 1
 
     def _placeholder(self, time: Any) -> Any:
         return self._objects.single(None, self._objects.missed(time))
