@@ -181,7 +181,7 @@ def main() -> None:
                 continue
             a, ref, a_rec = got
             r, ours_read, _ = dropin(sc, scans, read=True)
-            c, ours_nohyp, _ = dropin(sc, scans, hypotheses=False, read=True)
+            c, _, _ = dropin(sc, scans, hypotheses=False, read=True)
             same = all(H.compare_runs(x, ref) == [] for x in (ours, ours_read))
             row = {
                 "wall": median2(a[0]) / median2(b[0]),

@@ -12,11 +12,11 @@ import pickle
 
 import numpy as np
 import pytest
+from test_stonesoup_dropin import SHORT, dropin_for
 
 from usvfast.stonesoup_lazy import LazyList
 
 import ssharness as H
-from test_stonesoup_dropin import SHORT, dropin_for
 
 ATOL = 1e-6
 
@@ -179,8 +179,8 @@ def test_lazy_list_fills_once_before_any_read():
         lambda x: 2 in x,
         lambda x: x == [1, 2, 3],
         repr,
-        lambda x: [0] + x,
-        lambda x: x + [4],
+        lambda x: [0] + x,  # noqa: RUF005 (list + LazyList is what is tested)
+        lambda x: x + [4],  # noqa: RUF005
         lambda x: list(reversed(x)),
         copy.copy,
         copy.deepcopy,

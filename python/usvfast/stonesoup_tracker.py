@@ -1,11 +1,13 @@
 """The Stone Soup drop-in trackers (`usvfast.stonesoup.MultiTargetMixtureTracker` and
 `MultiTargetTracker`): Stone Soup's tracker protocol on the usvfast core.
 
-Per scan the drop-in hands the detections to the core in one call, takes one snapshot of the
-confirmed tracks, and builds only the Stone Soup objects of that scan (one state per track and,
-with `hypotheses=True`, its association hypotheses) by the fast constructors of
-`usvfast.stonesoup_objects`. Transition matrices are cached per time step; detections of old
-scans are freed in batches.
+Per scan the drop-in hands the detections to the core in one call and reads the ids of the
+confirmed tracks; a new id gets a Stone Soup `Track`, a vanished one is dropped from the set.
+The tracks' states (and their association hypotheses and metadata) are built when a track is
+first read (`usvfast.stonesoup_lazy`, `usvfast.stonesoup_build`), exactly as Stone Soup would
+have appended them; a track nobody reads is built at the latest `_LAZY_HORIZON` scans later,
+so that the detections it refers to can be freed. Transition matrices are cached per time
+step; detections of old scans are freed in batches.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from usvfast.stonesoup import (
     detection_model,
     read_components,
 )
+from usvfast.stonesoup_build import Filler, StateBuilder
 from usvfast.stonesoup_lazy import LazyList
 from usvfast.stonesoup_objects import StoneSoupObjects
 
@@ -36,17 +39,6 @@ def _raw_core(tracker: Any) -> Any:
     ok = all(callable(getattr(raw, k, None)) for k in ("step", "snapshot", "track_ids", "history"))
     return raw if ok else None
 
-
-# The snapshot entries `_DropInTracker._newest` reads, as lists.
-_NEWEST_LISTS = (
-    "ids",
-    "is_update",
-    "detection",
-    "missed_probability",
-    "assoc_offsets",
-    "assoc_detection",
-    "assoc_probability",
-)
 
 # At most this many measurement models remembered by identity (one per detection when a radar
 # moves and each detection carries its own translation).
@@ -83,7 +75,7 @@ _FREE_EVERY = 4
 _LAZY_HORIZON = 64
 
 
-class _DropInTracker:
+class _DropInTracker(StateBuilder):
     """Shared machinery of the two drop-in trackers (see the module docstring)."""
 
     _mixture = True
@@ -138,9 +130,9 @@ class _DropInTracker:
         self._scan_dets: list[list[Any] | None] = []
         self._freed = 0
         self._tracks: dict[int, Any] = {}  # alive confirmed tracks by core id
-        self._fillers: dict[int, _Filler] = {}  # of the alive tracks
+        self._fillers: dict[int, Filler] = {}  # of the alive tracks
         # Fillers of tracks that may lack states (alive ones, deleted ones not read since).
-        self._pending: dict[int, _Filler] = {}
+        self._pending: dict[int, Filler] = {}
         self._scan_md: dict[int, bool] = {}  # scan -> a detection of it carries metadata
         self._history_start = True  # the core's history(track_id, start) is available
         self._newest_cache: dict | None = None  # see `_newest`
@@ -376,239 +368,16 @@ class _DropInTracker:
             for tid in alive:
                 if tid not in tracks:
                     tr = Track()
-                    d = tr.__dict__
+                    d: Any = tr.__dict__
                     states, mds = LazyList(), LazyList()
                     d["_property_states"], d["metadatas"] = states, mds
-                    f = _Filler(self, tid, tr, self._scan - 1, self._freed)
+                    f = Filler(self, tid, tr, self._scan - 1, self._freed)
                     tracks[tid] = tr
                     self._fillers[tid] = f
                     self._pending[tid] = f
         fillers = self._fillers
         for tid in alive:
             fillers[tid].arm()
-
-    def _dets_of(self, scan: int) -> list:
-        """The detections of a scan still kept (see `_free_scans`)."""
-        dets = self._scan_dets[scan]
-        if dets is None:
-            raise RuntimeError(f"usvfast.stonesoup: detections of scan {scan} already freed")
-        return dets
-
-    def _has_metadata(self, scan: int) -> bool:
-        """Whether a detection of `scan` carries metadata (Track.append then merges it)."""
-        hit = self._scan_md.get(scan)
-        if hit is None:
-            hit = any(d.metadata for d in self._dets_of(scan) if d.metadata is not None)
-            self._scan_md[scan] = hit
-            if len(self._scan_md) > 4 * _LAZY_HORIZON:
-                self._scan_md.clear()
-                self._scan_md[scan] = hit
-        return hit
-
-    def _history(self, tid: int, start: int) -> dict:
-        """History entries `start`.. of core track `tid` (dict of arrays; assoc_offsets from
-        0)."""
-        if self._raw is not None:
-            if self._history_start:
-                try:
-                    return self._raw.history(tid, start)
-                except TypeError:  # a core without `start`
-                    self._history_start = False
-            hist = self._raw.history(tid)
-        else:
-            hist = vars(self._core.history(tid))
-        if start == 0:
-            return hist
-        offs = hist["assoc_offsets"]
-        a = int(offs[start])
-        out = {k: v[start:] for k, v in hist.items() if isinstance(v, np.ndarray)}
-        out["assoc_offsets"] = offs[start:] - a
-        out["assoc_detection"] = hist["assoc_detection"][a:]
-        out["assoc_probability"] = hist["assoc_probability"][a:]
-        return out
-
-    def _build(self, f: _Filler) -> None:
-        """Append the states of track `f.tid` the Stone Soup track lacks (history entries
-        f.have..), with their hypotheses and metadata, as Stone Soup's tracker appends them."""
-        from stonesoup.types.track import Track
-
-        if (
-            f.prev is not None
-            and f.next_scan == self._scan - 1
-            and self._raw is not None
-            and f.tid in self._tracks
-        ):
-            # Only the newest scan's state is missing: from this scan's snapshot.
-            self._build_newest(f)
-            return
-        hist = self._history(f.tid, f.have)
-        n = len(hist["times"])
-        if n == 0:
-            return
-        ob = self._objects
-        track = f.track
-        times, xs, ps = hist["times"], hist["states"], hist["covariances"]
-        scans, upds, dets = hist["scan"].tolist(), hist["is_update"].tolist(), hist["detection"]
-        offs, missed = hist["assoc_offsets"], hist["missed_probability"]
-        fast = ob.append_plain
-        for j in range(n):
-            scan = scans[j]
-            if not 0 <= scan < len(self._scan_time):
-                raise RuntimeError(
-                    f"usvfast.stonesoup: history entry of track {f.tid} at unknown scan"
-                )
-            time = self._scan_time[scan]
-            hyp = None
-            if upds[j]:
-                det = int(dets[j])
-                scan_dets = self._dets_of(scan)
-                if self.hypotheses:
-                    if f.prev is None:
-                        if det >= 0:
-                            hyp = ob.single(None, scan_dets[det])
-                        pred = None
-                    else:
-                        # States up to the confirmation come from the initiator's models.
-                        t0, x0, p0 = f.prev
-                        fm, q = self._transition(scan <= f.birth_scan, float(times[j]) - t0)
-                        pred = ob.state(False, fm @ x0, fm @ p0 @ fm.T + q, time)
-                    if hyp is None:
-                        a, b = int(offs[j]), int(offs[j + 1])
-                        hyp = self._make_hypothesis(
-                            pred,
-                            scan_dets,
-                            time,
-                            hist["assoc_detection"][a:b],
-                            hist["assoc_probability"][a:b],
-                            float(missed[j]),
-                            det,
-                        )
-                if hyp is None:
-                    hyp = self._placeholder(time)
-            state = ob.state(upds[j], xs[j], ps[j], time, hyp)
-            if upds[j] and self._has_metadata(scan):
-                Track.append(track, state)
-            else:
-                fast(track, state)
-            f.prev = (float(times[j]), xs[j], ps[j])
-        f.have += n
-        f.next_scan = scans[-1] + 1
-
-    def _newest(self) -> dict:
-        """The newest scan's snapshot of the confirmed tracks (lists), with `row` (track id ->
-        row) and `pred` (row -> predicted mean and covariance, from each track's previous
-        state; batched over the tracks whose previous state is built), made once per scan."""
-        nw = self._newest_cache
-        if nw is not None and nw["scan"] == self._scan:
-            return nw
-        snap = self._raw.snapshot()
-        nw = {k: snap[k].tolist() for k in _NEWEST_LISTS}
-        nw["states"], nw["covariances"] = snap["states"], snap["covariances"]
-        nw["scan"] = self._scan
-        nw["row"] = row = {tid: r for r, tid in enumerate(nw["ids"])}
-        nw["pred"] = pred = {}
-        if self.hypotheses:
-            t = (self._scan_time[-1] - self._t0).total_seconds()
-            by_dt: dict[float, list[Any]] = {}
-            for tid, r in row.items():
-                f = self._fillers.get(tid)
-                if f is not None and f.prev is not None and f.next_scan == self._scan - 1:
-                    by_dt.setdefault(t - f.prev[0], []).append((r, f.prev))
-            for dt, group in by_dt.items():
-                fm, q = self._transition(False, dt)
-                xp = np.array([g[1][1] for g in group]) @ fm.T
-                pp = fm @ np.array([g[1][2] for g in group]) @ fm.T + q
-                for k, (r, _) in enumerate(group):
-                    pred[r] = (xp[k], pp[k])
-        self._newest_cache = nw
-        return nw
-
-    def _build_newest(self, f: _Filler) -> None:
-        """Append the newest scan's state of alive track `f` (see `_build`)."""
-        from stonesoup.types.track import Track
-
-        nw = self._newest()
-        r = nw["row"][f.tid]
-        scan = self._scan - 1
-        time = self._scan_time[scan]
-        ob = self._objects
-        x, p, upd = nw["states"][r], nw["covariances"][r], nw["is_update"][r]
-        hyp = None
-        if upd:
-            if self.hypotheses:
-                px, pp = nw["pred"][r]
-                pred = ob.state(False, px, pp, time)
-                a, b = nw["assoc_offsets"][r], nw["assoc_offsets"][r + 1]
-                hyp = self._make_hypothesis(
-                    pred,
-                    self._dets_of(scan),
-                    time,
-                    nw["assoc_detection"][a:b],
-                    nw["assoc_probability"][a:b],
-                    nw["missed_probability"][r],
-                    nw["detection"][r],
-                )
-            if hyp is None:
-                hyp = self._placeholder(time)
-        state = ob.state(upd, x, p, time, hyp)
-        if upd and self._has_metadata(scan):
-            Track.append(f.track, state)
-        else:
-            ob.append_plain(f.track, state)
-        f.prev = ((time - self._t0).total_seconds(), x, p)
-        f.have += 1
-        f.next_scan = scan + 1
-
-    def _placeholder(self, time: Any) -> Any:
-        return self._objects.single(None, self._objects.missed(time))
-
-    def _make_hypothesis(self, pred, scan_dets, time, dets, probs, missed, det) -> Any:
-        ob = self._objects
-        if self._mixture and np.isfinite(missed):
-            prob = ob.probability
-            hyps = [prob(pred, ob.missed(time), float(missed))]
-            hyps += [
-                prob(pred, scan_dets[int(j)], float(p)) for j, p in zip(dets, probs, strict=True)
-            ]
-            return ob.multiple(hyps)
-        if det >= 0:
-            return ob.single(pred, scan_dets[det])
-        return None
-
-
-class _Filler:
-    """Builds the missing states of one drop-in track when its lists are first read (see
-    `usvfast.stonesoup_lazy`): `have` history entries built so far, `prev` (t, x, P) of the
-    last of them, `next_scan` a scan index no unbuilt entry is older than."""
-
-    __slots__ = ("birth_scan", "done", "have", "next_scan", "owner", "prev", "tid", "track")
-
-    def __init__(self, owner: Any, tid: int, track: Any, birth_scan: int, first: int) -> None:
-        self.owner = owner
-        self.tid = tid
-        self.track = track
-        self.birth_scan = birth_scan
-        self.have = 0
-        self.prev: tuple[float, np.ndarray, np.ndarray] | None = None
-        self.next_scan = first
-        self.done = False  # built, and not alive any more
-
-    def arm(self) -> None:
-        d = self.track.__dict__
-        d["_property_states"]._fill = self
-        d["metadatas"]._fill = self
-
-    def __call__(self) -> None:
-        self.force()
-
-    def force(self) -> None:
-        """Build now what is missing (the lists are plain lists meanwhile)."""
-        d = self.track.__dict__
-        d["_property_states"]._fill = None
-        d["metadatas"]._fill = None
-        self.owner._build(self)
-        if self.tid not in self.owner._tracks:
-            self.done = True  # deleted: its history does not grow any more
 
 
 class MultiTargetMixtureTracker(_DropInTracker):
@@ -618,10 +387,18 @@ class MultiTargetMixtureTracker(_DropInTracker):
     protocol: iterating yields `(datetime, set of Track)` per scan of `detector`;
     `update_tracker(time, detections)` processes one scan. Update states carry a
     `MultipleHypothesis` of `SingleProbabilityHypothesis` (prediction, detection or
-    MissedDetection, JPDA probability; `measurement_prediction` is None). `hypotheses=False`
-    skips building them (2-3x faster): update states then carry a placeholder
-    `SingleHypothesis(None, MissedDetection)`, so do not feed such tracks to Stone Soup
-    deleters. Raises UnsupportedComponentError for components usvfast cannot reproduce
+    MissedDetection, JPDA probability; `measurement_prediction` is None; the probabilities
+    come normalised as floats, `normalise=False`); the initiator's tentative updates carry
+    the same kind (Stone Soup: its GNN's `SingleDistanceHypothesis`), the first state
+    `SingleHypothesis(None, detection)`. `hypotheses=False` skips building them: update
+    states then carry a placeholder `SingleHypothesis(None, MissedDetection)`, so do not feed
+    such tracks to Stone Soup deleters.
+
+    Laziness: a track's `states` and `metadatas` are `usvfast.stonesoup_lazy.LazyList`s (list
+    subclasses; copies and pickles are plain lists) that build the missing states on any read
+    — `len(track)`, `track.state`, indexing, iterating, `track.metadata`, `Track.append` — so
+    what a user sees is what Stone Soup's tracker holds at that scan; the cost of the states
+    moves from the scan to the first read. Raises UnsupportedComponentError for components usvfast cannot reproduce
     exactly, ValueError for detections off the scan time or of another dimension.
 
     Memory: a scan's detections are kept while a tentative track's history refers to them (a
