@@ -163,6 +163,32 @@ def test_tracks_read_by_stonesoup_code_and_appended_to():
     extra = GaussianState(np.zeros((4, 1)), np.eye(4), timestamp=track.timestamp)
     track.append(extra)
     assert len(track) == n + 1 and track.state is extra and len(track.metadatas) == n + 1
+    back = pickle.loads(pickle.dumps(track))
+    assert type(back.states) is list and len(back) == n + 1 and back.metadatas == track.metadatas
+
+
+def test_a_failed_build_leaves_the_track_unbuilt(monkeypatch):
+    scans = H.stonesoup_scans(H.crossing(3))
+    tracker = dropin_for(H.build_stonesoup(H.Code57())[0], scans)
+    for _, tracks in tracker:
+        pass
+    track = next(iter(tracks))
+    real = tracker._dets_of
+    calls = []
+
+    def flaky(scan):
+        calls.append(scan)
+        if len(calls) == 5:
+            raise RuntimeError("detections gone")
+        return real(scan)
+
+    monkeypatch.setattr(tracker, "_dets_of", flaky)
+    with pytest.raises(RuntimeError, match="detections gone"):
+        len(track)
+    assert list.__len__(track.states) == 0  # nothing half-built is visible
+    monkeypatch.setattr(tracker, "_dets_of", real)
+    ref = H.run_tracker(H.build_stonesoup(H.Code57(), detector=scans)[0])
+    assert len(track) in {len(r.times) for r in ref}
 
 
 def test_lazy_list_fills_once_before_any_read():

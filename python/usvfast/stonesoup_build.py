@@ -116,41 +116,32 @@ class StateBuilder:
             return
         ob = self._objects
         track = f.track
-        times, xs, ps = hist["times"], hist["states"], hist["covariances"]
-        scans, upds, dets = hist["scan"].tolist(), hist["is_update"].tolist(), hist["detection"]
-        offs, missed = hist["assoc_offsets"], hist["missed_probability"]
+        xs, ps = hist["states"], hist["covariances"]
+        times, scans = hist["times"].tolist(), hist["scan"].tolist()
+        upds, dets = hist["is_update"].tolist(), hist["detection"].tolist()
+        offs, missed = hist["assoc_offsets"].tolist(), hist["missed_probability"].tolist()
+        assoc_det, assoc_p = hist["assoc_detection"].tolist(), hist["assoc_probability"].tolist()
+        if not all(0 <= k < len(self._scan_time) for k in scans):
+            raise RuntimeError(f"usvfast.stonesoup: history entry of track {f.tid} at unknown scan")
+        preds = self._predictions(f, xs, ps, times, scans, upds) if self.hypotheses else {}
         fast = ob.append_plain
         for j in range(n):
             scan = scans[j]
-            if not 0 <= scan < len(self._scan_time):
-                raise RuntimeError(
-                    f"usvfast.stonesoup: history entry of track {f.tid} at unknown scan"
-                )
             time = self._scan_time[scan]
             hyp = None
             if upds[j]:
-                det = int(dets[j])
+                det = dets[j]
                 scan_dets = self._dets_of(scan)
                 if self.hypotheses:
-                    if f.prev is None:
-                        if det >= 0:
-                            hyp = ob.single(None, scan_dets[det])
-                        pred = None
-                    else:
-                        # States up to the confirmation come from the initiator's models.
-                        t0, x0, p0 = f.prev
-                        fm, q = self._transition(scan <= f.birth_scan, float(times[j]) - t0)
-                        pred = ob.state(False, fm @ x0, fm @ p0 @ fm.T + q, time)
+                    pred = None
+                    if j in preds:
+                        pred = ob.state(False, *preds[j], time)
+                    elif det >= 0:  # the first state: its detection, no prediction
+                        hyp = ob.single(None, scan_dets[det])
                     if hyp is None:
-                        a, b = int(offs[j]), int(offs[j + 1])
+                        a, b = offs[j], offs[j + 1]
                         hyp = self._make_hypothesis(
-                            pred,
-                            scan_dets,
-                            time,
-                            hist["assoc_detection"][a:b],
-                            hist["assoc_probability"][a:b],
-                            float(missed[j]),
-                            det,
+                            pred, scan_dets, time, assoc_det[a:b], assoc_p[a:b], missed[j], det
                         )
                 if hyp is None:
                     hyp = self._placeholder(time)
@@ -159,9 +150,31 @@ class StateBuilder:
                 Track.append(track, state)
             else:
                 fast(track, state)
-            f.prev = (float(times[j]), xs[j], ps[j])
+        f.prev = (times[-1], xs[-1], ps[-1])
         f.have += n
         f.next_scan = scans[-1] + 1
+
+    def _predictions(self, f: Filler, xs, ps, times, scans, upds) -> dict:
+        """{j: (mean, covariance)} predicted to history entry j (of those given, an update)
+        from the entry before it (or `f.prev`), batched per transition model and time step;
+        entries up to the confirmation scan by the initiator's model."""
+        groups: dict[tuple[bool, float], list[int]] = {}
+        # Entry 0's prior is `f.prev` (a new track's entry 0 has none and is skipped).
+        t_p, x_p, p_p = f.prev if f.prev is not None else (0.0, xs[0], ps[0])
+        for j, upd in enumerate(upds):
+            if not upd or (j == 0 and f.prev is None):
+                continue
+            t0 = times[j - 1] if j else t_p
+            groups.setdefault((scans[j] <= f.birth_scan, times[j] - t0), []).append(j)
+        out = {}
+        for (initiator, dt), idx in groups.items():
+            fm, q = self._transition(initiator, dt)
+            x0 = np.array([xs[j - 1] if j else x_p for j in idx])
+            p0 = np.array([ps[j - 1] if j else p_p for j in idx])
+            xp, pp = x0 @ fm.T, fm @ p0 @ fm.T + q
+            for k, j in enumerate(idx):
+                out[j] = (xp[k], pp[k])
+        return out
 
     def _newest(self) -> dict:
         """The newest scan's snapshot of the confirmed tracks (lists), with `row` (track id ->
@@ -273,8 +286,17 @@ class Filler:
     def force(self) -> None:
         """Build now what is missing (the lists are plain lists meanwhile)."""
         d = self.track.__dict__
-        d["_property_states"]._fill = None
-        d["metadatas"]._fill = None
-        self.owner._build(self)
+        states, mds = d["_property_states"], d["metadatas"]
+        states._fill = mds._fill = None
+        before = (list.__len__(states), list.__len__(mds), self.have, self.prev, self.next_scan)
+        try:
+            self.owner._build(self)
+        except BaseException:
+            # Nothing half-built passes for the whole track: back to before, armed again.
+            list.__delitem__(states, slice(before[0], None))
+            list.__delitem__(mds, slice(before[1], None))
+            self.have, self.prev, self.next_scan = before[2:]
+            self.arm()
+            raise
         if self.tid not in self.owner._tracks:
             self.done = True  # deleted: its history does not grow any more

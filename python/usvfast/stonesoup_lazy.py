@@ -78,8 +78,6 @@ class LazyList(list):
             return list.__add__(list(other), list(list.__iter__(self)))
         return NotImplemented
 
-    __hash__ = None  # type: ignore[assignment]
-
 
 def _forcing(name: str) -> Callable:
     base = getattr(list, name)

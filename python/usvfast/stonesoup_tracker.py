@@ -250,13 +250,17 @@ class _DropInTracker(StateBuilder):
 
     def _step(self, time: Any, detections: Any):
         dets = list(detections)
+        known = self._sensor_of_model
+        found = []
         for d in dets:
             if d.timestamp != time:
                 raise ValueError(
                     f"detections: a detection at {d.timestamp} in the scan at {time}; usvfast "
                     "needs every detection of a scan to carry the scan time"
                 )
-        found = [self._sensor_index(d.measurement_model) for d in dets]
+            model = d.measurement_model
+            hit = known.get(id(model))
+            found.append(hit if hit is not None else self._sensor_index(model))
         sids = np.fromiter((f[0] for f in found), dtype=np.int64, count=len(dets))
         m = self._noise(0).shape[0] if self._sensor_specs else 2
         covs = origins = None
