@@ -124,6 +124,7 @@ class StateBuilder:
         if not all(0 <= k < len(self._scan_time) for k in scans):
             raise RuntimeError(f"usvfast.stonesoup: history entry of track {f.tid} at unknown scan")
         preds = self._predictions(f, xs, ps, times, scans, upds) if self.hypotheses else {}
+        svs, cms = ob.rows(xs, ps)
         fast = ob.append_plain
         for j in range(n):
             scan = scans[j]
@@ -135,7 +136,7 @@ class StateBuilder:
                 if self.hypotheses:
                     pred = None
                     if j in preds:
-                        pred = ob.state(False, *preds[j], time)
+                        pred = ob.state_of(False, *preds[j], time)
                     elif det >= 0:  # the first state: its detection, no prediction
                         hyp = ob.single(None, scan_dets[det])
                     if hyp is None:
@@ -145,7 +146,7 @@ class StateBuilder:
                         )
                 if hyp is None:
                     hyp = self._placeholder(time)
-            state = ob.state(upds[j], xs[j], ps[j], time, hyp)
+            state = ob.state_of(upds[j], svs[j], cms[j], time, hyp)
             if upds[j] and self._has_metadata(scan):
                 Track.append(track, state)
             else:
@@ -171,9 +172,9 @@ class StateBuilder:
             fm, q = self._transition(initiator, dt)
             x0 = np.array([xs[j - 1] if j else x_p for j in idx])
             p0 = np.array([ps[j - 1] if j else p_p for j in idx])
-            xp, pp = x0 @ fm.T, fm @ p0 @ fm.T + q
+            psv, pcm = self._objects.rows(x0 @ fm.T, fm @ p0 @ fm.T + q)
             for k, j in enumerate(idx):
-                out[j] = (xp[k], pp[k])
+                out[j] = (psv[k], pcm[k])
         return out
 
     def _newest(self) -> dict:
@@ -186,6 +187,7 @@ class StateBuilder:
         snap = self._raw.snapshot()
         nw = {k: snap[k].tolist() for k in _NEWEST_LISTS}
         nw["states"], nw["covariances"] = snap["states"], snap["covariances"]
+        nw["sv"], nw["cm"] = self._objects.rows(snap["states"], snap["covariances"])
         nw["scan"] = self._scan
         nw["row"] = row = {tid: r for r, tid in enumerate(nw["ids"])}
         nw["pred"] = pred = {}
@@ -200,8 +202,9 @@ class StateBuilder:
                 fm, q = self._transition(False, dt)
                 xp = np.array([g[1][1] for g in group]) @ fm.T
                 pp = fm @ np.array([g[1][2] for g in group]) @ fm.T + q
+                psv, pcm = self._objects.rows(xp, pp)
                 for k, (r, _) in enumerate(group):
-                    pred[r] = (xp[k], pp[k])
+                    pred[r] = (psv[k], pcm[k])
         self._newest_cache = nw
         return nw
 
@@ -218,8 +221,7 @@ class StateBuilder:
         hyp = None
         if upd:
             if self.hypotheses:
-                px, pp = nw["pred"][r]
-                pred = ob.state(False, px, pp, time)
+                pred = ob.state_of(False, *nw["pred"][r], time)
                 a, b = nw["assoc_offsets"][r], nw["assoc_offsets"][r + 1]
                 hyp = self._make_hypothesis(
                     pred,
@@ -232,7 +234,7 @@ class StateBuilder:
                 )
             if hyp is None:
                 hyp = self._placeholder(time)
-        state = ob.state(upd, x, p, time, hyp)
+        state = ob.state_of(upd, nw["sv"][r], nw["cm"][r], time, hyp)
         if upd and self._has_metadata(scan):
             Track.append(f.track, state)
         else:

@@ -402,11 +402,13 @@ class MultiTargetMixtureTracker(_DropInTracker):
     subclasses; copies and pickles are plain lists) that build the missing states on any read
     — `len(track)`, `track.state`, indexing, iterating, `track.metadata`, `Track.append` — so
     what a user sees is what Stone Soup's tracker holds at that scan; the cost of the states
-    moves from the scan to the first read. Raises UnsupportedComponentError for components usvfast cannot reproduce
-    exactly, ValueError for detections off the scan time or of another dimension.
+    moves from the scan to the first read. Raises UnsupportedComponentError for components
+    usvfast cannot reproduce exactly, ValueError for detections off the scan time or of
+    another dimension.
 
-    Memory: a scan's detections are kept while a tentative track's history refers to them (a
-    track confirmed later brings its tentative states). A detection with a new measurement
+    Memory: a scan's detections are kept while a tentative track's history or a state not yet
+    built refers to them (a track confirmed later brings its tentative states; states nobody
+    reads are built 64 scans later, so at most about 64 scans are kept). A detection with a new measurement
     matrix H registers one more core sensor (`Tracker.add_sensor`); no scan is replayed.
     Detections whose models share H but not the noise covariance (each detection with its own
     `LinearGaussian`, e.g. range-dependent noise) share that sensor and reach the core with
