@@ -408,8 +408,9 @@ class MultiTargetMixtureTracker(_DropInTracker):
 
     Memory: a scan's detections are kept while a tentative track's history or a state not yet
     built refers to them (a track confirmed later brings its tentative states; states nobody
-    reads are built 64 scans later, so at most about 64 scans are kept). A detection with a new measurement
-    matrix H registers one more core sensor (`Tracker.add_sensor`); no scan is replayed.
+    reads are built 64 scans later, so at most about 64 scans are kept). A detection with a
+    new measurement matrix H registers one more core sensor (`Tracker.add_sensor`); no scan
+    is replayed.
     Detections whose models share H but not the noise covariance (each detection with its own
     `LinearGaussian`, e.g. range-dependent noise) share that sensor and reach the core with
     their own covariance (`Tracker.step(..., covariances=...)`), exactly as Stone Soup uses
