@@ -294,11 +294,17 @@ def test_readme_example_runs():
     assert len(scope["tracks"]) == 2
 
 
-def test_streaming_keeps_only_recent_scans_and_no_replay():
+@pytest.mark.parametrize("reader", [True, False], ids=["reads-every-scan", "reads-at-end"])
+def test_streaming_keeps_only_recent_scans_and_no_replay(reader, monkeypatch):
     # Two sensors: the camera's model first shows up mid-run; it shares the LiDAR's H, so its
     # detections reach the same core sensor with their own R (the core is not rebuilt);
-    # detections of scans no tentative track refers to are freed, and the tracks are still
-    # Stone Soup's.
+    # detections of scans no tentative track or unbuilt state refers to are freed, and the
+    # tracks are still Stone Soup's. A user reading every track each scan leaves only recent
+    # scans; one who never reads them, the last `_LAZY_HORIZON` scans (states unread for
+    # longer are built then).
+    from usvfast import stonesoup_tracker
+
+    monkeypatch.setattr(stonesoup_tracker, "_LAZY_HORIZON", 8)
     scenario = H.two_sensors(0)
     scans = H.stonesoup_scans(scenario)
     ref_tracker, _ = H.build_stonesoup(H.Code57(**SHORT), detector=scans)
@@ -306,18 +312,23 @@ def test_streaming_keeps_only_recent_scans_and_no_replay():
     our_tracker, _ = H.build_stonesoup(H.Code57(**SHORT))
     dropin = dropin_for(our_tracker, scans)
     cores = set()
+    most_kept = 0
 
     def spy():
+        nonlocal most_kept
         for item in dropin:
             cores.add(id(dropin._core))
+            if reader:
+                for track in item[1]:
+                    assert track.state.timestamp == item[0]
+            most_kept = max(most_kept, sum(d is not None for d in dropin._scan_dets))
             yield item
 
     ours = H.run_tracker(spy())
     assert H.compare_runs(ours, ref) == []
     assert len(cores) == 1 and len(dropin._core.sensors) == 1
     assert sum(own is not None for _, own, _ in dropin._sensor_of_model.values()) == 1
-    kept = sum(d is not None for d in dropin._scan_dets)
-    assert len(dropin._scan_dets) > 40 and kept <= 8
+    assert len(dropin._scan_dets) > 40 and most_kept <= (8 if reader else 8 + 8 + 4)
 
 
 @pytest.mark.parametrize("with_metadata", [False, True], ids=["plain", "metadata"])

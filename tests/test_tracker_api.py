@@ -467,17 +467,19 @@ def test_jpda_estimated_clutter_needs_a_finite_gate():
 
 
 def test_integer_arguments_are_named():
+    # Counts are integers: a float (even 2.0) is a TypeError, a negative one a ValueError.
+    with pytest.raises(TypeError, match="steps"):
+        code57_with(T.Sensor.position(1.0), deleter=T.StepsSinceUpdate(2.7))
+    with pytest.raises(TypeError, match="steps"):
+        code57_with(T.Sensor.position(1.0), deleter=T.StepsSinceUpdate(2.0))
     with pytest.raises(ValueError, match="steps"):
-        T.StepsSinceUpdate(2.7)._spec()
-    assert T.StepsSinceUpdate(2.0)._spec() == ("steps", 2)
-    with pytest.raises(ValueError, match="steps"):
-        T.AnyOf(T.StepsSinceUpdate(-1))._spec()
+        code57_with(T.Sensor.position(1.0), deleter=T.AnyOf(T.StepsSinceUpdate(-1)))
     with pytest.raises(ValueError, match="mapping"):
         T.Sensor.position(1, mapping=(0, 9))
     with pytest.raises(ValueError, match="mapping"):
         T.Sensor.position(1, mapping=(0, -1))
     with pytest.raises(ValueError, match="mapping"):
-        T.CovarianceTrace(1, [-1])._spec()
+        code57_with(T.Sensor.position(1.0), deleter=T.CovarianceTrace(1, [-1]))
     tr = code57(T.JPDA(0.85, 0.95, 0.125))
     with pytest.raises(ValueError, match="track_id"):
         tr.history(-1)

@@ -61,6 +61,8 @@ def test_deleted_tracks_are_drained_or_bounded():
     with pytest.raises(ValueError, match="max_deleted"):
         make(max_deleted=-1)
     with pytest.raises(ValueError, match="max_new_tentative"):
+        make(cap=-1)
+    with pytest.raises(TypeError, match="max_new_tentative"):  # a count is an integer
         make(cap=1.5)
 
 
@@ -109,3 +111,30 @@ def test_two_threads_get_a_clear_error():
         (isinstance(e, RuntimeError) and "two threads" in str(e)) or isinstance(e, TimeOrderError)
         for e in errors
     ), errors
+
+
+def test_history_from_an_entry_is_the_tail_of_the_full_history():
+    # `_core.TrackerCore.history(id, start)` copies only entries start.. (a reader following a
+    # track scan by scan pays O(new entries)), its association CSR rebased to 0.
+    tr = make()
+    rng = np.random.default_rng(5)
+    for k in range(15):
+        z = np.array([[k * 1.0, 0.0], [0.0, 40.0 - k]]) + rng.normal(0, 0.3, (2, 2))
+        near = z[:1] + rng.normal(0, 1.0, (1, 2))  # a second detection in its gate
+        tr.step(float(k), np.vstack([z, near, rng.uniform(-5, 45, (3, 2))]))
+    tid = int(tr.tracks.ids[0])
+    full = tr._core.history(tid)
+    n = len(full["times"])
+    assert n > 10 and full["assoc_offsets"][-1] > n
+    for start in (0, 1, n // 2, n - 1, n):
+        tail = tr._core.history(tid, start)
+        for key in ("times", "states", "covariances", "is_update", "scan", "nis"):
+            np.testing.assert_array_equal(tail[key], full[key][start:])
+        offs = full["assoc_offsets"]
+        np.testing.assert_array_equal(tail["assoc_offsets"], offs[start:] - offs[start])
+        a, b = offs[start], offs[-1]
+        np.testing.assert_array_equal(tail["assoc_detection"], full["assoc_detection"][a:b])
+        np.testing.assert_array_equal(tail["assoc_probability"], full["assoc_probability"][a:b])
+    assert list(tr._core.history(tid, n)["assoc_offsets"]) == [0]
+    with pytest.raises(ValueError, match="start"):
+        tr._core.history(tid, n + 1)

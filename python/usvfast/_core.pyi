@@ -181,19 +181,19 @@ def georeference_rays(
 class TrackerCore:
     def __init__(
         self,
-        motion_model: list[tuple[str, float]],
-        sensors: list[tuple[npt.NDArray[np.float64], ...]],
+        motion_model: object,
+        sensors: list[object],
         association: object,
-        deleter_spec: tuple[object, ...],
-        initiator: dict[str, object],
+        deleter: object,
+        initiator: object,
         *,
         use_joseph_cov: bool = False,
         delete_last_prediction: bool = False,
         out_of_order: str = "raise",
         initiate_in_gates: bool = True,
         symmetric_covariance: bool = False,
-        imm: tuple[list[tuple[object, ...]], npt.NDArray[np.float64], list[float]] | None = None,
-        existence: tuple[float, float, float, float, float, float | None, float] | None = None,
+        imm: object | None = None,
+        existence: object | None = None,
         max_deleted: int | None = None,
     ) -> None: ...
     def step(
@@ -213,25 +213,20 @@ class TrackerCore:
         covariances: npt.NDArray[np.float64] | None = None,
         origins: npt.NDArray[np.float64] | None = None,
     ) -> dict[str, npt.NDArray[np.generic]]: ...
-    def add_sensor(
-        self,
-        measurement_matrix: npt.NDArray[np.float64],
-        measurement_noise: npt.NDArray[np.float64],
-        initiation_matrix: npt.NDArray[np.float64] | None = None,
-        initiation_noise: npt.NDArray[np.float64] | None = None,
-        polar: tuple[int, int, str, float, float, float | None] | None = None,
-    ) -> int: ...
+    def add_sensor(self, sensor: object) -> int: ...
     def add_track(
         self, state: npt.NDArray[np.float64], covariance: npt.NDArray[np.float64], time: float
     ) -> int: ...
     def snapshot(self, tentative: bool = False) -> dict[str, npt.NDArray[np.generic]]: ...
     def track_ids(self) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]: ...
-    def history(self, track_id: int) -> dict[str, Any]: ...
+    def history(self, track_id: int, start: int = 0) -> dict[str, Any]: ...
     def drain_deleted(self) -> list[dict[str, Any]]: ...
     def copy(self) -> TrackerCore: ...
     def to_bytes(self) -> bytes: ...
     @staticmethod
     def from_bytes(state: bytes) -> TrackerCore: ...
+    @property
+    def measurement_dim(self) -> int: ...
     @property
     def capped_detections(self) -> int: ...
     @property

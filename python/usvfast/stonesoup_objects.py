@@ -190,6 +190,23 @@ class StoneSoupObjects:
             return self._upd.make(sv, cm, hypothesis, ts)
         return self._pred.make(sv, cm, ts)
 
+    def rows(self, xs: np.ndarray, ps: np.ndarray) -> tuple[list, list]:
+        """The StateVectors (n, 1) and CovarianceMatrices of the rows of xs (k, n) and ps
+        (k, n, n), float64 arrays nobody else changes (views, as `vector`), for
+        `state_of_rows`."""
+        k, n = xs.shape
+        sv = np.asarray(xs, dtype=np.float64).reshape(k, n, 1).view(self._sv)
+        cm = np.asarray(ps, dtype=np.float64).view(self._cm)
+        # ndarray's own indexing (StateVector's returns scalars for single elements).
+        get = np.ndarray.__getitem__
+        return [get(sv, i) for i in range(k)], [get(cm, i) for i in range(k)]
+
+    def state_of(self, is_update: bool, sv: Any, cm: Any, ts: Any, hypothesis: Any = None) -> Any:
+        """As `state`, on a StateVector and CovarianceMatrix already made (see `rows`)."""
+        if is_update:
+            return self._upd.make(sv, cm, hypothesis, ts)
+        return self._pred.make(sv, cm, ts)
+
     def missed(self, ts: Any) -> Any:
         """`MissedDetection(timestamp=ts)`."""
         return self._missed.make(ts, {})

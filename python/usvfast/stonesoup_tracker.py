@@ -1,11 +1,13 @@
 """The Stone Soup drop-in trackers (`usvfast.stonesoup.MultiTargetMixtureTracker` and
 `MultiTargetTracker`): Stone Soup's tracker protocol on the usvfast core.
 
-Per scan the drop-in hands the detections to the core in one call, takes one snapshot of the
-confirmed tracks, and builds only the Stone Soup objects of that scan (one state per track and,
-with `hypotheses=True`, its association hypotheses) by the fast constructors of
-`usvfast.stonesoup_objects`. Transition matrices are cached per time step; detections of old
-scans are freed in batches.
+Per scan the drop-in hands the detections to the core in one call and reads the ids of the
+confirmed tracks; a new id gets a Stone Soup `Track`, a vanished one is dropped from the set.
+The tracks' states (and their association hypotheses and metadata) are built when a track is
+first read (`usvfast.stonesoup_lazy`, `usvfast.stonesoup_build`), exactly as Stone Soup would
+have appended them; a track nobody reads is built at the latest `_LAZY_HORIZON` scans later,
+so that the detections it refers to can be freed. Transition matrices are cached per time
+step; detections of old scans are freed in batches.
 """
 
 from __future__ import annotations
@@ -22,6 +24,8 @@ from usvfast.stonesoup import (
     detection_model,
     read_components,
 )
+from usvfast.stonesoup_build import Filler, StateBuilder
+from usvfast.stonesoup_lazy import LazyList
 from usvfast.stonesoup_objects import StoneSoupObjects
 
 
@@ -32,7 +36,7 @@ def _raw_core(tracker: Any) -> Any:
     thread, so it can skip the wrapper's argument checks (the core validates again) and its
     dataclass snapshot: ~20 µs per scan."""
     raw = getattr(tracker, "_core", None)
-    ok = callable(getattr(raw, "step", None)) and callable(getattr(raw, "snapshot", None))
+    ok = all(callable(getattr(raw, k, None)) for k in ("step", "snapshot", "track_ids", "history"))
     return raw if ok else None
 
 
@@ -66,9 +70,12 @@ def _core_sensor(spec: tuple) -> Any:
 # Scans between two looks at the tentative tracks to free old detections (a look costs a
 # snapshot of the tentative tracks).
 _FREE_EVERY = 4
+# A track's states are built when first read, or at the latest this many scans later (so
+# that the detections they refer to can be freed).
+_LAZY_HORIZON = 64
 
 
-class _DropInTracker:
+class _DropInTracker(StateBuilder):
     """Shared machinery of the two drop-in trackers (see the module docstring)."""
 
     _mixture = True
@@ -122,8 +129,13 @@ class _DropInTracker:
         # Detections per scan; scans no history entry can refer to any more are freed (None).
         self._scan_dets: list[list[Any] | None] = []
         self._freed = 0
-        self._tracks: dict[int, Any] = {}
-        self._prev: dict[int, tuple[float, np.ndarray, np.ndarray]] = {}
+        self._tracks: dict[int, Any] = {}  # alive confirmed tracks by core id
+        self._fillers: dict[int, Filler] = {}  # of the alive tracks
+        # Fillers of tracks that may lack states (alive ones, deleted ones not read since).
+        self._pending: dict[int, Filler] = {}
+        self._scan_md: dict[int, bool] = {}  # scan -> a detection of it carries metadata
+        self._history_start = True  # the core's history(track_id, start) is available
+        self._newest_cache: dict | None = None  # see `_newest`
 
     # -- Stone Soup's Tracker protocol -------------------------------------------------------
 
@@ -238,13 +250,17 @@ class _DropInTracker:
 
     def _step(self, time: Any, detections: Any):
         dets = list(detections)
+        known = self._sensor_of_model
+        found = []
         for d in dets:
             if d.timestamp != time:
                 raise ValueError(
                     f"detections: a detection at {d.timestamp} in the scan at {time}; usvfast "
                     "needs every detection of a scan to carry the scan time"
                 )
-        found = [self._sensor_index(d.measurement_model) for d in dets]
+            model = d.measurement_model
+            hit = known.get(id(model))
+            found.append(hit if hit is not None else self._sensor_index(model))
         sids = np.fromiter((f[0] for f in found), dtype=np.int64, count=len(dets))
         m = self._noise(0).shape[0] if self._sensor_specs else 2
         covs = origins = None
@@ -268,20 +284,20 @@ class _DropInTracker:
             for args in self._replay:
                 self._core.step(*args)
             self._replay.clear()
-        snap = None
+        alive = None
         if self._raw is not None:
             # The core's own validation applies (NaN, sensor ids, covariances).
             self._raw.step(t, z, sids, covs, origins)
-            snap = self._raw.snapshot()
+            alive = self._raw.track_ids()[0].tolist()
         elif self._core is not None:
-            snap = vars(self._core.step(t, z, sids, covs, origins))
+            alive = self._core.step(t, z, sids, covs, origins).ids.tolist()
         else:
             self._replay.append((t, z, sids))
         self._scan_time.append(time)
         self._scan_dets.append(dets)
         self._scan += 1
-        if snap is not None:
-            self._collect(time, snap)
+        if alive is not None:
+            self._collect(alive)
             if self._scan % _FREE_EVERY == 0:
                 self._free_scans()
         return time, self.tracks
@@ -319,159 +335,53 @@ class _DropInTracker:
         return hit
 
     def _free_scans(self) -> None:
-        # Later states refer to this scan's detections or to those of the tentative tracks'
-        # first scans (a track confirmed later brings its whole tentative history).
+        # Unbuilt states refer to the detections of their scans; so do the states of the
+        # tentative tracks (a track confirmed later brings its whole tentative history). A
+        # track confirmed since the last look was tentative then or started later: its first
+        # scan is at least the boundary of that look (`_freed`).
         if self._raw is not None:
             first = self._raw.snapshot(tentative=True)["first_scan"]
         else:
             first = self._core.tentative_tracks.first_scan
         oldest = min(int(first.min()) if len(first) else self._scan, self._scan - 1)
+        pending = self._pending
+        stale = [f for f in pending.values() if f.next_scan < self._scan - _LAZY_HORIZON]
+        for f in stale:  # unread for long: built now, so that memory stays bounded
+            f.force()
+        for tid in [tid for tid, f in pending.items() if f.done]:
+            del pending[tid]
+        if pending:
+            oldest = min(oldest, min(f.next_scan for f in pending.values()))
         for k in range(self._freed, max(oldest, self._freed)):
             self._scan_dets[k] = None
         self._freed = max(oldest, self._freed)
 
-    def _collect(self, time: Any, snap: Any) -> None:
+    def _collect(self, alive: list[int]) -> None:
+        """Follow the confirmed tracks of the newest scan (core ids `alive`): new tracks get
+        a lazy Track, deleted ones keep theirs (built when read) and every alive one is armed
+        to build its newest state when read."""
         from stonesoup.types.track import Track
 
-        core = self._core
-        alive = snap["ids"].tolist()
-        alive_set = set(alive)
-        xs, ps, is_update = snap["states"], snap["covariances"], snap["is_update"]
-        t_now = (time - self._t0).total_seconds()
-        # Deleted this scan: their final state(s) come from the core's history.
-        for tid in [k for k in self._tracks if k not in alive_set]:
-            tr = self._tracks.pop(tid)
-            hist = vars(core.history(tid))
-            n_have = len(tr.states)
-            for j in range(n_have, len(hist["times"])):
-                tr.append(self._state_from_history(hist, j, tid))
-            self._prev.pop(tid, None)
-        updated = []  # (row, track) of known tracks, in snapshot order
-        for row, tid in enumerate(alive):
-            tr = self._tracks.get(tid)
-            if tr is None:
-                hist = vars(core.history(tid))
-                states = [self._state_from_history(hist, j, tid) for j in range(len(hist["times"]))]
-                tr = Track(states)
-                self._tracks[tid] = tr
-                self._prev[tid] = (
-                    float(hist["times"][-1]),
-                    hist["states"][-1],
-                    hist["covariances"][-1],
-                )
-                continue
-            updated.append((row, tid, tr))
-        upd = is_update.tolist()
-        hyps = self._hypotheses(snap, [(r, tid) for r, tid, _ in updated if upd[r]], time, t_now)
-        ob = self._objects
-        # Stone Soup's Track.append merges the metadata of the hypotheses' detections into
-        # the track's; without any (the usual case) it only copies it.
-        plain = not any(d.metadata for d in self._dets_of(-1) if d.metadata is not None)
-        append = ob.append_plain if plain else Track.append
-        for row, tid, tr in updated:
-            hyp = None
-            if upd[row]:
-                hyp = hyps.get(row)
-                if hyp is None:
-                    hyp = self._placeholder(time)
-            x, p = xs[row], ps[row]
-            append(tr, ob.state(upd[row], x, p, time, hyp))
-            # Plain arrays (fresh per snapshot): Stone Soup's matrix types are slow in `@`.
-            self._prev[tid] = (t_now, x, p)
-
-    def _dets_of(self, scan: int) -> list:
-        """The detections of a scan still kept (the newest scan's and those a tentative
-        history can refer to, see `_free_scans`)."""
-        dets = self._scan_dets[scan]
-        if dets is None:
-            raise RuntimeError(f"usvfast.stonesoup: detections of scan {scan} already freed")
-        return dets
-
-    def _placeholder(self, time: Any) -> Any:
-        return self._objects.single(None, self._objects.missed(time))
-
-    def _hypotheses(self, snap: dict, rows: list[tuple[int, int]], time: Any, t: float) -> dict:
-        """{row: hypothesis} of the updated tracks (row, id) of a snapshot: each track's
-        prediction from its previous state (batched per time step) and its association
-        probabilities from the snapshot; empty with hypotheses=False."""
-        if not self.hypotheses or not rows:
-            return {}
-        by_dt: dict[float, list[int]] = {}
-        prevs = []
-        for i, (_, tid) in enumerate(rows):
-            t0, x0, p0 = self._prev[tid]
-            prevs.append((x0, p0))
-            by_dt.setdefault(t - t0, []).append(i)
-        preds: list[Any] = [None] * len(rows)
-        ob = self._objects
-        for dt, idx in by_dt.items():
-            f, q = self._transition(False, dt)
-            x0 = np.array([prevs[i][0] for i in idx])
-            p0 = np.array([prevs[i][1] for i in idx])
-            xp = x0 @ f.T
-            pp = f @ p0 @ f.T + q
-            for k, i in enumerate(idx):
-                preds[i] = ob.state(False, xp[k], pp[k], time)
-        offs = snap["assoc_offsets"].tolist()
-        det_all = snap["assoc_detection"].tolist()
-        prob_all = snap["assoc_probability"].tolist()
-        missed = snap["missed_probability"].tolist()
-        best = snap["detection"].tolist()
-        scan_dets = self._dets_of(-1)
-        out = {}
-        for i, (row, _) in enumerate(rows):
-            a, b = offs[row], offs[row + 1]
-            out[row] = self._make_hypothesis(
-                preds[i], scan_dets, time, det_all[a:b], prob_all[a:b], missed[row], best[row]
-            )
-        return out
-
-    def _make_hypothesis(self, pred, scan_dets, time, dets, probs, missed, det) -> Any:
-        ob = self._objects
-        if self._mixture and np.isfinite(missed):
-            prob = ob.probability
-            hyps = [prob(pred, ob.missed(time), float(missed))]
-            hyps += [
-                prob(pred, scan_dets[int(j)], float(p)) for j, p in zip(dets, probs, strict=True)
-            ]
-            return ob.multiple(hyps)
-        if det >= 0:
-            return ob.single(pred, scan_dets[det])
-        return None
-
-    def _state_from_history(self, hist: dict, j: int, tid: int) -> Any:
-        scan = int(hist["scan"][j])
-        time = self._scan_time[scan] if 0 <= scan < len(self._scan_time) else None
-        if time is None:
-            raise RuntimeError(f"usvfast.stonesoup: history entry of track {tid} at unknown scan")
-        upd = bool(hist["is_update"][j])
-        hyp = None
-        if upd:
-            det = int(hist["detection"][j])
-            scan_dets = self._dets_of(scan)
-            if self.hypotheses:
-                if j == 0 and det >= 0:
-                    hyp = self._objects.single(None, scan_dets[det])
-                else:
-                    pred = None
-                    if j > 0:
-                        t_prev = float(hist["times"][j - 1])
-                        f, q = self._transition(True, float(hist["times"][j]) - t_prev)
-                        x0, p0 = hist["states"][j - 1], hist["covariances"][j - 1]
-                        pred = self._objects.state(False, f @ x0, f @ p0 @ f.T + q, time)
-                    a, b = hist["assoc_offsets"][j], hist["assoc_offsets"][j + 1]
-                    hyp = self._make_hypothesis(
-                        pred,
-                        scan_dets,
-                        time,
-                        hist["assoc_detection"][a:b],
-                        hist["assoc_probability"][a:b],
-                        float(hist["missed_probability"][j]),
-                        det,
-                    )
-            if hyp is None:
-                hyp = self._placeholder(time)
-        return self._objects.state(upd, hist["states"][j], hist["covariances"][j], time, hyp)
+        tracks = self._tracks
+        if len(alive) != len(tracks) or any(tid not in tracks for tid in alive):
+            alive_set = set(alive)
+            for tid in [k for k in tracks if k not in alive_set]:
+                del tracks[tid]
+                # Its last state(s) are built when read; the filler stays pending until then.
+                self._fillers.pop(tid).arm()
+            for tid in alive:
+                if tid not in tracks:
+                    tr = Track()
+                    d: Any = tr.__dict__
+                    states, mds = LazyList(), LazyList()
+                    d["_property_states"], d["metadatas"] = states, mds
+                    f = Filler(self, tid, tr, self._scan - 1, self._freed)
+                    tracks[tid] = tr
+                    self._fillers[tid] = f
+                    self._pending[tid] = f
+        fillers = self._fillers
+        for tid in alive:
+            fillers[tid].arm()
 
 
 class MultiTargetMixtureTracker(_DropInTracker):
@@ -481,15 +391,26 @@ class MultiTargetMixtureTracker(_DropInTracker):
     protocol: iterating yields `(datetime, set of Track)` per scan of `detector`;
     `update_tracker(time, detections)` processes one scan. Update states carry a
     `MultipleHypothesis` of `SingleProbabilityHypothesis` (prediction, detection or
-    MissedDetection, JPDA probability; `measurement_prediction` is None). `hypotheses=False`
-    skips building them (2-3x faster): update states then carry a placeholder
-    `SingleHypothesis(None, MissedDetection)`, so do not feed such tracks to Stone Soup
-    deleters. Raises UnsupportedComponentError for components usvfast cannot reproduce
-    exactly, ValueError for detections off the scan time or of another dimension.
+    MissedDetection, JPDA probability; `measurement_prediction` is None; the probabilities
+    come normalised as floats, `normalise=False`); the initiator's tentative updates carry
+    the same kind (Stone Soup: its GNN's `SingleDistanceHypothesis`), the first state
+    `SingleHypothesis(None, detection)`. `hypotheses=False` skips building them: update
+    states then carry a placeholder `SingleHypothesis(None, MissedDetection)`, so do not feed
+    such tracks to Stone Soup deleters.
 
-    Memory: a scan's detections are kept while a tentative track's history refers to them (a
-    track confirmed later brings its tentative states). A detection with a new measurement
-    matrix H registers one more core sensor (`Tracker.add_sensor`); no scan is replayed.
+    Laziness: a track's `states` and `metadatas` are `usvfast.stonesoup_lazy.LazyList`s (list
+    subclasses; copies and pickles are plain lists) that build the missing states on any read
+    — `len(track)`, `track.state`, indexing, iterating, `track.metadata`, `Track.append` — so
+    what a user sees is what Stone Soup's tracker holds at that scan; the cost of the states
+    moves from the scan to the first read. Raises UnsupportedComponentError for components
+    usvfast cannot reproduce exactly, ValueError for detections off the scan time or of
+    another dimension.
+
+    Memory: a scan's detections are kept while a tentative track's history or a state not yet
+    built refers to them (a track confirmed later brings its tentative states; states nobody
+    reads are built 64 scans later, so at most about 64 scans are kept). A detection with a
+    new measurement matrix H registers one more core sensor (`Tracker.add_sensor`); no scan
+    is replayed.
     Detections whose models share H but not the noise covariance (each detection with its own
     `LinearGaussian`, e.g. range-dependent noise) share that sensor and reach the core with
     their own covariance (`Tracker.step(..., covariances=...)`), exactly as Stone Soup uses

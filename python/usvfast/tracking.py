@@ -101,7 +101,7 @@ from numpy.typing import ArrayLike
 
 from usvfast import _core
 from usvfast._validate import as_float_array
-from usvfast.kalman import MotionModel, model_spec
+from usvfast.kalman import MotionModel
 
 __all__ = [
     "GNN",
@@ -244,37 +244,6 @@ class Sensor:
         return cls(h, np.diag(std**2))
 
 
-def _sensor_spec(s: Any, where: str) -> tuple:
-    if not isinstance(s, Sensor):
-        raise TypeError(f"{where}: expected Sensor, got {s!r}")
-    b = s.polar
-    polar = (
-        None
-        if b is None
-        else (
-            _non_negative_int(f"{where}.mapping", b.mapping[0]),
-            _non_negative_int(f"{where}.mapping", b.mapping[1]),
-            b.update,
-            float(b.alpha),
-            float(b.beta),
-            None if b.kappa is None else float(b.kappa),
-        )
-    )
-    opt = [
-        None if a is None else as_float_array(f"{where}.{name}", a, ndim=2)
-        for name, a in (
-            ("initiation_matrix", s.initiation_matrix),
-            ("initiation_noise", s.initiation_noise),
-        )
-    ]
-    return (
-        as_float_array(f"{where}.measurement_matrix", s.measurement_matrix, 2),
-        as_float_array(f"{where}.measurement_noise", s.measurement_noise, 2),
-        *opt,
-        polar,
-    )
-
-
 @dataclass(frozen=True)
 class JPDA:
     """JPDA association with PDA hypotheses (Stone Soup `PDAHypothesiser` + `JPDA`).
@@ -320,9 +289,6 @@ class StepsSinceUpdate:
 
     steps: int
 
-    def _spec(self) -> tuple:
-        return ("steps", _non_negative_int("steps", self.steps))
-
 
 @dataclass(frozen=True)
 class TimeSinceUpdate:
@@ -330,9 +296,6 @@ class TimeSinceUpdate:
     (Stone Soup `UpdateTimeDeleter`)."""
 
     seconds: float
-
-    def _spec(self) -> tuple:
-        return ("time", float(self.seconds))
 
 
 @dataclass(frozen=True)
@@ -343,26 +306,14 @@ class CovarianceTrace:
     threshold: float
     mapping: Sequence[int] | None = None
 
-    def _spec(self) -> tuple:
-        m = (
-            None
-            if self.mapping is None
-            else [_non_negative_int("mapping", i) for i in self.mapping]
-        )
-        return ("trace", float(self.threshold), m)
-
 
 class _Composite:
-    """Deleters combined like Stone Soup's CompositeDeleter (`_kind` "any" or "all")."""
+    """Deleters combined like Stone Soup's CompositeDeleter."""
 
-    _kind = ""
     deleters: tuple
 
     def __init__(self, *deleters: Any) -> None:
         object.__setattr__(self, "deleters", tuple(deleters))
-
-    def _spec(self) -> tuple:
-        return (self._kind, [_deleter_spec(d) for d in self.deleters])
 
 
 @dataclass(frozen=True, init=False)
@@ -370,7 +321,6 @@ class AnyOf(_Composite):
     """Delete when any of the deleters would (CompositeDeleter(intersect=False))."""
 
     deleters: tuple
-    _kind = "any"
 
 
 @dataclass(frozen=True, init=False)
@@ -378,26 +328,14 @@ class AllOf(_Composite):
     """Delete when all of the deleters would (CompositeDeleter(intersect=True))."""
 
     deleters: tuple
-    _kind = "all"
 
 
 @dataclass(frozen=True)
 class NeverDelete:
     """Never delete."""
 
-    def _spec(self) -> tuple:
-        return ("never",)
-
 
 Deleter = StepsSinceUpdate | TimeSinceUpdate | CovarianceTrace | AnyOf | AllOf | NeverDelete
-
-
-def _deleter_spec(d: Any) -> tuple:
-    if not isinstance(
-        d, StepsSinceUpdate | TimeSinceUpdate | CovarianceTrace | AnyOf | AllOf | NeverDelete
-    ):
-        raise TypeError(f"deleter: unsupported deleter {d!r}")
-    return d._spec()
 
 
 @dataclass(frozen=True)
@@ -431,31 +369,6 @@ class MultiMeasurementInitiator:
     symmetric_covariance: bool = True
     max_new_tentative: int | None = None
 
-    def _spec(self) -> dict[str, Any]:
-        pc = as_float_array("prior_covariance", self.prior_covariance, ndim=2)
-        return {
-            "prior_state": [
-                float(v) for v in as_float_array("prior_state", self.prior_state).ravel()
-            ],
-            "prior_covariance": pc,
-            "min_points": _non_negative_int("min_points", self.min_points),
-            "updates_only": bool(self.updates_only),
-            "deleter": _deleter_spec(self.deleter),
-            "missed_distance": float(self.missed_distance),
-            "measure": self.measure,
-            "include_all": bool(self.include_all),
-            "diag_load": float(self.diag_load),
-            "m_of_n": None
-            if self.m_of_n is None
-            else tuple(_non_negative_int("m_of_n", v) for v in self.m_of_n),
-            "motion_model": None if self.motion_model is None else model_spec(self.motion_model),
-            "use_joseph_cov": bool(self.use_joseph_cov),
-            "symmetric_covariance": bool(self.symmetric_covariance),
-            "max_new_tentative": None
-            if self.max_new_tentative is None
-            else _non_negative_int("max_new_tentative", self.max_new_tentative),
-        }
-
 
 @dataclass(frozen=True)
 class KnownTurnRate:
@@ -466,10 +379,6 @@ class KnownTurnRate:
 
     q: float | tuple[float, float]
     omega: float
-
-    def _spec(self) -> tuple:
-        qq = np.broadcast_to(np.asarray(self.q, dtype=float), (2,))
-        return ("turn", float(qq[0]), float(qq[1]), float(self.omega))
 
 
 @dataclass(frozen=True)
@@ -490,20 +399,6 @@ class IMM:
     modes: Sequence[Any]
     transition: Any
     initial: Any = None
-
-    def _spec(self) -> tuple:
-        modes = [
-            m._spec() if isinstance(m, KnownTurnRate) else ("linear", model_spec(m))
-            for m in self.modes
-        ]
-        tr = as_float_array("imm.transition", self.transition, ndim=2)
-        r = len(modes)
-        init = (
-            np.full(r, 1.0 / max(r, 1))
-            if self.initial is None
-            else as_float_array("imm.initial", self.initial, ndim=1)
-        )
-        return (modes, tr, [float(v) for v in init])
 
 
 @dataclass(frozen=True)
@@ -535,17 +430,6 @@ class Existence:
     invis_stay: float = 0.0
     confirm: float | None = None
     birth: float = 0.5
-
-    def _spec(self) -> tuple[float, float, float, float, float, float | None, float]:
-        return (
-            float(self.survival),
-            float(self.initial),
-            float(self.delete),
-            float(self.vis_stay),
-            float(self.invis_stay),
-            None if self.confirm is None else float(self.confirm),
-            float(self.birth),
-        )
 
 
 #: The largest count the native core takes (a signed 64-bit integer).
@@ -765,28 +649,31 @@ class Tracker:
             raise TypeError(f"initiator: expected MultiMeasurementInitiator, got {initiator!r}")
         if isinstance(sensors, Sensor):
             sensors = [sensors]
-        specs = [_sensor_spec(s, f"sensors[{i}]") for i, s in enumerate(sensors)]
+        for i, s in enumerate(sensors):
+            if not isinstance(s, Sensor):
+                raise TypeError(f"sensors[{i}]: expected Sensor, got {s!r}")
         self.sensors = tuple(sensors)
         self.last_step: StepStats | None = None
         self._busy = threading.Lock()
-        self._m = specs[0][0].shape[0] if specs else 0
+        # The configuration objects cross into Rust as they are, read there by attribute.
         self._core = _core.TrackerCore(
-            model_spec(motion_model),
-            specs,
+            motion_model,
+            list(sensors),
             association,
-            _deleter_spec(deleter),
-            initiator._spec(),
+            deleter,
+            initiator,
             use_joseph_cov=bool(use_joseph_cov),
             symmetric_covariance=bool(symmetric_covariance),
             delete_last_prediction=bool(delete_last_prediction),
             out_of_order=out_of_order,
             initiate_in_gates=bool(initiate_in_gates),
-            imm=None if imm is None else imm._spec(),
-            existence=None if existence is None else existence._spec(),
+            imm=imm,
+            existence=existence,
             max_deleted=None
             if max_deleted is None
             else _non_negative_int("max_deleted", max_deleted),
         )
+        self._m = self._core.measurement_dim
 
     @contextmanager
     def _exclusive(self) -> Iterator[None]:
@@ -935,9 +822,10 @@ class Tracker:
         """Register one more sensor between steps (tracks are kept); returns its index for
         `sensor_ids`. Same checks as the constructor's `sensors` (DimensionError when H does
         not fit the state or the shared measurement dimension)."""
-        spec = _sensor_spec(sensor, "sensor")
+        if not isinstance(sensor, Sensor):
+            raise TypeError(f"sensor: expected Sensor, got {sensor!r}")
         with self._exclusive():
-            idx = self._core.add_sensor(*spec)
+            idx = self._core.add_sensor(sensor)
         self.sensors = (*self.sensors, sensor)
         return idx
 

@@ -12,6 +12,7 @@ mod kalman;
 mod lidar;
 mod particle;
 mod tracker;
+mod tracker_config;
 
 pub use errors::to_py_err;
 

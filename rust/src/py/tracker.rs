@@ -2,26 +2,23 @@
 //! (`linear_sum_assignment`, `jpda_marginals`, `chi2_gate`). The Python API is
 //! `usvfast.tracking`; these take pre-validated float64 C-contiguous arrays.
 
-use super::kalman::motion_model_from_spec;
 use super::to_py_err;
+use super::tracker_config::{
+    typed, AssociationArgs, DeleterArgs, ExistenceArgs, ImmArgs, InitiatorArgs, ModelArgs,
+    SensorArgs,
+};
 use crate::error::Error;
 use crate::tracking::gating::chi2_quantile;
-use crate::tracking::imm::{ImmConfig, Mode};
-use crate::tracking::jpda::{marginals, Method, TrackHypotheses};
-use crate::tracking::polar::{Polar, PolarUpdate};
-use crate::tracking::track::{Deleter, Track};
-use crate::tracking::tracker::{
-    Association, Confirmation, GnnParams, InitiatorConfig, JpdaParams, Measure, OutOfOrder, Sensor,
-    Tracker, TrackerConfig,
-};
-use nalgebra::{DMatrix, DVector};
+use crate::tracking::jpda::{marginals, TrackHypotheses};
+use crate::tracking::track::Track;
+use crate::tracking::tracker::{OutOfOrder, Tracker, TrackerConfig};
 use numpy::{
     PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3,
     PyUntypedArrayMethods,
 };
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList, PyTuple};
+use pyo3::types::PyDict;
 
 fn arr_f<'py>(py: Python<'py>, data: Vec<f64>, shape: &[usize]) -> PyResult<Bound<'py, PyAny>> {
     Ok(PyArray1::from_vec(py, data).reshape(shape)?.into_any())
@@ -38,280 +35,67 @@ fn slice<'a, T: numpy::Element, D: numpy::ndarray::Dimension>(
     super::slice(name, a)
 }
 
-fn matrix(name: &str, a: &PyReadonlyArray2<'_, f64>) -> PyResult<DMatrix<f64>> {
-    let s = a.shape();
-    Ok(DMatrix::from_row_slice(s[0], s[1], slice(name, a)?))
-}
-
-fn item<'py>(d: &Bound<'py, PyDict>, key: &str) -> PyResult<Bound<'py, PyAny>> {
-    d.get_item(key)?
-        .ok_or_else(|| PyValueError::new_err(format!("missing configuration key {key:?}")))
-}
-
-fn get_f64(d: &Bound<'_, PyDict>, key: &str) -> PyResult<f64> {
-    item(d, key)?.extract()
-}
-
-fn get_bool(d: &Bound<'_, PyDict>, key: &str) -> PyResult<bool> {
-    item(d, key)?.extract()
-}
-
-fn get_str(d: &Bound<'_, PyDict>, key: &str) -> PyResult<String> {
-    item(d, key)?.extract()
-}
-
-fn measure(s: &str) -> PyResult<Measure> {
-    match s {
-        "mahalanobis" => Ok(Measure::Mahalanobis),
-        "squared_mahalanobis" => Ok(Measure::SquaredMahalanobis),
-        other => Err(PyValueError::new_err(format!(
-            "measure: expected 'mahalanobis' or 'squared_mahalanobis', got {other:?}"
-        ))),
-    }
-}
-
-fn method(s: &str) -> PyResult<Method> {
-    match s {
-        "ehm" => Ok(Method::Ehm),
-        "brute_force" => Ok(Method::BruteForce),
-        "lbp" => Ok(Method::Lbp),
-        other => Err(PyValueError::new_err(format!(
-            "method: expected 'ehm', 'brute_force' or 'lbp', got {other:?}"
-        ))),
-    }
-}
-
-/// Parses `("steps", n) | ("time", s) | ("trace", thr, mapping|None) | ("any", [..]) |
-/// ("all", [..]) | ("never",)`.
-fn deleter(spec: &Bound<'_, PyAny>) -> PyResult<Deleter> {
-    let t = spec.cast::<PyTuple>().map_err(|_| {
-        PyValueError::new_err("deleter: expected a tuple spec such as ('steps', 3)")
-    })?;
-    let kind: String = t.get_item(0)?.extract()?;
-    Ok(match kind.as_str() {
-        "steps" => Deleter::StepsSinceUpdate(t.get_item(1)?.extract()?),
-        "time" => Deleter::TimeSinceUpdate(t.get_item(1)?.extract()?),
-        "trace" => Deleter::CovarianceTrace {
-            threshold: t.get_item(1)?.extract()?,
-            mapping: t.get_item(2)?.extract()?,
-        },
-        "any" | "all" => {
-            let list = t.get_item(1)?;
-            let list = list
-                .cast::<PyList>()
-                .map_err(|_| PyValueError::new_err("deleter: composite needs a list"))?;
-            Deleter::Composite {
-                deleters: list.iter().map(|d| deleter(&d)).collect::<PyResult<_>>()?,
-                intersect: kind == "all",
-            }
-        }
-        "never" => Deleter::Never,
-        other => {
-            return Err(PyValueError::new_err(format!(
-                "deleter: unknown kind {other:?}"
-            )))
-        }
-    })
-}
-
-/// The fields of `usvfast.tracking.JPDA`, read by attribute (typed: a wrong type is a
-/// TypeError naming the field).
-#[derive(FromPyObject)]
-struct JpdaArgs {
-    prob_detect: f64,
-    prob_gate: f64,
-    clutter_density: Option<f64>,
-    include_all: bool,
-    method: String,
-    max_hypotheses: Option<i64>,
-}
-
-/// The fields of `usvfast.tracking.GNN`, read by attribute.
-#[derive(FromPyObject)]
-struct GnnArgs {
-    measure: String,
-    missed_distance: f64,
-    include_all: bool,
-}
-
-/// A `JPDA` or a `GNN` association object.
-enum AssociationArgs {
-    Jpda(JpdaArgs),
-    Gnn(GnnArgs),
-}
-
-impl AssociationArgs {
-    /// A `JPDA` (it has `prob_detect`) or a `GNN`; a field of the wrong type is a TypeError
-    /// naming it.
-    fn from_object(a: &Bound<'_, PyAny>) -> PyResult<Self> {
-        let named = |e: PyErr| {
-            pyo3::exceptions::PyTypeError::new_err(format!("association: {}", e.value(a.py())))
-        };
-        if a.hasattr("prob_detect")? {
-            Ok(Self::Jpda(a.extract().map_err(named)?))
-        } else {
-            Ok(Self::Gnn(a.extract().map_err(named)?))
-        }
-    }
-
-    fn into_core(self) -> PyResult<Association> {
-        Ok(match self {
-            Self::Jpda(j) => Association::Jpda(JpdaParams {
-                prob_detect: j.prob_detect,
-                prob_gate: j.prob_gate,
-                clutter_density: j.clutter_density,
-                include_all: j.include_all,
-                method: method(&j.method)?,
-                max_hypotheses: match j.max_hypotheses {
-                    None => None,
-                    Some(v) if v >= 1 => Some(usize::try_from(v).unwrap_or(usize::MAX)),
-                    Some(v) => {
-                        return Err(PyValueError::new_err(format!(
-                            "max_hypotheses: must be >= 1 or None, got {v}"
-                        )))
-                    }
-                },
-            }),
-            Self::Gnn(g) => Association::Gnn(GnnParams {
-                measure: measure(&g.measure)?,
-                missed_distance: g.missed_distance,
-                include_all: g.include_all,
-            }),
-        })
-    }
-}
-
-/// `(i, j, "ekf" | "ukf", alpha, beta, kappa)` of a range–bearing sensor.
-type PolarSpec = (usize, usize, String, f64, f64, Option<f64>);
-
-/// `(modes, transition (r, r), initial (r,))`; a mode is `("linear", motion model spec)` or
-/// `("turn", q_x, q_y, omega)`.
-type ImmSpec<'py> = (
-    Vec<Bound<'py, PyTuple>>,
-    PyReadonlyArray2<'py, f64>,
-    Vec<f64>,
-);
-
-fn imm_from_spec(spec: &ImmSpec<'_>) -> PyResult<ImmConfig> {
-    let modes = spec
-        .0
-        .iter()
-        .enumerate()
-        .map(|(i, t)| {
-            let kind: String = t.get_item(0)?.extract()?;
-            match kind.as_str() {
-                "linear" => Ok(Mode::Linear(motion_model_from_spec(
-                    &t.get_item(1)?.extract::<Vec<(String, f64)>>()?,
-                )?)),
-                "turn" => Ok(Mode::KnownTurnRate {
-                    q: [t.get_item(1)?.extract()?, t.get_item(2)?.extract()?],
-                    omega: t.get_item(3)?.extract()?,
-                }),
-                other => Err(PyValueError::new_err(format!(
-                    "imm.modes[{i}]: unknown kind {other:?}"
-                ))),
-            }
-        })
-        .collect::<PyResult<Vec<_>>>()?;
-    Ok(ImmConfig {
-        modes,
-        transition: matrix("imm.transition", &spec.1)?,
-        initial: spec.2.clone(),
-    })
-}
-
-/// `(survival, initial, delete, vis_stay, invis_stay, confirm, birth)`.
-type ExistenceSpec = (f64, f64, f64, f64, f64, Option<f64>, f64);
-
-type SensorSpec<'py> = (
-    PyReadonlyArray2<'py, f64>,
-    PyReadonlyArray2<'py, f64>,
-    Option<PyReadonlyArray2<'py, f64>>,
-    Option<PyReadonlyArray2<'py, f64>>,
-    Option<PolarSpec>,
-);
-
-fn history_dict<'py>(py: Python<'py>, tr: &Track, ndim: usize) -> PyResult<Bound<'py, PyDict>> {
+/// History entries `start..` of a track as arrays (its association CSR rebased to start at 0).
+fn history_dict<'py>(
+    py: Python<'py>,
+    tr: &Track,
+    ndim: usize,
+    start: usize,
+) -> PyResult<Bound<'py, PyDict>> {
     let h = &tr.history;
-    let k = h.len();
+    let len = h.len();
+    if start > len {
+        return Err(to_py_err(Error::param(
+            "start",
+            format!("must be <= the {len} history entries, got {start}"),
+        )));
+    }
+    let k = len - start;
     let d = PyDict::new(py);
     d.set_item("id", tr.id)?;
-    d.set_item("times", arr_f(py, h.times.clone(), &[k])?)?;
-    d.set_item("states", arr_f(py, h.states.clone(), &[k, ndim])?)?;
+    d.set_item("times", arr_f(py, h.times[start..].to_vec(), &[k])?)?;
+    d.set_item(
+        "states",
+        arr_f(py, h.states[start * ndim..].to_vec(), &[k, ndim])?,
+    )?;
     d.set_item(
         "covariances",
-        arr_f(py, h.covariances.clone(), &[k, ndim, ndim])?,
+        arr_f(
+            py,
+            h.covariances[start * ndim * ndim..].to_vec(),
+            &[k, ndim, ndim],
+        )?,
     )?;
-    let upd: Vec<bool> = h.is_update.clone();
+    let upd: Vec<bool> = h.is_update[start..].to_vec();
     d.set_item("is_update", PyArray1::from_vec(py, upd))?;
-    d.set_item("scan", arr_i(py, h.scan.clone(), &[k])?)?;
-    d.set_item("sensor", arr_i(py, h.sensor.clone(), &[k])?)?;
-    d.set_item("detection", arr_i(py, h.detection.clone(), &[k])?)?;
-    d.set_item("nis", arr_f(py, h.nis.clone(), &[k])?)?;
+    d.set_item("scan", arr_i(py, h.scan[start..].to_vec(), &[k])?)?;
+    d.set_item("sensor", arr_i(py, h.sensor[start..].to_vec(), &[k])?)?;
+    d.set_item("detection", arr_i(py, h.detection[start..].to_vec(), &[k])?)?;
+    d.set_item("nis", arr_f(py, h.nis[start..].to_vec(), &[k])?)?;
     d.set_item(
         "missed_probability",
-        arr_f(py, h.missed_probability.clone(), &[k])?,
+        arr_f(py, h.missed_probability[start..].to_vec(), &[k])?,
     )?;
-    let offs: Vec<i64> = if h.assoc_offsets.is_empty() {
-        vec![0]
+    let offs: &[usize] = if h.assoc_offsets.is_empty() {
+        &[0]
     } else {
-        h.assoc_offsets.iter().map(|&o| o as i64).collect()
+        &h.assoc_offsets[start..]
     };
-    let no = offs.len();
-    d.set_item("assoc_offsets", arr_i(py, offs, &[no])?)?;
-    let na = h.assoc_detection.len();
+    let (a0, a1) = (offs[0], offs[offs.len() - 1]);
+    let rebased: Vec<i64> = offs.iter().map(|&o| (o - a0) as i64).collect();
+    let no = rebased.len();
+    d.set_item("assoc_offsets", arr_i(py, rebased, &[no])?)?;
     d.set_item(
         "assoc_detection",
-        arr_i(py, h.assoc_detection.clone(), &[na])?,
+        arr_i(py, h.assoc_detection[a0..a1].to_vec(), &[a1 - a0])?,
     )?;
     d.set_item(
         "assoc_probability",
-        arr_f(py, h.assoc_probability.clone(), &[na])?,
+        arr_f(py, h.assoc_probability[a0..a1].to_vec(), &[a1 - a0])?,
     )?;
     d.set_item("confirmed_time", tr.confirmed_time)?;
     d.set_item("deleted_time", tr.deleted_time)?;
     Ok(d)
-}
-
-/// Sensor `i` from its arrays: H, R and optional initiation H/R (each defaulting to the
-/// measurement one when only the other is given), checked against an `n`-state model.
-fn sensor_from_arrays(
-    h: &PyReadonlyArray2<'_, f64>,
-    r: &PyReadonlyArray2<'_, f64>,
-    hi: Option<&PyReadonlyArray2<'_, f64>>,
-    ri: Option<&PyReadonlyArray2<'_, f64>>,
-    polar: Option<&PolarSpec>,
-    n: usize,
-    i: usize,
-) -> PyResult<Sensor> {
-    let h = matrix("measurement_matrix", h)?;
-    let r = matrix("measurement_noise", r)?;
-    let hi = hi.map(|a| matrix("initiation_matrix", a)).transpose()?;
-    let ri = ri.map(|a| matrix("initiation_noise", a)).transpose()?;
-    let arg = format!("sensors[{i}]");
-    match polar {
-        None => Sensor::new(h, r, hi, ri, n, &arg).map_err(to_py_err),
-        Some((a, b, kind, alpha, beta, kappa)) => {
-            let update = match kind.as_str() {
-                "ekf" => PolarUpdate::Extended,
-                "ukf" => PolarUpdate::Unscented {
-                    alpha: *alpha,
-                    beta: *beta,
-                    kappa: *kappa,
-                },
-                other => {
-                    return Err(PyValueError::new_err(format!(
-                        "{arg}.update: expected 'ekf' or 'ukf', got {other:?}"
-                    )))
-                }
-            };
-            let pol = Polar {
-                mapping: [*a, *b],
-                update,
-            };
-            Sensor::polar(pol, r, ri, n, &arg).map_err(to_py_err)
-        }
-    }
 }
 
 /// Ctrl-C polling for core code running without the GIL: [`SignalCheck::poll`] re-attaches
@@ -361,67 +145,53 @@ pub struct TrackerCore {
 
 #[pymethods]
 impl TrackerCore {
+    /// A tracker from the `usvfast.tracking` configuration objects, each read by attribute
+    /// (see `tracker_config`): a motion model, `Sensor`s, `JPDA`/`GNN`, a deleter,
+    /// `MultiMeasurementInitiator`, and optionally `IMM` and `Existence`.
     #[new]
     #[pyo3(signature = (
-        motion_model, sensors, association, deleter_spec, initiator, *,
+        motion_model, sensors, association, deleter, initiator, *,
         use_joseph_cov=false, delete_last_prediction=false, out_of_order="raise",
         initiate_in_gates=true, symmetric_covariance=false, imm=None, existence=None,
         max_deleted=None
     ))]
     #[allow(clippy::too_many_arguments)]
     fn new(
-        motion_model: Vec<(String, f64)>,
-        sensors: Vec<SensorSpec<'_>>,
+        motion_model: &Bound<'_, PyAny>,
+        sensors: Vec<Bound<'_, PyAny>>,
         association: &Bound<'_, PyAny>,
-        deleter_spec: &Bound<'_, PyAny>,
-        initiator: &Bound<'_, PyDict>,
+        deleter: &Bound<'_, PyAny>,
+        initiator: &Bound<'_, PyAny>,
         use_joseph_cov: bool,
         delete_last_prediction: bool,
         out_of_order: &str,
         initiate_in_gates: bool,
         symmetric_covariance: bool,
-        imm: Option<ImmSpec<'_>>,
-        existence: Option<ExistenceSpec>,
+        imm: Option<Bound<'_, PyAny>>,
+        existence: Option<Bound<'_, PyAny>>,
         max_deleted: Option<usize>,
     ) -> PyResult<Self> {
-        let model = motion_model_from_spec(&motion_model)?;
+        let model =
+            typed::<ModelArgs>(motion_model, "motion_model", "a motion model")?.into_core()?;
         let n = model.ndim();
         let sensors = sensors
             .iter()
             .enumerate()
-            .map(|(i, (h, r, hi, ri, pol))| {
-                sensor_from_arrays(h, r, hi.as_ref(), ri.as_ref(), pol.as_ref(), n, i)
+            .map(|(i, s)| {
+                let arg = format!("sensors[{i}]");
+                typed::<SensorArgs>(s, &arg, "Sensor")?.into_core(n, &arg)
             })
             .collect::<PyResult<Vec<_>>>()?;
         let association = AssociationArgs::from_object(association)?.into_core()?;
-        let prior_state: Vec<f64> = item(initiator, "prior_state")?.extract()?;
-        let prior_cov: PyReadonlyArray2<'_, f64> =
-            item(initiator, "prior_covariance")?.extract()?;
-        let m_of_n: Option<(usize, usize)> = item(initiator, "m_of_n")?.extract()?;
-        let confirmation = match m_of_n {
-            Some((m, n)) => Confirmation::MOfN { m, n },
-            None => Confirmation::MinPoints {
-                min_points: item(initiator, "min_points")?.extract()?,
-                updates_only: get_bool(initiator, "updates_only")?,
-            },
-        };
-        let init_model: Option<Vec<(String, f64)>> = item(initiator, "motion_model")?.extract()?;
-        let init = InitiatorConfig {
-            prior_state: DVector::from_vec(prior_state),
-            prior_covariance: matrix("prior_covariance", &prior_cov)?,
-            diag_load: get_f64(initiator, "diag_load")?,
-            confirmation,
-            deleter: deleter(&item(initiator, "deleter")?)?,
-            gnn: GnnParams {
-                measure: measure(&get_str(initiator, "measure")?)?,
-                missed_distance: get_f64(initiator, "missed_distance")?,
-                include_all: get_bool(initiator, "include_all")?,
-            },
-            motion_model: init_model.map(|m| motion_model_from_spec(&m)).transpose()?,
-            use_joseph_cov: get_bool(initiator, "use_joseph_cov")?,
-            symmetric_covariance: get_bool(initiator, "symmetric_covariance")?,
-            max_new_tentative: item(initiator, "max_new_tentative")?.extract()?,
-        };
+        let init = typed::<InitiatorArgs>(initiator, "initiator", "MultiMeasurementInitiator")?
+            .into_core()?;
+        let deleter = typed::<DeleterArgs>(deleter, "deleter", "a deleter")?.0;
+        let imm = imm
+            .map(|o| typed::<ImmArgs>(&o, "imm", "IMM")?.into_core())
+            .transpose()?;
+        let existence = existence
+            .map(|o| typed::<ExistenceArgs>(&o, "existence", "Existence").map(|e| e.into_core()))
+            .transpose()?;
         let out_of_order = match out_of_order {
             "raise" => OutOfOrder::Raise,
             "drop" => OutOfOrder::Drop,
@@ -437,26 +207,14 @@ impl TrackerCore {
             association,
             use_joseph_cov,
             symmetric_covariance,
-            deleter: deleter(deleter_spec)?,
+            deleter,
             delete_last_prediction,
             initiator: init,
             out_of_order,
             initiate_in_gates,
-            imm: imm.map(|s| imm_from_spec(&s)).transpose()?,
+            imm,
             max_deleted,
-            existence: existence.map(
-                |(survival, initial, delete, vis_stay, invis_stay, confirm, birth)| {
-                    crate::tracking::config::Existence {
-                        survival,
-                        initial,
-                        delete,
-                        vis_stay,
-                        invis_stay,
-                        confirm,
-                        birth,
-                    }
-                },
-            ),
+            existence,
         };
         Ok(Self {
             inner: Tracker::new(cfg).map_err(to_py_err)?,
@@ -602,28 +360,17 @@ impl TrackerCore {
         Ok(d)
     }
 
-    /// Registers one more sensor between scans; returns its index.
-    #[pyo3(signature = (measurement_matrix, measurement_noise, initiation_matrix=None, initiation_noise=None, polar=None))]
-    fn add_sensor(
-        &mut self,
-        measurement_matrix: PyReadonlyArray2<'_, f64>,
-        measurement_noise: PyReadonlyArray2<'_, f64>,
-        initiation_matrix: Option<PyReadonlyArray2<'_, f64>>,
-        initiation_noise: Option<PyReadonlyArray2<'_, f64>>,
-        polar: Option<PolarSpec>,
-    ) -> PyResult<usize> {
+    /// Registers one more `Sensor` between scans; returns its index.
+    fn add_sensor(&mut self, sensor: &Bound<'_, PyAny>) -> PyResult<usize> {
         let n = self.inner.config().motion_model.ndim();
-        let i = self.inner.config().sensors.len();
-        let sensor = sensor_from_arrays(
-            &measurement_matrix,
-            &measurement_noise,
-            initiation_matrix.as_ref(),
-            initiation_noise.as_ref(),
-            polar.as_ref(),
-            n,
-            i,
-        )?;
+        let sensor = typed::<SensorArgs>(sensor, "sensor", "Sensor")?.into_core(n, "sensor")?;
         self.inner.add_sensor(sensor).map_err(to_py_err)
+    }
+
+    /// The measurement dimension `m` shared by the sensors.
+    #[getter]
+    fn measurement_dim(&self) -> usize {
+        self.inner.measurement_dim()
     }
 
     /// Adds a confirmed track; returns its id.
@@ -795,8 +542,15 @@ impl TrackerCore {
         Ok((arr_i(py, a, &[na])?, arr_i(py, b, &[nb])?))
     }
 
-    /// Full history of a confirmed (alive or deleted) track.
-    fn history<'py>(&self, py: Python<'py>, track_id: u64) -> PyResult<Bound<'py, PyDict>> {
+    /// History of a confirmed (alive or deleted) track: its entries `start..` (all by
+    /// default), `assoc_offsets` rebased to the first of them.
+    #[pyo3(signature = (track_id, start=0))]
+    fn history<'py>(
+        &self,
+        py: Python<'py>,
+        track_id: u64,
+        start: usize,
+    ) -> PyResult<Bound<'py, PyDict>> {
         let n = self.inner.config().motion_model.ndim();
         let tr = self
             .inner
@@ -805,7 +559,7 @@ impl TrackerCore {
             .chain(self.inner.deleted.iter())
             .find(|t| t.id == track_id)
             .ok_or_else(|| PyValueError::new_err(format!("track_id: no track {track_id}")))?;
-        history_dict(py, tr, n)
+        history_dict(py, tr, n, start)
     }
 
     /// An independent copy of the whole tracker state (configuration, tracks, histories).
@@ -835,7 +589,7 @@ impl TrackerCore {
         self.inner
             .drain_deleted()
             .iter()
-            .map(|t| history_dict(py, t, n))
+            .map(|t| history_dict(py, t, n, 0))
             .collect()
     }
 
@@ -893,7 +647,7 @@ fn jpda_marginals<'py>(
     likelihoods: PyReadonlyArray2<'py, f64>,
     method: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let meth = self::method(method)?;
+    let meth = super::tracker_config::method(method)?;
     let s = likelihoods.shape();
     let (nt, nc) = (s[0], s[1]);
     if nc == 0 {

@@ -1,0 +1,304 @@
+"""Building the drop-in trackers' Stone Soup states from the usvfast core, when a track is
+first read (see `usvfast.stonesoup_lazy`): `StateBuilder` is the part of the drop-in tracker
+(`usvfast.stonesoup_tracker`) that does it, `Filler` the per-track callable its lazy lists
+call.
+
+A track's newest state alone (the common case of a user reading every track each scan) comes
+from one snapshot of the core per scan, with the predictions of all such tracks batched per
+time step; anything older (a track read after several scans, a new track with its tentative
+history, a deleted track) from the core's history of that track. Either way the objects are
+the ones Stone Soup's tracker would have appended: Update or Prediction with the same mean,
+covariance and time; for updates their hypotheses — the prediction from the previous state
+by the tracker's (after confirmation) or the initiator's (before) transition model, the
+scan's own Detection objects, the JPDA probabilities — and the track metadata merged by
+Stone Soup's own `Track.append` whenever a detection of that scan carries metadata.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+# The snapshot entries `StateBuilder._newest` reads, as lists.
+_NEWEST_LISTS = (
+    "ids",
+    "is_update",
+    "detection",
+    "missed_probability",
+    "assoc_offsets",
+    "assoc_detection",
+    "assoc_probability",
+)
+
+# Scans whose "a detection carries metadata" answer is remembered.
+_MD_CACHE = 256
+
+
+class StateBuilder:
+    """Mixin of the drop-in tracker: the attributes below are the tracker's."""
+
+    _raw: Any
+    _core: Any
+    _scan: int
+    _scan_time: list
+    _scan_dets: list
+    _t0: Any
+    _objects: Any
+    _tracks: dict
+    _fillers: dict
+    _scan_md: dict
+    _history_start: bool
+    _newest_cache: dict | None
+    hypotheses: bool
+    _mixture: bool
+
+    def _transition(self, initiator: bool, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        raise NotImplementedError
+
+    def _dets_of(self, scan: int) -> list:
+        """The detections of a scan still kept (see `_free_scans`)."""
+        dets = self._scan_dets[scan]
+        if dets is None:
+            raise RuntimeError(f"usvfast.stonesoup: detections of scan {scan} already freed")
+        return dets
+
+    def _has_metadata(self, scan: int) -> bool:
+        """Whether a detection of `scan` carries metadata (Track.append then merges it)."""
+        hit = self._scan_md.get(scan)
+        if hit is None:
+            hit = any(d.metadata for d in self._dets_of(scan) if d.metadata is not None)
+            self._scan_md[scan] = hit
+            if len(self._scan_md) > _MD_CACHE:
+                self._scan_md.clear()
+                self._scan_md[scan] = hit
+        return hit
+
+    def _history(self, tid: int, start: int) -> dict:
+        """History entries `start`.. of core track `tid` (dict of arrays; assoc_offsets from
+        0)."""
+        if self._raw is not None:
+            if self._history_start:
+                try:
+                    return self._raw.history(tid, start)
+                except TypeError:  # a core without `start`
+                    self._history_start = False
+            hist = self._raw.history(tid)
+        else:
+            hist = vars(self._core.history(tid))
+        if start == 0:
+            return hist
+        offs = hist["assoc_offsets"]
+        a = int(offs[start])
+        out = {k: v[start:] for k, v in hist.items() if isinstance(v, np.ndarray)}
+        out["assoc_offsets"] = offs[start:] - a
+        out["assoc_detection"] = hist["assoc_detection"][a:]
+        out["assoc_probability"] = hist["assoc_probability"][a:]
+        return out
+
+    def _build(self, f: Filler) -> None:
+        """Append the states of track `f.tid` the Stone Soup track lacks (history entries
+        f.have..), with their hypotheses and metadata, as Stone Soup's tracker appends them."""
+        from stonesoup.types.track import Track
+
+        if (
+            f.prev is not None
+            and f.next_scan == self._scan - 1
+            and self._raw is not None
+            and f.tid in self._tracks
+        ):
+            # Only the newest scan's state is missing: from this scan's snapshot.
+            self._build_newest(f)
+            return
+        hist = self._history(f.tid, f.have)
+        n = len(hist["times"])
+        if n == 0:
+            return
+        ob = self._objects
+        track = f.track
+        xs, ps = hist["states"], hist["covariances"]
+        times, scans = hist["times"].tolist(), hist["scan"].tolist()
+        upds, dets = hist["is_update"].tolist(), hist["detection"].tolist()
+        offs, missed = hist["assoc_offsets"].tolist(), hist["missed_probability"].tolist()
+        assoc_det, assoc_p = hist["assoc_detection"].tolist(), hist["assoc_probability"].tolist()
+        if not all(0 <= k < len(self._scan_time) for k in scans):
+            raise RuntimeError(f"usvfast.stonesoup: history entry of track {f.tid} at unknown scan")
+        preds = self._predictions(f, xs, ps, times, scans, upds) if self.hypotheses else {}
+        svs, cms = ob.rows(xs, ps)
+        fast = ob.append_plain
+        for j in range(n):
+            scan = scans[j]
+            time = self._scan_time[scan]
+            hyp = None
+            if upds[j]:
+                det = dets[j]
+                scan_dets = self._dets_of(scan)
+                if self.hypotheses:
+                    pred = None
+                    if j in preds:
+                        pred = ob.state_of(False, *preds[j], time)
+                    elif det >= 0:  # the first state: its detection, no prediction
+                        hyp = ob.single(None, scan_dets[det])
+                    if hyp is None:
+                        a, b = offs[j], offs[j + 1]
+                        hyp = self._make_hypothesis(
+                            pred, scan_dets, time, assoc_det[a:b], assoc_p[a:b], missed[j], det
+                        )
+                if hyp is None:
+                    hyp = self._placeholder(time)
+            state = ob.state_of(upds[j], svs[j], cms[j], time, hyp)
+            if upds[j] and self._has_metadata(scan):
+                Track.append(track, state)
+            else:
+                fast(track, state)
+        f.prev = (times[-1], xs[-1], ps[-1])
+        f.have += n
+        f.next_scan = scans[-1] + 1
+
+    def _predictions(self, f: Filler, xs, ps, times, scans, upds) -> dict:
+        """{j: (mean, covariance)} predicted to history entry j (of those given, an update)
+        from the entry before it (or `f.prev`), batched per transition model and time step;
+        entries up to the confirmation scan by the initiator's model."""
+        groups: dict[tuple[bool, float], list[int]] = {}
+        # Entry 0's prior is `f.prev` (a new track's entry 0 has none and is skipped).
+        t_p, x_p, p_p = f.prev if f.prev is not None else (0.0, xs[0], ps[0])
+        for j, upd in enumerate(upds):
+            if not upd or (j == 0 and f.prev is None):
+                continue
+            t0 = times[j - 1] if j else t_p
+            groups.setdefault((scans[j] <= f.birth_scan, times[j] - t0), []).append(j)
+        out = {}
+        for (initiator, dt), idx in groups.items():
+            fm, q = self._transition(initiator, dt)
+            x0 = np.array([xs[j - 1] if j else x_p for j in idx])
+            p0 = np.array([ps[j - 1] if j else p_p for j in idx])
+            psv, pcm = self._objects.rows(x0 @ fm.T, fm @ p0 @ fm.T + q)
+            for k, j in enumerate(idx):
+                out[j] = (psv[k], pcm[k])
+        return out
+
+    def _newest(self) -> dict:
+        """The newest scan's snapshot of the confirmed tracks (lists), with `row` (track id ->
+        row) and `pred` (row -> predicted mean and covariance, from each track's previous
+        state; batched over the tracks whose previous state is built), made once per scan."""
+        nw = self._newest_cache
+        if nw is not None and nw["scan"] == self._scan:
+            return nw
+        snap = self._raw.snapshot()
+        nw = {k: snap[k].tolist() for k in _NEWEST_LISTS}
+        nw["states"], nw["covariances"] = snap["states"], snap["covariances"]
+        nw["sv"], nw["cm"] = self._objects.rows(snap["states"], snap["covariances"])
+        nw["scan"] = self._scan
+        nw["row"] = row = {tid: r for r, tid in enumerate(nw["ids"])}
+        nw["pred"] = pred = {}
+        if self.hypotheses:
+            t = (self._scan_time[-1] - self._t0).total_seconds()
+            by_dt: dict[float, list[Any]] = {}
+            for tid, r in row.items():
+                f = self._fillers.get(tid)
+                if f is not None and f.prev is not None and f.next_scan == self._scan - 1:
+                    by_dt.setdefault(t - f.prev[0], []).append((r, f.prev))
+            for dt, group in by_dt.items():
+                fm, q = self._transition(False, dt)
+                xp = np.array([g[1][1] for g in group]) @ fm.T
+                pp = fm @ np.array([g[1][2] for g in group]) @ fm.T + q
+                psv, pcm = self._objects.rows(xp, pp)
+                for k, (r, _) in enumerate(group):
+                    pred[r] = (psv[k], pcm[k])
+        self._newest_cache = nw
+        return nw
+
+    def _build_newest(self, f: Filler) -> None:
+        """Append the newest scan's state of alive track `f` (see `_build`)."""
+        from stonesoup.types.track import Track
+
+        nw = self._newest()
+        r = nw["row"][f.tid]
+        scan = self._scan - 1
+        time = self._scan_time[scan]
+        ob = self._objects
+        x, p, upd = nw["states"][r], nw["covariances"][r], nw["is_update"][r]
+        hyp = None
+        if upd:
+            if self.hypotheses:
+                pred = ob.state_of(False, *nw["pred"][r], time)
+                a, b = nw["assoc_offsets"][r], nw["assoc_offsets"][r + 1]
+                hyp = self._make_hypothesis(
+                    pred,
+                    self._dets_of(scan),
+                    time,
+                    nw["assoc_detection"][a:b],
+                    nw["assoc_probability"][a:b],
+                    nw["missed_probability"][r],
+                    nw["detection"][r],
+                )
+            if hyp is None:
+                hyp = self._placeholder(time)
+        state = ob.state_of(upd, nw["sv"][r], nw["cm"][r], time, hyp)
+        if upd and self._has_metadata(scan):
+            Track.append(f.track, state)
+        else:
+            ob.append_plain(f.track, state)
+        f.prev = ((time - self._t0).total_seconds(), x, p)
+        f.have += 1
+        f.next_scan = scan + 1
+
+    def _placeholder(self, time: Any) -> Any:
+        return self._objects.single(None, self._objects.missed(time))
+
+    def _make_hypothesis(self, pred, scan_dets, time, dets, probs, missed, det) -> Any:
+        ob = self._objects
+        if self._mixture and np.isfinite(missed):
+            prob = ob.probability
+            hyps = [prob(pred, ob.missed(time), float(missed))]
+            hyps += [
+                prob(pred, scan_dets[int(j)], float(p)) for j, p in zip(dets, probs, strict=True)
+            ]
+            return ob.multiple(hyps)
+        if det >= 0:
+            return ob.single(pred, scan_dets[det])
+        return None
+
+
+class Filler:
+    """Builds the missing states of one drop-in track when its lists are first read (see
+    `usvfast.stonesoup_lazy`): `have` history entries built so far, `prev` (t, x, P) of the
+    last of them, `next_scan` a scan index no unbuilt entry is older than."""
+
+    __slots__ = ("birth_scan", "done", "have", "next_scan", "owner", "prev", "tid", "track")
+
+    def __init__(self, owner: Any, tid: int, track: Any, birth_scan: int, first: int) -> None:
+        self.owner = owner
+        self.tid = tid
+        self.track = track
+        self.birth_scan = birth_scan
+        self.have = 0
+        self.prev: tuple[float, np.ndarray, np.ndarray] | None = None
+        self.next_scan = first
+        self.done = False  # built, and not alive any more
+
+    def arm(self) -> None:
+        d = self.track.__dict__
+        d["_property_states"]._fill = self
+        d["metadatas"]._fill = self
+
+    def __call__(self) -> None:
+        self.force()
+
+    def force(self) -> None:
+        """Build now what is missing (the lists are plain lists meanwhile)."""
+        d = self.track.__dict__
+        states, mds = d["_property_states"], d["metadatas"]
+        states._fill = mds._fill = None
+        before = (list.__len__(states), list.__len__(mds), self.have, self.prev, self.next_scan)
+        try:
+            self.owner._build(self)
+        except BaseException:
+            # Nothing half-built passes for the whole track: back to before, armed again.
+            list.__delitem__(states, slice(before[0], None))
+            list.__delitem__(mds, slice(before[1], None))
+            self.have, self.prev, self.next_scan = before[2:]
+            self.arm()
+            raise
+        if self.tid not in self.owner._tracks:
+            self.done = True  # deleted: its history does not grow any more

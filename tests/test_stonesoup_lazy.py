@@ -1,0 +1,245 @@
+"""The drop-in's lazily built Stone Soup tracks against Stone Soup's own tracker: every way a
+Stone Soup user reads a track (`len`, `state`, `states`, indexing by position and by time,
+slices, iteration, proxied state attributes, `metadata(s)`, each state's `hypothesis` with its
+prediction, measurements and probabilities, copies and pickles) gives what Stone Soup's
+`MultiTargetMixtureTracker` gives, whether the tracks are read every scan, now and then, or
+only at the end; plus the list type itself."""
+
+from __future__ import annotations
+
+import copy
+import pickle
+
+import numpy as np
+import pytest
+from test_stonesoup_dropin import SHORT, dropin_for
+
+from usvfast.stonesoup_lazy import LazyList
+
+import ssharness as H
+
+ATOL = 1e-6
+
+
+def _collect(tracker, read_every: int | None) -> list:
+    """[(born scan, track)] of every track a run outputs; with `read_every` k, tracks are read
+    (`track.state`) every k-th scan, one in two of them (by position in the id order)."""
+    seen: dict = {}
+    for k, (time, tracks) in enumerate(tracker):
+        for t in tracks:
+            seen.setdefault(id(t), (k, t))
+        if read_every and k % read_every == 0:
+            for i, t in enumerate(sorted(tracks, key=lambda t: t.id)):
+                if i % 2 == 0:
+                    assert t.state.timestamp == time
+    return list(seen.values())
+
+
+def _match(ours: list, ref: list) -> list[tuple]:
+    """Pairs (our track, Stone Soup's) with the same birth scan, length and first state (the
+    lazy tracks are read here, through `states`, before anything else)."""
+    pairs, left = [], list(ref)
+    for born, t in ours:
+        for item in left:
+            b_born, r = item
+            if b_born != born or len(r.states) != len(t.states):
+                continue
+            if np.allclose(t.states[0].state_vector, r.states[0].state_vector, atol=ATOL):
+                pairs.append((t, r))
+                left.remove(item)
+                break
+        else:
+            raise AssertionError(f"track born at scan {born} has no Stone Soup counterpart")
+    assert not left
+    return pairs
+
+
+def _same_state(a, b) -> None:
+    assert type(a) is type(b)
+    assert a.timestamp == b.timestamp
+    assert type(a.state_vector) is type(b.state_vector)
+    assert type(a.covar) is type(b.covar)
+    assert np.allclose(a.state_vector, b.state_vector, atol=ATOL)
+    assert np.allclose(a.covar, b.covar, atol=ATOL)
+
+
+def _same_hypothesis(ha, hb) -> None:
+    """A state's hypothesis. JPDA updates: a MultipleHypothesis with the same detections (the
+    very objects Stone Soup got, MissedDetection at the same time), probabilities and
+    predictions. Updates of the initiator's tentative phase (Stone Soup: its GNN's
+    SingleDistanceHypothesis; the drop-in: the same kind as its JPDA updates, documented) and
+    the first state (SingleHypothesis without prediction): the same detection and prediction.
+    The drop-in leaves `measurement_prediction` None (documented)."""
+    from stonesoup.types.hypothesis import SingleDistanceHypothesis
+
+    if isinstance(hb, SingleDistanceHypothesis):
+        if not hasattr(ha, "single_hypotheses"):  # GNN: a SingleHypothesis
+            best = ha
+        elif len(ha) > 1:
+            best = max((h for h in ha if h), key=lambda h: h.probability)
+        else:
+            best = ha[0]
+        assert best.measurement is hb.measurement
+        _same_state(best.prediction, hb.prediction)
+        return
+    assert type(ha) is type(hb)
+    if not hasattr(hb, "single_hypotheses"):
+        assert ha.measurement is hb.measurement and ha.prediction is hb.prediction is None
+        return
+    # Stone Soup normalises on construction (normalise=True, `Probability` values); the
+    # drop-in's probabilities come normalised (normalise=False, floats; documented).
+    assert len(ha) == len(hb) and ha.total_weight == hb.total_weight
+
+    def key(h):
+        return id(h.measurement) if h else None
+
+    by_a, by_b = {key(h): h for h in ha}, {key(h): h for h in hb}
+    assert by_a.keys() == by_b.keys()
+    for k, h in by_b.items():
+        g = by_a[k]
+        assert type(g) is type(h)
+        assert float(g.probability) == pytest.approx(float(h.probability), abs=1e-9)
+        assert type(g.measurement) is type(h.measurement)
+        assert g.measurement.timestamp == h.measurement.timestamp
+        assert g.measurement_prediction is None
+        _same_state(g.prediction, h.prediction)
+
+
+def _same_track(a, b) -> int:
+    """Every read of two tracks agrees; returns the number of hypotheses compared."""
+    from stonesoup.types.update import Update
+
+    assert type(a) is type(b)
+    assert len(a) == len(b) == len(a.states) == len(list(a))
+    _same_state(a.state, b.state)
+    assert a.state is a.states[-1] is a[-1]
+    assert a.timestamp == b.timestamp  # proxied to the newest state
+    assert np.allclose(a.state_vector, b.state_vector, atol=ATOL)
+    assert a.metadata == b.metadata and a.metadatas == b.metadatas
+    n = 0
+    for i, (sa, sb) in enumerate(zip(a, b, strict=True)):
+        _same_state(sa, sb)
+        assert a[i] is sa and sa in a.states and a.states.index(sa) == i
+        if isinstance(sb, Update):
+            _same_hypothesis(sa.hypothesis, sb.hypothesis)
+            n += 1
+    mid = b.states[len(b) // 2].timestamp
+    assert a[mid] is a.states[len(a) // 2] or a[mid].timestamp == mid
+    assert len(a[mid:]) == len(b[mid:]) and len(a[1:3]) == len(b[1:3])
+    assert list(reversed(a.states)) == a.states[::-1]
+    assert [s.timestamp for s in a.last_timestamp_generator()] == [
+        s.timestamp for s in b.last_timestamp_generator()
+    ]
+    c = copy.copy(a)
+    assert c.states == a.states and c.states is not a.states and c.metadatas == a.metadatas
+    assert type(c.states) is list
+    return n
+
+
+@pytest.mark.parametrize(
+    ("read_every", "associator"),
+    [(None, "jpda"), (1, "jpda"), (3, "jpda"), (3, "gnn")],
+    ids=["read-at-end", "every-scan", "now-then", "gnn-now-then"],
+)
+def test_lazy_tracks_read_like_stonesoups(read_every, associator):
+    scenario = H.two_sensors(1)  # two sensors, clutter, births and deaths
+    scans = H.stonesoup_scans(scenario)
+    cfg = H.Code57(associator=associator, **SHORT)
+    ref_tracker, _ = H.build_stonesoup(cfg, detector=scans)
+    ref = _collect(ref_tracker, read_every)
+    ours_tracker, _ = H.build_stonesoup(cfg)
+    ours = _collect(dropin_for(ours_tracker, scans), read_every)
+    pairs = _match(ours, ref)
+    assert len(pairs) > 2 and any(len(a) < len(scans) - 5 for a, _ in pairs)
+    assert sum(_same_track(a, b) for a, b in pairs) > 50
+
+
+def test_tracks_read_by_stonesoup_code_and_appended_to():
+    # Stone Soup's own readers (a deleter on the drop-in's tracks) and a user's Track.append
+    # onto a lazy track behave as on Stone Soup's tracks.
+    from stonesoup.deleter.error import CovarianceBasedDeleter
+    from stonesoup.types.state import GaussianState
+
+    scans = H.stonesoup_scans(H.crossing(3))
+    ours_tracker, _ = H.build_stonesoup(H.Code57())
+    tracker = dropin_for(ours_tracker, scans)
+    ref_tracker, _ = H.build_stonesoup(H.Code57(), detector=scans)
+    deleter = CovarianceBasedDeleter(covar_trace_thresh=0.5)
+    for (_, ours), (_, ref) in zip(tracker, ref_tracker, strict=True):
+        assert len(ours) == len(ref)
+        assert len(deleter.delete_tracks(ours)) == len(deleter.delete_tracks(ref))
+    track = next(iter(tracker.tracks))
+    n = len(track)
+    extra = GaussianState(np.zeros((4, 1)), np.eye(4), timestamp=track.timestamp)
+    track.append(extra)
+    assert len(track) == n + 1 and track.state is extra and len(track.metadatas) == n + 1
+    back = pickle.loads(pickle.dumps(track))
+    assert type(back.states) is list and len(back) == n + 1 and back.metadatas == track.metadatas
+
+
+def test_a_failed_build_leaves_the_track_unbuilt(monkeypatch):
+    scans = H.stonesoup_scans(H.crossing(3))
+    tracker = dropin_for(H.build_stonesoup(H.Code57())[0], scans)
+    for _ in tracker:
+        pass
+    track = next(iter(tracker.tracks))
+    real = tracker._dets_of
+    calls = []
+
+    def flaky(scan):
+        calls.append(scan)
+        if len(calls) == 5:
+            raise RuntimeError("detections gone")
+        return real(scan)
+
+    monkeypatch.setattr(tracker, "_dets_of", flaky)
+    with pytest.raises(RuntimeError, match="detections gone"):
+        len(track)
+    assert list.__len__(track.states) == 0  # nothing half-built is visible
+    monkeypatch.setattr(tracker, "_dets_of", real)
+    ref = H.run_tracker(H.build_stonesoup(H.Code57(), detector=scans)[0])
+    assert len(track) in {len(r.times) for r in ref}
+
+
+def test_lazy_list_fills_once_before_any_read():
+    calls = []
+
+    def fill():
+        calls.append(1)
+        lst.extend([1, 2, 3])
+
+    reads = [
+        len,
+        lambda x: x[0],
+        list,
+        lambda x: 2 in x,
+        lambda x: x == [1, 2, 3],
+        repr,
+        lambda x: [0] + x,  # noqa: RUF005 (list + LazyList is what is tested)
+        lambda x: x + [4],  # noqa: RUF005
+        lambda x: list(reversed(x)),
+        copy.copy,
+        copy.deepcopy,
+        lambda x: pickle.loads(pickle.dumps(x)),
+        lambda x: x.index(2),
+        lambda x: x.count(1),
+        sorted,
+        np.asarray,
+        bool,
+    ]
+    for read in reads:
+        lst = LazyList()
+        lst._fill = fill
+        calls.clear()
+        out = read(lst)
+        assert calls == [1], read
+        assert list.__len__(lst) == 3
+        if isinstance(out, list):
+            assert out in ([1, 2, 3], [0, 1, 2, 3], [1, 2, 3, 4], [3, 2, 1])
+            assert type(out) is list  # copies, pickles and sums are plain lists
+        read(lst)
+        assert calls == [1]  # disarmed after filling
+    lst = LazyList([5])
+    lst._fill = fill
+    lst.append(6)
+    assert list(lst) == [5, 1, 2, 3, 6]
