@@ -3,15 +3,8 @@
 //! separated targets (5, 20, and 10 … 10,000 for scaling — time must grow about linearly) and
 //! targets moving in parallel 0.3 m apart, inside each other's gates (8 and 20).
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
-use nalgebra::{DMatrix, DVector};
 use std::hint::black_box;
-use usvfast_core::models::MotionModel;
-use usvfast_core::tracking::jpda::Method;
-use usvfast_core::tracking::track::Deleter;
-use usvfast_core::tracking::tracker::{
-    Association, Confirmation, GnnParams, InitiatorConfig, JpdaParams, Measure, OutOfOrder, Sensor,
-    Tracker, TrackerConfig,
-};
+use usvfast_core::tracking::tracker::{Tracker, TrackerConfig};
 
 struct Lcg(u64);
 impl Lcg {
@@ -28,58 +21,9 @@ impl Lcg {
     }
 }
 
+/// The thesis's Code 5.7 tracker (one sensor, σ = 0.25 m).
 fn config() -> TrackerConfig {
-    let h = DMatrix::from_row_slice(2, 4, &[1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0]);
-    let r = DMatrix::identity(2, 2) * 0.0625;
-    TrackerConfig {
-        motion_model: MotionModel::constant_velocity_2d(0.001).unwrap(),
-        sensors: vec![Sensor::new(h, r, None, None, 4, "sensors[0]").unwrap()],
-        association: Association::Jpda(JpdaParams {
-            prob_detect: 0.85,
-            prob_gate: 0.95,
-            clutter_density: Some(0.125),
-            include_all: false,
-            method: Method::Ehm,
-            max_hypotheses: None,
-        }),
-        use_joseph_cov: false,
-        symmetric_covariance: false,
-        deleter: Deleter::Composite {
-            deleters: vec![
-                Deleter::CovarianceTrace {
-                    threshold: 1.5,
-                    mapping: None,
-                },
-                Deleter::StepsSinceUpdate(35),
-            ],
-            intersect: false,
-        },
-        delete_last_prediction: false,
-        initiator: InitiatorConfig {
-            prior_state: DVector::zeros(4),
-            prior_covariance: DMatrix::from_diagonal(&DVector::from_vec(vec![0.0, 0.3, 0.0, 0.3])),
-            diag_load: 0.0,
-            confirmation: Confirmation::MinPoints {
-                min_points: 2,
-                updates_only: true,
-            },
-            deleter: Deleter::StepsSinceUpdate(3),
-            gnn: GnnParams {
-                measure: Measure::Mahalanobis,
-                missed_distance: 0.3,
-                include_all: false,
-            },
-            motion_model: None,
-            use_joseph_cov: false,
-            symmetric_covariance: false,
-            max_new_tentative: None,
-        },
-        out_of_order: OutOfOrder::Raise,
-        initiate_in_gates: true,
-        imm: None,
-        existence: None,
-        max_deleted: None,
-    }
+    TrackerConfig::code_5_7()
 }
 
 /// Targets (on a grid `spacing` metres apart, or in a row when `spacing` < 1 m) moving at

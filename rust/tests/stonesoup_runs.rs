@@ -9,8 +9,7 @@ use usvfast_core::models::MotionModel;
 use usvfast_core::tracking::jpda::Method;
 use usvfast_core::tracking::track::Deleter;
 use usvfast_core::tracking::tracker::{
-    Association, Confirmation, GnnParams, InitiatorConfig, JpdaParams, Measure, OutOfOrder, Sensor,
-    Tracker, TrackerConfig,
+    Association, Confirmation, GnnParams, JpdaParams, Measure, Sensor, Tracker, TrackerConfig,
 };
 
 #[derive(Deserialize)]
@@ -55,9 +54,12 @@ struct Run {
     tracks: Vec<Record>,
 }
 
+/// Code 5.7 ([`TrackerConfig::code_5_7`]) with the run's own values.
 fn config(run: &Run) -> TrackerConfig {
     let h = DMatrix::from_row_slice(2, 4, &[1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0]);
-    let sensors = run
+    let mut c = TrackerConfig::code_5_7();
+    c.motion_model = MotionModel::constant_velocity_2d(run.q).unwrap();
+    c.sensors = run
         .sensor_noise
         .iter()
         .enumerate()
@@ -66,7 +68,7 @@ fn config(run: &Run) -> TrackerConfig {
             Sensor::new(h.clone(), r, None, None, 4, &format!("sensors[{i}]")).unwrap()
         })
         .collect();
-    let association = match run.associator.as_str() {
+    c.association = match run.associator.as_str() {
         "jpda" => Association::Jpda(JpdaParams {
             prob_detect: run.prob_detect,
             prob_gate: run.prob_gate,
@@ -81,49 +83,26 @@ fn config(run: &Run) -> TrackerConfig {
             include_all: false,
         }),
     };
+    c.deleter = Deleter::Composite {
+        deleters: vec![
+            Deleter::StepsSinceUpdate(run.delete_steps),
+            Deleter::CovarianceTrace {
+                threshold: run.covar_trace,
+                mapping: None,
+            },
+        ],
+        intersect: false,
+    };
     let pv = run.prior_velocity_var;
-    TrackerConfig {
-        motion_model: MotionModel::constant_velocity_2d(run.q).unwrap(),
-        sensors,
-        association,
-        use_joseph_cov: false,
-        symmetric_covariance: false,
-        deleter: Deleter::Composite {
-            deleters: vec![
-                Deleter::StepsSinceUpdate(run.delete_steps),
-                Deleter::CovarianceTrace {
-                    threshold: run.covar_trace,
-                    mapping: None,
-                },
-            ],
-            intersect: false,
-        },
-        delete_last_prediction: false,
-        initiator: InitiatorConfig {
-            prior_state: DVector::zeros(4),
-            prior_covariance: DMatrix::from_diagonal(&DVector::from_vec(vec![0.0, pv, 0.0, pv])),
-            diag_load: 0.0,
-            confirmation: Confirmation::MinPoints {
-                min_points: run.min_points,
-                updates_only: true,
-            },
-            deleter: Deleter::StepsSinceUpdate(run.init_steps),
-            gnn: GnnParams {
-                measure: Measure::Mahalanobis,
-                missed_distance: run.missed_distance,
-                include_all: false,
-            },
-            motion_model: None,
-            use_joseph_cov: false,
-            symmetric_covariance: false,
-            max_new_tentative: None,
-        },
-        out_of_order: OutOfOrder::Raise,
-        initiate_in_gates: true,
-        imm: None,
-        existence: None,
-        max_deleted: None,
-    }
+    let init = &mut c.initiator;
+    init.prior_covariance = DMatrix::from_diagonal(&DVector::from_vec(vec![0.0, pv, 0.0, pv]));
+    init.confirmation = Confirmation::MinPoints {
+        min_points: run.min_points,
+        updates_only: true,
+    };
+    init.deleter = Deleter::StepsSinceUpdate(run.init_steps);
+    init.gnn.missed_distance = run.missed_distance;
+    c
 }
 
 /// Our tracks of a run as `(born, died, track)`, ordered like the fixture's records.

@@ -685,44 +685,21 @@ mod tests {
     use crate::models::MotionModel;
     use crate::tracking::track::Deleter;
 
+    /// Code 5.7 with faster targets: q = 0.01, σ = 0.5 m, prior velocity variance 1, a 3σ
+    /// initiation gate, tentative tracks deleted after 2 steps, 3 steps for confirmed ones.
     fn config(assoc: Association) -> TrackerConfig {
-        let h = DMatrix::from_row_slice(2, 4, &[1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0]);
-        let r = DMatrix::identity(2, 2) * 0.25;
-        TrackerConfig {
-            motion_model: MotionModel::constant_velocity_2d(0.01).unwrap(),
-            sensors: vec![Sensor::new(h, r, None, None, 4, "sensors[0]").unwrap()],
-            association: assoc,
-            use_joseph_cov: false,
-            symmetric_covariance: false,
-            deleter: Deleter::StepsSinceUpdate(3),
-            delete_last_prediction: false,
-            initiator: InitiatorConfig {
-                prior_state: DVector::zeros(4),
-                prior_covariance: DMatrix::from_diagonal(&DVector::from_vec(vec![
-                    0.0, 1.0, 0.0, 1.0,
-                ])),
-                diag_load: 0.0,
-                confirmation: Confirmation::MinPoints {
-                    min_points: 2,
-                    updates_only: true,
-                },
-                deleter: Deleter::StepsSinceUpdate(2),
-                gnn: GnnParams {
-                    measure: Measure::Mahalanobis,
-                    missed_distance: 3.0,
-                    include_all: false,
-                },
-                motion_model: None,
-                use_joseph_cov: false,
-                symmetric_covariance: false,
-                max_new_tentative: None,
-            },
-            out_of_order: OutOfOrder::Raise,
-            initiate_in_gates: true,
-            imm: None,
-            existence: None,
-            max_deleted: None,
-        }
+        let mut c = TrackerConfig::code_5_7();
+        c.motion_model = MotionModel::constant_velocity_2d(0.01).unwrap();
+        c.sensors[0].r = DMatrix::identity(2, 2) * 0.25;
+        c.sensors[0].init.1 = c.sensors[0].r.clone();
+        c.association = assoc;
+        c.deleter = Deleter::StepsSinceUpdate(3);
+        let init = &mut c.initiator;
+        init.prior_covariance =
+            DMatrix::from_diagonal(&DVector::from_vec(vec![0.0, 1.0, 0.0, 1.0]));
+        init.deleter = Deleter::StepsSinceUpdate(2);
+        init.gnn.missed_distance = 3.0;
+        c
     }
 
     fn run(assoc: Association) -> Tracker {
