@@ -6,7 +6,8 @@ the few points left at its corners cluster metres off its centre. `VesselFinder`
 removed points of the last frame of every clustering cycle (world frame, NED m):
 
 1. grid them (`cell` m) and group the occupied cells (DBSCAN, scikit-learn, `link` m);
-2. a group is a vessel-sized candidate when its extent along its principal axis lies in
+2. a group is a vessel-sized candidate when its extent along its axis (the long side of the
+   rectangle fitted by L-shape fitting: the hull's seen side, also for an L of side and bow) lies in
    [`min_length`, `max_length`] m and across it ≤ `beam` + `across_margin` m (a quay or a pier
    is longer; a floating object leaves no lines);
 3. each candidate is matched to one of the previous cycle's (centroid within `match_distance`
@@ -41,13 +42,14 @@ __all__ = ["VesselCandidate", "VesselFinder"]
 class VesselCandidate:
     """One vessel-sized group of line points in one cycle.
 
-    time : UNIX s; centroid : (2,) NED m; axis : (2,) unit principal axis (NED); ends : (2, 2)
-    the end points at the low and high along-axis coordinate, NED m; clipped : (2,) whether
-    each end lies within `clip_margin` of the sensor's range (maybe cut off); cells : (k, 2)
-    occupied cell centres, NED m; n_points : points in the group; trail : the matched
-    candidates of earlier cycles (time, ends (2, 2), clipped (2,)), oldest first; moving :
-    consecutive cycles with a speed ≥ min_speed; speed : m/s of the last estimate (NaN when no
-    end could be compared); velocity : (2,) NED m/s of the last estimate.
+    time : UNIX s; centroid : (2,) NED m; axis : (2,) unit vector along the hull (NED);
+    ends : (2, 2) the end points at the low and high along-axis coordinate, NED m;
+    clipped : (2,) whether each end lies within `clip_margin` of the sensor's range (maybe
+    cut off); cells : (k, 2) occupied cell centres, NED m; n_points : points in the group;
+    trail : the matched candidates of earlier cycles (time, ends (2, 2), clipped (2,)),
+    oldest first; moving : consecutive cycles with a speed ≥ min_speed; speed : m/s of the
+    last estimate (NaN when no end could be compared); velocity : (2,) NED m/s of the last
+    estimate.
     """
 
     time: float
@@ -150,9 +152,7 @@ class VesselFinder:
             centroid = (c * w[:, None]).sum(axis=0) / w.sum()
             if len(c) < 3:
                 continue
-            cov = np.cov(c, rowvar=False, aweights=w)
-            _, evecs = np.linalg.eigh(cov)
-            axis = evecs[:, 1]
+            axis = _hull_axis(c)
             a = (c - centroid) @ axis
             across = (c - centroid) @ np.array([-axis[1], axis[0]])
             along_extent = float(a.max() - a.min()) + self.cell
@@ -241,3 +241,23 @@ class VesselFinder:
         basis = np.column_stack([u, n])
         cov = (basis * np.array([along_std**2, self.beam_std**2])) @ basis.T
         return centre, cov
+
+
+def _hull_axis(cells: np.ndarray, d0: float = 0.05) -> np.ndarray:
+    """Unit vector (2,) along the long side of the rectangle that fits `cells` (k, 2) m best
+    by the closeness criterion of L-shape fitting (Zhang et al., "Efficient L-shape fitting
+    for vehicle detection using laser scanners", IEEE IV 2017): over headings in 1° steps,
+    every cell scores 1 / max(d, d0), d its distance to the nearest side of the heading's
+    bounding rectangle. A hull's seen outline is a side or an L (side and bow), where the
+    principal axis tilts toward the short leg and the minimum-area rectangle is ambiguous."""
+    theta = np.radians(np.arange(0.0, 90.0, 1.0))
+    e1 = np.stack([np.cos(theta), np.sin(theta)])  # (2, m)
+    e2 = np.stack([-np.sin(theta), np.cos(theta)])
+    c1, c2 = cells @ e1, cells @ e2  # (k, m)
+    d1 = np.minimum(c1 - c1.min(axis=0), c1.max(axis=0) - c1)
+    d2 = np.minimum(c2 - c2.min(axis=0), c2.max(axis=0) - c2)
+    score = (1.0 / np.maximum(np.minimum(d1, d2), d0)).sum(axis=0)
+    best = int(np.argmax(score))
+    ext1 = float(c1[:, best].max() - c1[:, best].min())
+    ext2 = float(c2[:, best].max() - c2[:, best].min())
+    return e1[:, best].copy() if ext1 >= ext2 else e2[:, best].copy()
