@@ -38,7 +38,7 @@ from usvfast._validate import as_float_array, real
 __all__ = ["VesselCandidate", "VesselFinder"]
 
 
-@dataclass
+@dataclass(eq=False)
 class VesselCandidate:
     """One vessel-sized group of line points in one cycle.
 

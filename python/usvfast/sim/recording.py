@@ -406,6 +406,10 @@ covariance = "model"
 surface_offset = 0.1
 range_std = 0.1
 cross_range_std = 0.065
+# A moving vessel's hull is removed by the line-of-sight filter like a quay: find it among
+# the removed points (a vessel-sized group whose ends move >= 0.8 m/s) and give it one
+# detection at its centre (the seen side + half the 2.2 m beam).
+vessels = true
 """,
     "camera": """\
 # Beyond 20 m one pixel is more than 1 m of range (1.2 m above the water, f = 300 px).
