@@ -87,7 +87,16 @@ class LidarConfig:
     sensor_id: str = "lidar"
 
     def __post_init__(self) -> None:
-        for name in ("radius", "mount_height", "pixel", "bandwidth"):
+        for name in (
+            "radius",
+            "mount_height",
+            "pixel",
+            "bandwidth",
+            "vessel_beam",
+            "vessel_length",
+            "vessel_max_length",
+            "vessel_min_speed",
+        ):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
                 raise ValueError(f"{name}: expected a positive number, got {v}")
