@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from usvfast.lidar import Box, LidarConfig, LidarDetector, Scene, VLP16Simulator, Wall
-from usvfast.lidar.vessels import VesselFinder
+from usvfast.lidar.vessels import VesselFinder, single_linkage
 
 HULL = Box((0.0, 0.0), 6.0, 2.2, 0.0, 0.0, 1.0)
 
@@ -59,6 +59,20 @@ def test_moving_hull_found_near_its_centre_static_one_not():
         # along the hull (north) the end error, across it the beam's
         assert np.sqrt(cov[0, 0]) == pytest.approx(finder.end_std)
         assert np.sqrt(cov[1, 1]) == pytest.approx(finder.beam_std)
+
+
+def test_single_linkage_equals_dbscan_with_one_sample():
+    from sklearn.cluster import DBSCAN
+
+    rng = np.random.default_rng(4)
+    pts = np.vstack([rng.normal(c, 0.6, (80, 2)) for c in ((0, 0), (3, 1), (8, -2), (8, 4))])
+    pts = np.round(pts / 0.2) * 0.2  # grid cells, as the finder groups them (ties at link)
+    ours = single_linkage(pts, 0.8)
+    ref = DBSCAN(eps=0.8, min_samples=1).fit_predict(pts)
+    # the same partition (labels may be numbered differently)
+    pairs = {(a, b) for a, b in zip(ours.tolist(), ref.tolist(), strict=True)}
+    assert len(pairs) == len(set(ours.tolist())) == len(set(ref.tolist()))
+    assert single_linkage(np.zeros((0, 2)), 0.8).shape == (0,)
 
 
 def test_long_quay_is_no_candidate():

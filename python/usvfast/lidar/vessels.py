@@ -5,7 +5,8 @@ vessel's hull, whose sides are line segments a few metres long, is removed like 
 the few points left at its corners cluster metres off its centre. `VesselFinder` looks at the
 removed points of the last frame of every clustering cycle (world frame, NED m):
 
-1. grid them (`cell` m) and group the occupied cells (DBSCAN, scikit-learn, `link` m);
+1. grid them (`cell` m) and group the occupied cells (single linkage at `link` m: the
+   connected components of their neighbour graph, SciPy);
 2. a group is a vessel-sized candidate when its extent along its axis (the long side of the
    rectangle fitted by L-shape fitting: the hull's seen side, also for an L of side and bow) lies in
    [`min_length`, `max_length`] m and across it ≤ `beam` + `across_margin` m (a quay or a pier
@@ -35,7 +36,7 @@ import numpy as np
 
 from usvfast._validate import as_float_array, real
 
-__all__ = ["VesselCandidate", "VesselFinder"]
+__all__ = ["VesselCandidate", "VesselFinder", "single_linkage"]
 
 
 @dataclass(eq=False)
@@ -129,7 +130,6 @@ class VesselFinder:
     ) -> list[VesselCandidate]:
         """Vessel-sized groups (module doc, steps 1-2) of `points` (n, 2) NED m seen from
         `sensor` (2,) NED m at `time` s, not yet matched to earlier cycles."""
-        from sklearn.cluster import DBSCAN
 
         pts = as_float_array("points", points, ndim=2).reshape(-1, 2)
         sensor = as_float_array("sensor", sensor, ndim=1)
@@ -141,7 +141,7 @@ class VesselFinder:
             np.floor(pts / self.cell).astype(np.int64), axis=0, return_counts=True
         )
         cells = (keys + 0.5) * self.cell
-        labels = DBSCAN(eps=self.link, min_samples=1).fit_predict(cells)
+        labels = single_linkage(cells, self.link)
         out = []
         for k in range(int(labels.max()) + 1 if len(labels) else 0):
             sel = labels == k
@@ -261,3 +261,22 @@ def _hull_axis(cells: np.ndarray, d0: float = 0.05) -> np.ndarray:
     ext1 = float(c1[:, best].max() - c1[:, best].min())
     ext2 = float(c2[:, best].max() - c2[:, best].min())
     return e1[:, best].copy() if ext1 >= ext2 else e2[:, best].copy()
+
+
+def single_linkage(points: np.ndarray, link: float) -> np.ndarray:
+    """Group label (n,) int64 of every point of `points` (n, 2) m: the connected components
+    of the graph joining points at most `link` m apart (DBSCAN with one sample per core;
+    SciPy's k-d tree and csgraph)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    pts = as_float_array("points", points, ndim=2).reshape(-1, 2)
+    link = real("link", link, low=0.0)
+    if len(pts) == 0:
+        return np.zeros(0, dtype=np.int64)
+    pairs = cKDTree(pts).query_pairs(link, output_type="ndarray")
+    graph = coo_matrix(
+        (np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(pts), len(pts))
+    )
+    return connected_components(graph, directed=False)[1].astype(np.int64)
