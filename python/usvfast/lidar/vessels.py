@@ -266,16 +266,16 @@ def _hull_axis(cells: np.ndarray, d0: float = 0.05) -> np.ndarray:
 def single_linkage(points: np.ndarray, link: float) -> np.ndarray:
     """Group label (n,) int64 of every point of `points` (n, 2) m: the connected components
     of the graph joining points at most `link` m apart (DBSCAN with one sample per core;
-    SciPy's k-d tree and csgraph)."""
+    SciPy's KDTree and csgraph)."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
-    from scipy.spatial import cKDTree
+    from scipy.spatial import KDTree
 
     pts = as_float_array("points", points, ndim=2).reshape(-1, 2)
     link = real("link", link, low=0.0)
     if len(pts) == 0:
         return np.zeros(0, dtype=np.int64)
-    pairs = cKDTree(pts).query_pairs(link, output_type="ndarray")
+    pairs = KDTree(pts).query_pairs(link, output_type="ndarray")
     graph = coo_matrix(
         (np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(pts), len(pts))
     )
