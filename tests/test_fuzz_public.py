@@ -47,6 +47,7 @@ MODULES = [
     "usvfast.lidar.pipeline",
     "usvfast.lidar.evaluation",
     "usvfast.lidar.simulator",
+    "usvfast.lidar.vessels",
     "usvfast.nav.ais",
     "usvfast.nav.ais_stream",
     "usvfast.nav.linetime",
@@ -117,6 +118,7 @@ NAN_DOCUMENTED = {
     "dead_reckon",  # NaN for times before the first report
     "line_time",  # NaN when a line has no receive time
     "clock_time",  # NaN for a line that is not a ZDA/RMC sentence
+    "VesselCandidate",  # speed NaN until its ends could be compared with an earlier cycle
     "VesselTrack",  # `at()` NaN outside the track; the object holds NaN headings if given
     "clear_mot",  # MOTP is NaN with no match
     "track_quality",

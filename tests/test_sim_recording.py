@@ -272,9 +272,14 @@ def test_cli_bad_arguments(tmp_path):
     assert not Path(tmp_path / "x").exists()
 
 
-def test_the_bundled_recording_is_the_current_simulator_s():
-    """The demo bundle (seed 7, 30 s) reads back and its truth is make_world(7, 30)'s."""
+def test_the_bundled_recording_is_the_current_simulator_s(rec):
+    """The demo bundle (seed 7, 30 s) reads back, its truth is make_world(7, 30)'s and its
+    sensor models and tracker settings are the ones the simulator writes now."""
     folder = Path(__file__).resolve().parents[1] / "python" / "usvfast" / "data" / "harbour"
+    bundled = tomllib.loads((folder / "recording.toml").read_text())
+    fresh = tomllib.loads((rec.out / "recording.toml").read_text())
+    for table in ("lidar", "camera", "detector", "tracker"):
+        assert bundled[table] == fresh[table], table
     topics = bag_topics(folder / "bag")
     assert {t: i.count for t, i in topics.items()}[TOPICS["image"][0]] == 300
     assert {t: i.count for t, i in topics.items()}[TOPICS["lidar"][0]] >= 299

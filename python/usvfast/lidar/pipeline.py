@@ -24,6 +24,7 @@ from usvfast._core import DimensionError
 from usvfast._validate import as_float_array, real
 from usvfast.lidar.frame import LidarFrame
 from usvfast.lidar.lines import LineMemory, blur, detect_segments, extend_segments, rasterize
+from usvfast.lidar.vessels import VesselFinder
 
 
 @dataclass
@@ -47,6 +48,12 @@ class LidarConfig:
     bandwidth, bin_seeding, cluster_all, backend : mean shift parameters.
     min_cluster_points : clusters with fewer points are dropped.
     min_position_std : floor of the detection's standard deviation along any axis, m.
+    vessels : also find moving vessels among the points the line-of-sight filter removed
+        (`usvfast.lidar.vessels.VesselFinder`): one detection per vessel near its centre,
+        and the mean-shift detections on its hull dropped.
+    vessel_beam, vessel_length, vessel_max_length, vessel_min_speed : the finder's beam and
+        nominal length (m), the longest group taken for a vessel (m) and the speed (m/s) of
+        its ends above which it is moving.
     lever_arm, mount_yaw : LiDAR position (forward, starboard m) and yaw (rad) on the vessel.
     sensor_id : written on every detection.
     """
@@ -70,12 +77,26 @@ class LidarConfig:
     backend: str = "rust"
     min_cluster_points: int = 15
     min_position_std: float = 0.1
+    vessels: bool = False
+    vessel_beam: float = 2.2
+    vessel_length: float = 6.0
+    vessel_max_length: float = 9.0
+    vessel_min_speed: float = 0.8
     lever_arm: tuple[float, float] = (0.0, 0.0)
     mount_yaw: float = 0.0
     sensor_id: str = "lidar"
 
     def __post_init__(self) -> None:
-        for name in ("radius", "mount_height", "pixel", "bandwidth"):
+        for name in (
+            "radius",
+            "mount_height",
+            "pixel",
+            "bandwidth",
+            "vessel_beam",
+            "vessel_length",
+            "vessel_max_length",
+            "vessel_min_speed",
+        ):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
                 raise ValueError(f"{name}: expected a positive number, got {v}")
@@ -253,7 +274,9 @@ class LidarDetection:
     """One LiDAR point detection for the tracker.
 
     time : UNIX s; position : (2,) world (north, east) m; covariance : (2, 2) m²;
-    n_points : cluster size; sensor_id : the LiDAR's id.
+    n_points : cluster size; sensor_id : the LiDAR's id; extended : a vessel's detection
+    (`usvfast.lidar.vessels`): its position is the hull's estimated centre and its covariance
+    the finder's, not a cluster centroid's.
     """
 
     time: float
@@ -261,6 +284,7 @@ class LidarDetection:
     covariance: np.ndarray
     n_points: int
     sensor_id: str = "lidar"
+    extended: bool = False
 
 
 def cluster_detections(
@@ -351,7 +375,9 @@ class CycleResult:
     points : (n, 2) buffered world points; frame_index / point_index : (n,) where each
     point came from (stream index of the frame, index in that frame's points); labels :
     (n,) cluster of each point (−1: none kept); centres : mean-shift centres;
-    detections : kept clusters as `LidarDetection`s; stamp : time of the last frame.
+    detections : kept clusters as `LidarDetection`s (and moving vessels' with
+    `LidarConfig.vessels`); vessels : the `VesselCandidate`s judged moving vessels; stamp :
+    time of the last frame.
     """
 
     stamp: float
@@ -361,6 +387,7 @@ class CycleResult:
     labels: np.ndarray
     centres: np.ndarray
     detections: list[LidarDetection] = field(default_factory=list)
+    vessels: list[Any] = field(default_factory=list)
 
 
 class LidarDetector:
@@ -393,6 +420,17 @@ class LidarDetector:
         self._previous_pose: np.ndarray | None = None
         self._buffer: list[tuple[np.ndarray, int, np.ndarray]] = []
         self._frames = 0
+        self._removed = (np.zeros((0, 2)), np.zeros(2))
+        self.vessel_finder: VesselFinder | None = None
+        if self.config.vessels:
+            cfg = self.config
+            self.vessel_finder = VesselFinder(
+                radius=cfg.radius,
+                beam=cfg.vessel_beam,
+                length=cfg.vessel_length,
+                max_length=cfg.vessel_max_length,
+                min_speed=cfg.vessel_min_speed,
+            )
 
     def reset(self) -> None:
         """Forget line memory, buffer and previous pose."""
@@ -400,6 +438,8 @@ class LidarDetector:
         self._previous_pose = None
         self._buffer = []
         self._frames = 0
+        if self.vessel_finder is not None:
+            self.vessel_finder.reset()
 
     def process(self, frame: LidarFrame, pose) -> FrameResult:
         """Run every stage on one frame taken at vessel `pose` (north, east, heading rad)."""
@@ -440,6 +480,10 @@ class LidarDetector:
                     dtype=bool,
                 )
             world = sensor_to_world(xy[keep], pose, **mount)
+        if self.vessel_finder is not None and len(self._buffer) + 1 >= cfg.buffer_frames:
+            # the cycle's last frame: the removed points, for the vessel finder
+            sensor = sensor_to_world(np.zeros((1, 2)), pose, **mount)[0]
+            self._removed = (sensor_to_world(xy[~keep], pose, **mount), sensor)
         self._buffer.append((world, frame.index, index[keep]))
         self._frames += 1
         result = FrameResult(
@@ -469,4 +513,36 @@ class LidarDetector:
             backend=cfg.backend,
             sensor_id=cfg.sensor_id,
         )
-        return CycleResult(stamp, points, frame_index, point_index, labels, centres, detections)
+        result = CycleResult(stamp, points, frame_index, point_index, labels, centres, detections)
+        if self.vessel_finder is not None:
+            self._add_vessels(result)
+        return result
+
+    def _add_vessels(self, result: CycleResult) -> None:
+        """Moving vessels among the last frame's removed points: their detections replace
+        the mean-shift detections that lie on their hulls (within 0.5 m of the hull's
+        outline)."""
+        finder = self.vessel_finder
+        if finder is None:
+            return
+        removed, sensor = self._removed
+        result.vessels = finder.update(removed, result.stamp, sensor)
+        for cand in result.vessels:
+            centre, cov = finder.detection(cand, sensor)
+            u = cand.axis
+            n = np.array([-u[1], u[0]])
+            a = (cand.cells - cand.centroid) @ u
+            half_len = max(finder.length, float(a.max() - a.min())) / 2 + 0.5
+            half_beam = finder.beam / 2 + 0.5
+            result.detections = [
+                d
+                for d in result.detections
+                if d.extended
+                or abs(float((d.position - centre) @ u)) > half_len
+                or abs(float((d.position - centre) @ n)) > half_beam
+            ]
+            result.detections.append(
+                LidarDetection(
+                    result.stamp, centre, cov, cand.n_points, self.config.sensor_id, True
+                )
+            )

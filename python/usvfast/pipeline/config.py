@@ -84,6 +84,11 @@ _LIDAR = {
     "cross_range_std": ("float", 0.065),
     "min_cluster_points": ("int", 15),
     "min_position_std": ("float", 0.1),
+    "vessels": ("bool", False),
+    "vessel_beam": ("float", 2.2),
+    "vessel_length": ("float", 6.0),
+    "vessel_max_length": ("float", 9.0),
+    "vessel_min_speed": ("float", 0.8),
 }
 _CAMERA = {
     "enabled": ("bool", True),

@@ -165,6 +165,8 @@ class LidarChain:
             # The centroid's standard error (spread / n), floored at min_position_std².
             floor = self.config.min_position_std**2
             for d in dets:
+                if d.extended:
+                    continue
                 w, v = np.linalg.eigh(d.covariance / max(d.n_points, 1))
                 d.covariance = (v * np.maximum(w, floor)) @ v.T
         return dets
@@ -184,6 +186,8 @@ class LidarChain:
         sensor = np.array([pose.north + ch * lx - sh * ly, pose.east + sh * lx + ch * ly])
         var = np.array([self.range_std**2, self.cross_range_std**2])
         for d in dets:
+            if d.extended:
+                continue  # a vessel's centre and covariance come from its extent
             los = np.asarray(d.position, dtype=np.float64) - sensor
             r = float(np.hypot(los[0], los[1]))
             u = los / r if r > 1e-9 else np.array([1.0, 0.0])
