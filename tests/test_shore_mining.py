@@ -118,3 +118,51 @@ def test_batched_pair_test_equals_the_per_line_definition(mardct_annotations):
             assert n[k] == ref_n and share[k] == pytest.approx(ref_share, abs=1e-12)
             checked += 1
     assert checked > 100
+
+
+def test_evaluate_scores_the_fold_cnn_and_tracks_its_detections(tmp_path, mardct_annotations):
+    import json
+
+    import torch
+
+    from usvfast.camera.harbour_net import HarbourNet
+    from usvfast.shore.cnn import CnnDetector
+    from usvfast.shore.cnn_train import export_model, model_card
+    from usvfast.shore.evaluate import evaluate
+    from usvfast.shore.horizon import detect_horizon, horizon_keep
+    from usvfast.shore.mot_eval import tracking_rows
+    from usvfast.shore.scores import DetectionCounts
+
+    with pytest.raises(ValueError, match="models"):
+        evaluate(mardct_annotations, videos=["3"], detectors=["cnn"], models=tmp_path)
+    cfg = CnnTrainConfig()
+    torch.manual_seed(0)
+    net = HarbourNet(1, cfg.input_size, cfg.width).eval()
+    card = model_card(cfg, [], 0.0, net)
+    card["conf_threshold"] = 0.005  # an untrained net scores ≈ 0.01 everywhere: many boxes
+    export_model(net, tmp_path, card, name="shore-cnn-without-3")
+    (tmp_path / "shore-cnn-hn-without-3.json").write_text(json.dumps(card), encoding="utf-8")
+    res = evaluate(mardct_annotations, videos=["3"], detectors=["cnn"], models=tmp_path)["3"]
+    assert res["cnn_model"] == "shore-cnn-without-3.onnx"  # the hn card alone is no model
+    assert res["cnn_conf"] == 0.005
+    frames = load_mardct(mardct_annotations)["3"]
+    det = CnnDetector(tmp_path / "shore-cnn-without-3.onnx")
+    # (the untrained net's ≈ 300 equal-score boxes fill the image from the top down, so the
+    # horizon filter may drop them all: the unfiltered rows are the ones that must be busy)
+    counts = {True: DetectionCounts(), False: DetectionCounts()}
+    kept: dict[bool, list[Detections]] = {True: [], False: []}
+    for f in frames:
+        im = cv2.imread(str(f.path))
+        d = det.detect(im)
+        for use_h in (True, False):
+            k = d.subset(horizon_keep(d, detect_horizon(im), im.shape[0], HorizonConfig()))
+            k = k if use_h else d
+            kept[use_h].append(k)
+            counts[use_h].add(f.boxes, k.boxes)
+    assert counts[False].fp > 100
+    for use_h, key in ((True, "cnn_horizon"), (False, "cnn_no_horizon")):
+        assert (res[key]["tp"], res[key]["fp"]) == (counts[use_h].tp, counts[use_h].fp)
+    same = json.dumps(tracking_rows(frames, kept[False]), sort_keys=True)  # (NaN MOTP: no TP)
+    assert json.dumps(res["tracking"]["cnn no horizon"], sort_keys=True) == same
+    assert res["tracking"]["cnn no horizon"]["sort"]["false_positives"] > 0
+    assert set(res["tracking"]) == {"cnn", "cnn no horizon", "truth boxes"}
