@@ -25,9 +25,9 @@ from collections.abc import Callable, Sequence
 from dataclasses import replace
 from pathlib import Path
 
-import cv2
 import numpy as np
 
+from usvfast._files import read_image
 from usvfast.shore.boxes import Detections, iou_matrix
 from usvfast.shore.cnn_train import (
     CnnTrainConfig,
@@ -145,7 +145,7 @@ def train_hard_negative_round(
     log(f"{len(fit)} training frames, {n_neg} hard negatives; {len(val)} validation frames")
     net = train_cnn(frames, cfg, log)
     low = CnnDetector(net, conf_threshold=min(THRESHOLD_GRID), input_size=cfg.input_size)
-    val_images = [cv2.imread(str(f.path), cv2.IMREAD_COLOR) for f in val]
+    val_images = [read_image(f.path) for f in val]
     conf, rows = choose_threshold(
         [f.boxes for f in val], [low.detect(im) for im in val_images], max_far
     )
