@@ -166,3 +166,37 @@ def test_evaluate_scores_the_fold_cnn_and_tracks_its_detections(tmp_path, mardct
     assert json.dumps(res["tracking"]["cnn no horizon"], sort_keys=True) == same
     assert res["tracking"]["cnn no horizon"]["sort"]["false_positives"] > 0
     assert set(res["tracking"]) == {"cnn", "cnn no horizon", "truth boxes"}
+
+
+def test_shore_train_hard_negatives_writes_both_rounds(tmp_path):
+    import json
+
+    from typer.testing import CliRunner
+
+    from usvfast.cli import app
+
+    ann = tmp_path / "ann"
+    ann.mkdir()
+    rng = np.random.default_rng(5)
+    for k in range(6):
+        img = np.full((120, 160, 3), (170, 150, 130), np.uint8)
+        img[60:] = (110, 80, 50)
+        img[40:, :] += rng.integers(0, 20, (80, 160, 1), dtype=np.uint8)
+        x = 20 + 15 * k
+        img[50:66, x : x + 40] = 20
+        cv2.imwrite(str(ann / f"sea_{10 * k}.png"), img)
+        (ann / f"sea_{10 * k}.txt").write_text(f"boat {x} 50 40 16\n")
+    models = tmp_path / "models"
+    args = ["shore-train", str(ann), "--out", str(models), "--steps", "3", "--hard-negatives"]
+    res = CliRunner().invoke(app, args)
+    assert res.exit_code == 0, res.output
+    first = json.loads((models / "shore-cnn-round1.json").read_text())
+    card = json.loads((models / "shore-cnn.json").read_text())
+    assert first["train"]["hard_negative"] == 0.0 and card["train"]["hard_negative"] == 0.35
+    assert card["hard_negatives"]["base_model"] == "shore-cnn-round1.onnx"
+    # the last 2 of 6 frames chose the threshold and were not trained on
+    assert card["inner_validation"]["frames"] == ["sea_40.png", "sea_50.png"]
+    assert card["hard_negatives"]["training_frames"] == 4
+    assert card["conf_threshold"] == card["inner_validation"]["chosen"]
+    assert card["conf_threshold"] in [r["conf"] for r in card["inner_validation"]["sweep"]]
+    assert (models / "shore-cnn.onnx").is_file()
