@@ -3,7 +3,7 @@ frames, in the layout of Bloisi et al.'s Tables I–II (per video: horizon filte
 FAR, real and detection size).
 
     python -m usvfast.shore.evaluate_det [--data DIR] [--detectors bayes cnn cascade]
-        [--models DIR] [--steps N] [--json OUT.json]
+        [--models DIR] [--steps N] [--hard-negatives] [--json OUT.json]
 
 For each video, every trained part is fitted on the three other videos only:
 
@@ -13,7 +13,10 @@ For each video, every trained part is fitted on the three other videos only:
 * cnn: HarbourNet trained by :mod:`usvfast.shore.cnn_train` on the three other videos
   (cached as `shore-cnn-without-VIDEO.onnx` in `--models`, trained when absent); scored at
   its card's confidence threshold, then with the reflection filter (ORB keypoints), the wake
-  filter (a boosted stage trained on the three other videos) and both.
+  filter (a boosted stage trained on the three other videos) and both. With
+  `--hard-negatives`, the second round of :mod:`usvfast.shore.cnn_mining` on that model's
+  false alarms (`shore-cnn-hn-without-VIDEO.onnx`, `--steps` of it, default 2,000), scored
+  at the threshold its inner validation on the three other videos chose.
 * cascade: the Haar cascade of :mod:`usvfast.shore.cascade` trained on the three other
   videos with 4 jittered copies of every boat as extra positives (slow: minutes per video),
   with and without the reflection filter.
