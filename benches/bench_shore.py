@@ -209,6 +209,8 @@ def main() -> None:
     tmp = tempfile.TemporaryDirectory()
     cnn = a.cnn or untrained_cnn(Path(tmp.name))
     cnn_name = "cnn onnx" if a.cnn else "cnn (untrained)"
+    load = os.getloadavg()
+    print(f"load average at start: {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} (1, 5, 15 min)")
     print(f"{'frame size':>12} {'detector':>16} {'FPS (2 cores)':>14} {'vs paper':>9}")
     print(f"{'319x261':>12} {'paper cascade':>16} {PAPER_FPS:>14.1f} {'(paper)':>9}")
     for size in ((320, 240), (704, 576)):
@@ -245,6 +247,8 @@ def main() -> None:
         )
     kalman_step_compare(20, a.repeat)
     local_step_compare(a.repeat)
+    load = os.getloadavg()
+    print(f"load average at end: {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} (1, 5, 15 min)")
 
 
 if __name__ == "__main__":

@@ -20,7 +20,7 @@ import argparse
 import json
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import cv2
@@ -50,12 +50,17 @@ class CnnTrainConfig:
     min_box_px: float = 6.0
     threads: int = 1
     conf_threshold: float = 0.3
+    #: probability that a training view is centred on one of its frame's hard negatives
+    #: (:attr:`TrainFrame.negatives`, a former model's false alarms); 0 disables
+    hard_negative: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("input_size", "crop_size"):
             w, h = getattr(self, name)
             if w % 16 or h % 16 or w <= 0 or h <= 0:
                 raise ValueError(f"{name}: width and height must be positive multiples of 16")
+        if not 0.0 <= self.hard_negative <= 1.0:
+            raise ValueError(f"hard_negative: expected a probability, got {self.hard_negative}")
         if self.steps < 1 or self.batch < 1:
             raise ValueError("steps: steps and batch must be >= 1")
         lo, hi = self.scale_range
@@ -65,10 +70,13 @@ class CnnTrainConfig:
 
 @dataclass(frozen=True)
 class TrainFrame:
-    """A training frame: `image` (H, W, 3) uint8 BGR, `boxes` (k, 4) x1, y1, x2, y2 px."""
+    """A training frame: `image` (H, W, 3) uint8 BGR, `boxes` (k, 4) x1, y1, x2, y2 px, and
+    `negatives` (m, 4) x1, y1, x2, y2 px: hard negatives (boat-free regions where a former
+    model fired) that views are centred on with probability `CnnTrainConfig.hard_negative`."""
 
     image: np.ndarray
     boxes: np.ndarray
+    negatives: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
 
 
 def load_frames(frames: Sequence[AnnotatedFrame]) -> list[TrainFrame]:
@@ -100,7 +108,13 @@ def augment(
     )
     boxes = frame.boxes * [nw / w, nh / h, nw / w, nh / h]
     # the crop's top-left corner in the resized image (negative: padding)
-    if len(boxes) and rng.random() < cfg.near_box:
+    negatives = frame.negatives * [nw / w, nh / h, nw / w, nh / h]
+    if cfg.hard_negative > 0 and len(negatives) and rng.random() < cfg.hard_negative:
+        b = negatives[rng.integers(len(negatives))]
+        cx = (b[0] + b[2]) / 2 + rng.uniform(-0.35, 0.35) * cw
+        cy = (b[1] + b[3]) / 2 + rng.uniform(-0.35, 0.35) * ch
+        x0, y0 = round(cx - cw / 2), round(cy - ch / 2)
+    elif len(boxes) and rng.random() < cfg.near_box:
         b = boxes[rng.integers(len(boxes))]
         cx = (b[0] + b[2]) / 2 + rng.uniform(-0.35, 0.35) * cw
         cy = (b[1] + b[3]) / 2 + rng.uniform(-0.35, 0.35) * ch

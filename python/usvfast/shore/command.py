@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Annotated
 
@@ -99,6 +100,13 @@ def shore_train_command(
         bool, typer.Option(help="CNN: also train the wake-filter stage (wake-filter.xml)")
     ] = False,
     seed: Annotated[int, typer.Option(help="Seed of the training draws")] = 0,
+    hard_negatives: Annotated[
+        bool,
+        typer.Option(
+            help="CNN: a second round on the first model's false alarms (kept as "
+            "shore-cnn-round1), its confidence threshold chosen on each video's last frames"
+        ),
+    ] = False,
 ) -> None:
     """Train a boat detector on annotated frames: the CNN (HarbourNet, ONNX + TorchScript +
     model card, found by `usvfast shore` by default) or the Haar cascade (60 × 30 window,
@@ -113,9 +121,20 @@ def shore_train_command(
             from usvfast.shore.filters import WakeFilter
 
             folder = out or user_model_dir()
-            card = train_and_export(
-                annotations, folder, CnnTrainConfig(seed=seed, steps=steps), log=console.print
-            )
+            cfg = CnnTrainConfig(seed=seed, steps=steps)
+            first = "shore-cnn-round1" if hard_negatives else "shore-cnn"
+            card = train_and_export(annotations, folder, cfg, name=first, log=console.print)
+            if hard_negatives:
+                from usvfast.shore.cnn_mining import train_hard_negative_round
+
+                card = train_hard_negative_round(
+                    annotations,
+                    Path(folder) / f"{first}.onnx",
+                    folder,
+                    replace(cfg, hard_negative=0.35),
+                    name="shore-cnn",
+                    log=console.print,
+                )
             console.print(
                 f"CNN trained on {', '.join(card['videos'])} in {card['train_seconds']:.1f} s; "
                 f"wrote {folder}"

@@ -13,6 +13,14 @@ CLEAR MOT with IoU (MOTA, MOTP as mean IoU, IDF1, precision, recall; `usvfast.me
 to py-motmetrics) of the SORT-like and the adaptive Kalman trackers on each detector's
 detections (horizon filter on). `--no-cascade` skips the cascade.
 
+    python -m usvfast.shore.evaluate --detector cnn --models DIR [--videos video3 regDTV9]
+
+scores the CNN instead (or beside the Bayes detector: `--detector bayes cnn`): for each video,
+the model of `DIR` trained without it (`shore-cnn-hn-without-VIDEO.onnx`, the hard-negative
+round of :mod:`usvfast.shore.cnn_mining`, else `shore-cnn-without-VIDEO.onnx`; train them with
+`python -m usvfast.shore.evaluate_det --detectors cnn [--hard-negatives] --models DIR`) at its
+card's confidence threshold (chosen on the training videos), detection and tracking rows.
+
 MarDCT boxes carry no identities: the ground-truth ids are derived by linking the boxes of
 consecutive annotated frames (optimal assignment on centre distance, gated at two box
 diagonals); this is stated with the results.
@@ -36,6 +44,7 @@ from usvfast._files import read_image
 from usvfast.shore.bayes import BayesDetector, BayesDetectorConfig
 from usvfast.shore.boxes import Detections
 from usvfast.shore.cascade import CascadeConfig, train_detector
+from usvfast.shore.daynight import DayNightClassifier
 from usvfast.shore.horizon import HorizonConfig, HorizonLine, detect_horizon, horizon_keep
 from usvfast.shore.mardct import AnnotatedFrame, load_mardct
 from usvfast.shore.mot_eval import (  # noqa: F401  (derive_truth_ids: public here too)
@@ -74,10 +83,10 @@ def run_detectors(
     """Detections of every setting and the horizon of every frame of one video."""
     cache = FrameCache(raw={k: [] for k in settings})
     detectors = {k: BayesDetector(c) for k, c in settings.items()}
+    classifier = DayNightClassifier.default()
     for f in frames:
         image = read_image(f.path, cv2.IMREAD_COLOR)
-        first = next(iter(detectors.values()))
-        infrared = first.classifier.classify(image) == "ir"
+        infrared = classifier.classify(image) == "ir"
         cache.horizon.append(detect_horizon(image, infrared=infrared, config=horizon_cfg))
         for k, det in detectors.items():
             cache.raw[k].append(det.detect(image))
@@ -111,24 +120,78 @@ def f1(c: DetectionCounts) -> float:
     return 2 * c.tp / n if n else 0.0
 
 
+def cnn_fold_model(models: Path, held: str) -> Path:
+    """The CNN trained without video `held` in `models` (hard-negative round first)."""
+    for name in (f"shore-cnn-hn-without-{held}", f"shore-cnn-without-{held}"):
+        path = Path(models) / f"{name}.onnx"
+        if path.is_file():
+            return path
+    raise ValueError(
+        f"models: no shore-cnn-hn-without-{held}.onnx or shore-cnn-without-{held}.onnx in "
+        f"{models} (python -m usvfast.shore.evaluate_det --detectors cnn --models {models})"
+    )
+
+
+def counts_dict(c: DetectionCounts) -> dict:
+    """TPR, FAR, TP, FP, FN of detection counts."""
+    return {"tpr": c.tpr, "far": c.far, "tp": c.tp, "fp": c.fp, "fn": c.fn}
+
+
+def cnn_row(frames: Sequence[AnnotatedFrame], cache: FrameCache, models: Path, held: str) -> dict:
+    """The CNN's detection and tracking rows of held-out video `held` (model trained
+    without it; its card's confidence threshold). Adds the detections to `cache`."""
+    from usvfast.shore.cnn import CnnDetector
+
+    path = cnn_fold_model(models, held)
+    det = CnnDetector(path)
+    cache.raw["cnn"] = [det.detect(read_image(f.path, cv2.IMREAD_COLOR)) for f in frames]
+    hcfg = HorizonConfig()
+    row: dict = {"cnn_model": path.name, "cnn_conf": float(det.grid.conf_threshold)}
+    for use_h in (False, True):
+        c = count(frames, kept(frames, cache, "cnn", use_h, hcfg))
+        row[f"cnn_{'horizon' if use_h else 'no_horizon'}"] = counts_dict(c)
+    row["tracking"] = {
+        "cnn": tracking_rows(frames, kept(frames, cache, "cnn", True, hcfg)),
+        "cnn no horizon": tracking_rows(frames, kept(frames, cache, "cnn", False, hcfg)),
+    }
+    return row
+
+
 def evaluate(
     data: Path,
     grid: Sequence[float] = THRESHOLD_GRID,
     videos: Sequence[str] | None = None,
     cascade: CascadeConfig | None = None,
+    detectors: Sequence[str] = ("bayes",),
+    models: Path | None = None,
 ) -> dict:
     """Leave-one-video-out results per video (module doc); a JSON-ready dict. With `cascade`,
-    a Haar cascade is also trained on the three other videos and scored."""
+    a Haar cascade is also trained on the three other videos and scored. `detectors`:
+    'bayes' and/or 'cnn' (the latter needs `models`, see :func:`cnn_fold_model`)."""
+    unknown = set(detectors) - {"bayes", "cnn"}
+    if unknown or not detectors:
+        raise ValueError(f"detectors: expected 'bayes' and/or 'cnn', got {list(detectors)}")
+    if "cnn" in detectors and models is None:
+        raise ValueError("models: the cnn detector needs the folder of its fold models")
     all_videos = load_mardct(data)
     names = list(videos) if videos else list(all_videos)
     hcfg = HorizonConfig()
+    results = {}
+    if "bayes" not in detectors:
+        for v in names:
+            frames = all_videos[v]
+            cache = run_detectors(frames, {}, hcfg)
+            row = {"frames": len(frames), "boxes": int(sum(len(f.boxes) for f in frames))}
+            row.update(cnn_row(frames, cache, models or Path(), v))
+            row["tracking"]["truth boxes"] = tracking_rows(frames, truth_detections(frames))
+            results[v] = row
+        return results
     settings = {"paper": BayesDetectorConfig()}
     for thr in grid:
         settings[f"t{thr:g}"] = BayesDetectorConfig(
             thresholds={"eo": float(thr), "ir": 203.0}, grouping="clusters"
         )
     caches = {v: run_detectors(all_videos[v], settings, hcfg) for v in all_videos}
-    results = {}
     for v in names:
         train = [u for u in all_videos if u != v]
         scores = {}
@@ -178,6 +241,10 @@ def evaluate(
                 }
             dets = kept(frames, caches[v], "cascade", True, hcfg)
             row["tracking"]["cascade"] = tracking_rows(frames, dets)
+        if "cnn" in detectors:
+            extra = cnn_row(frames, caches[v], models or Path(), v)
+            row["tracking"].update(extra.pop("tracking"))
+            row.update(extra)
         results[v] = row
     return results
 
@@ -189,10 +256,14 @@ def print_tables(results: dict, console: Console | None = None) -> None:
     for col in ("video", "detector", "horizon", "TPR", "FAR", "TP", "FP", "FN"):
         t.add_column(col)
     for v, r in results.items():
-        rows = [
-            ("paper", "bayes 23/203 extent"),
-            ("tuned", f"bayes {r['tuned_threshold']:g} clusters"),
-        ]
+        rows = []
+        if "tuned_threshold" in r:
+            rows += [
+                ("paper", "bayes 23/203 extent"),
+                ("tuned", f"bayes {r['tuned_threshold']:g} clusters"),
+            ]
+        if "cnn_horizon" in r:
+            rows.append(("cnn", f"{r['cnn_model']} (confidence {r['cnn_conf']:g})"))
         if "cascade_horizon" in r:
             rows.append(("cascade", f"cascade ({r['cascade_stages']} stages)"))
         for label, name in rows:
@@ -259,9 +330,21 @@ def main(argv: Sequence[str] | None = None) -> None:
     p.add_argument("--json", type=Path, default=None, help="Write the results as JSON here")
     p.add_argument("--videos", nargs="*", default=None, help="Score only these videos")
     p.add_argument("--no-cascade", action="store_true", help="Skip the cascade detector")
+    p.add_argument(
+        "--detector", nargs="+", default=["bayes"], choices=["bayes", "cnn"], help="Detectors"
+    )
+    p.add_argument("--models", type=Path, default=None, help="CNN fold models (evaluate_det)")
     a = p.parse_args(argv)
-    cascade = None if a.no_cascade else CascadeConfig()
-    results = evaluate(a.data or default_data(), videos=a.videos, cascade=cascade)
+    if "cnn" in a.detector and a.models is None:
+        p.error("--models: the cnn detector needs the folder of its fold models")
+    cascade = None if a.no_cascade or "bayes" not in a.detector else CascadeConfig()
+    results = evaluate(
+        a.data or default_data(),
+        videos=a.videos,
+        cascade=cascade,
+        detectors=a.detector,
+        models=a.models,
+    )
     print_tables(results)
     if a.json:
         a.json.write_text(json.dumps(results, indent=2, default=float), encoding="utf-8")

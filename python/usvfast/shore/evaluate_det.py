@@ -3,7 +3,7 @@ frames, in the layout of Bloisi et al.'s Tables I–II (per video: horizon filte
 FAR, real and detection size).
 
     python -m usvfast.shore.evaluate_det [--data DIR] [--detectors bayes cnn cascade]
-        [--models DIR] [--steps N] [--json OUT.json]
+        [--models DIR] [--steps N] [--hard-negatives] [--json OUT.json]
 
 For each video, every trained part is fitted on the three other videos only:
 
@@ -13,7 +13,10 @@ For each video, every trained part is fitted on the three other videos only:
 * cnn: HarbourNet trained by :mod:`usvfast.shore.cnn_train` on the three other videos
   (cached as `shore-cnn-without-VIDEO.onnx` in `--models`, trained when absent); scored at
   its card's confidence threshold, then with the reflection filter (ORB keypoints), the wake
-  filter (a boosted stage trained on the three other videos) and both.
+  filter (a boosted stage trained on the three other videos) and both. With
+  `--hard-negatives`, the second round of :mod:`usvfast.shore.cnn_mining` on that model's
+  false alarms (`shore-cnn-hn-without-VIDEO.onnx`, `--steps` of it, default 2,000), scored
+  at the threshold its inner validation on the three other videos chose.
 * cascade: the Haar cascade of :mod:`usvfast.shore.cascade` trained on the three other
   videos with 4 jittered copies of every boat as extra positives (slow: minutes per video),
   with and without the reflection filter.
@@ -46,6 +49,10 @@ from usvfast.shore.scores import DetectionCounts
 
 #: CNN confidence thresholds also scored (horizon on, no filter) beside the card's own.
 CNN_SWEEP: tuple[float, ...] = (0.2, 0.3, 0.4)
+
+#: Share of the second round's training views centred on a hard negative, and its steps.
+HARD_NEGATIVE_SHARE = 0.35
+HN_STEPS = 2000
 
 #: EO thresholds tried when fitting the Bayes detector's level on the training videos.
 THRESHOLD_GRID: tuple[float, ...] = (40, 60, 80, 100, 120, 140, 160, 180, 200, 220)
@@ -146,8 +153,12 @@ def bayes_rows(
     return rows
 
 
-def cnn_model(data: Path, held: str, models: Path, steps: int | None, log) -> Path:
-    """The ONNX model trained without `held` (trained and saved when absent)."""
+def cnn_model(
+    data: Path, held: str, models: Path, steps: int | None, log, hard_negatives: bool = False
+) -> Path:
+    """The ONNX model trained without `held` (trained and saved when absent). With
+    `hard_negatives`, the second round of :mod:`usvfast.shore.cnn_mining` on the first
+    model's false alarms (threshold by inner validation on the training videos)."""
     from usvfast.shore.cnn_train import CnnTrainConfig, train_and_export
 
     name = f"shore-cnn-without-{held}"
@@ -155,7 +166,16 @@ def cnn_model(data: Path, held: str, models: Path, steps: int | None, log) -> Pa
     if not path.is_file():
         cfg = CnnTrainConfig() if steps is None else CnnTrainConfig(steps=steps)
         train_and_export(data, models, cfg, exclude=[held], name=name, log=log)
-    return path
+    if not hard_negatives:
+        return path
+    from usvfast.shore.cnn_mining import train_hard_negative_round
+
+    name2 = f"shore-cnn-hn-without-{held}"
+    path2 = models / f"{name2}.onnx"
+    if not path2.is_file():
+        cfg = CnnTrainConfig(hard_negative=HARD_NEGATIVE_SHARE, steps=steps or HN_STEPS)
+        train_hard_negative_round(data, path, models, cfg, exclude=[held], name=name2, log=log)
+    return path2
 
 
 def cnn_rows(
@@ -167,14 +187,15 @@ def cnn_rows(
     models: Path,
     steps: int | None,
     log,
+    hard_negatives: bool = False,
 ) -> tuple[list[dict], dict]:
     """The CNN's rows for held-out video `held`, with and without the filters."""
     from usvfast.shore.cnn import CnnDetector
 
-    path = cnn_model(data, held, models, steps, log)
+    path = cnn_model(data, held, models, steps, log, hard_negatives)
     card = json.loads(path.with_suffix(".json").read_text(encoding="utf-8"))
     conf = float(card.get("conf_threshold", 0.3))
-    low = CnnDetector(path, conf_threshold=min(CNN_SWEEP))
+    low = CnnDetector(path, conf_threshold=min(*CNN_SWEEP, conf))
     swept = [low.detect(im) for im in videos[held].images]
     det = CnnDetector(path)
     dets = [d.subset(d.scores >= conf) for d in swept]
@@ -209,7 +230,12 @@ def cnn_rows(
                     **score(videos[held], sub, hcfg, True),
                 }
             )
-    info = {"cnn_train_s": card.get("train_seconds"), "wake_train_s": round(wake_s, 1)}
+    info = {
+        "cnn_model": path.name,
+        "cnn_conf": conf,
+        "cnn_train_s": card.get("train_seconds"),
+        "wake_train_s": round(wake_s, 1),
+    }
     return rows, info
 
 
@@ -245,6 +271,7 @@ def evaluate(
     steps: int | None = None,
     held_out: Sequence[str] | None = None,
     log=print,
+    hard_negatives: bool = False,
 ) -> dict:
     """Leave-one-video-out rows per video (module doc); a JSON-ready dict."""
     mardct = load_mardct(data)
@@ -265,7 +292,9 @@ def evaluate(
         if "bayes" in detectors:
             entry["rows"] += bayes_rows(videos, held, hcfg, cache)
         if "cnn" in detectors:
-            rows, info = cnn_rows(data, videos, mardct, held, hcfg, models, steps, log)
+            rows, info = cnn_rows(
+                data, videos, mardct, held, hcfg, models, steps, log, hard_negatives
+            )
             entry["rows"] += rows
             entry.update(info)
         if "cascade" in detectors:
@@ -312,12 +341,24 @@ def main(argv: Sequence[str] | None = None) -> None:
     p.add_argument("--models", type=Path, default=Path("shore-models"), help="CNN model cache")
     p.add_argument("--steps", type=int, default=None, help="CNN training steps")
     p.add_argument("--videos", nargs="*", default=None, help="Score only these videos")
+    p.add_argument(
+        "--hard-negatives",
+        action="store_true",
+        help="CNN: second training round on the first model's false alarms",
+    )
     p.add_argument("--json", type=Path, default=None, help="Write the results as JSON here")
     a = p.parse_args(argv)
     unknown = set(a.detectors) - {"bayes", "cnn", "cascade"}
     if unknown:
         p.error(f"--detectors: unknown {sorted(unknown)}")
-    results = evaluate(a.data or default_data(), a.detectors, a.models, a.steps, a.videos)
+    results = evaluate(
+        a.data or default_data(),
+        a.detectors,
+        a.models,
+        a.steps,
+        a.videos,
+        hard_negatives=a.hard_negatives,
+    )
     print_tables(results)
     if a.json:
         a.json.write_text(json.dumps(results, indent=2, default=float), encoding="utf-8")

@@ -95,28 +95,45 @@ def _pairs_differ(
 ) -> tuple[float, int]:
     """Share of sample pairs (above, under the line, along its normal) whose grey levels
     differ by more than the tolerance, and the number of pairs inside the image."""
+    share, n = _pairs_differ_many(gray, np.array([rho]), np.array([theta]), cfg)
+    return float(share[0]), int(n[0])
+
+
+def _pairs_differ_many(
+    gray: np.ndarray, rho: np.ndarray, theta: np.ndarray, cfg: HorizonConfig
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_pairs_differ` of k candidate lines at once: (share (k,), pairs inside (k,));
+    the share is 0 for a line with fewer than half its pairs inside the image."""
     h, w = gray.shape
-    xs = np.linspace(0.02 * w, 0.98 * w, cfg.samples)
-    ys = (rho - xs * np.cos(theta)) / np.sin(theta)
-    nx, ny = np.cos(theta), np.sin(theta)  # unit normal, pointing down for theta ≈ π/2
-    ax, ay = xs - cfg.offset_px * nx, ys - cfg.offset_px * ny
-    bx, by = xs + cfg.offset_px * nx, ys + cfg.offset_px * ny
+    xs = np.linspace(0.02 * w, 0.98 * w, cfg.samples)[None]  # (1, S)
+    cos, sin = np.cos(theta)[:, None], np.sin(theta)[:, None]  # unit normal, down at ≈ π/2
+    ys = (rho[:, None] - xs * cos) / sin  # (k, S)
+    ax, ay = xs - cfg.offset_px * cos, ys - cfg.offset_px * sin
+    bx, by = xs + cfg.offset_px * cos, ys + cfg.offset_px * sin
     inside = (ay >= 0) & (by < h - 1) & (ax >= 0) & (bx < w - 1) & (ax < w) & (bx >= 0)
-    if inside.sum() < cfg.samples // 2:
-        return 0.0, int(inside.sum())
-    a = gray[np.round(ay[inside]).astype(int), np.round(ax[inside]).astype(int)].astype(float)
-    b = gray[np.round(by[inside]).astype(int), np.round(bx[inside]).astype(int)].astype(float)
-    return float(np.mean(np.abs(a - b) > cfg.intensity_tolerance)), int(inside.sum())
+    n = inside.sum(axis=1)
+
+    def level(y: np.ndarray, x: np.ndarray) -> np.ndarray:
+        r = np.clip(np.round(y), 0, h - 1).astype(np.intp)
+        c = np.clip(np.round(x), 0, w - 1).astype(np.intp)
+        return gray[r, c].astype(float)
+
+    differ = (np.abs(level(ay, ax) - level(by, bx)) > cfg.intensity_tolerance) & inside
+    share = np.where(n >= cfg.samples // 2, differ.sum(axis=1) / np.maximum(n, 1), 0.0)
+    return share, n
 
 
 def _edge_density_above(edges: np.ndarray, line: tuple[float, float], band: int) -> float:
     h, w = edges.shape
     rho, theta = line
     ys = (rho - np.arange(w) * np.cos(theta)) / np.sin(theta)
-    rows = np.arange(h)[:, None]
+    # only the rows the band can reach (the mask is empty elsewhere)
+    r0 = int(np.clip(np.floor(ys.min()) - band - 1, 0, h))
+    r1 = int(np.clip(np.ceil(ys.max()), r0, h))
+    rows = np.arange(r0, r1)[:, None]
     mask = (rows < ys[None] - 2) & (rows >= ys[None] - band)
     n = int(mask.sum())
-    return float(edges[mask].astype(bool).sum() / n) if n else 0.0
+    return float(edges[r0:r1][mask].astype(bool).sum() / n) if n else 0.0
 
 
 def detect_horizon(
@@ -160,17 +177,19 @@ def detect_horizon(
     )
     if lines is None:
         return None
-    best: tuple[float, float, float] | None = None
     # lines hugging the top or bottom border (black bars of the frame) are no horizon
     mid_y = (lines[:, 0, 0] - (w / 2) * np.cos(lines[:, 0, 1])) / np.sin(lines[:, 0, 1])
     lines = lines[(mid_y > cfg.offset_px + 2) & (mid_y < h - cfg.offset_px - 2)]
-    for rho, theta in lines[: cfg.max_candidates, 0]:
-        share, _ = _pairs_differ(smooth, float(rho), float(theta), cfg)
-        if share > cfg.valid_fraction and (best is None or share > best[2]):
-            best = (float(rho), float(theta), share)
-    if best is None:
+    cand = lines[: cfg.max_candidates, 0].astype(float)
+    if len(cand) == 0:
         return None
-    rho, theta, share = best
+    shares, _ = _pairs_differ_many(smooth, cand[:, 0], cand[:, 1], cfg)
+    valid = shares > cfg.valid_fraction
+    if not valid.any():
+        return None
+    # the largest share wins; ties: the first (strongest) Hough line
+    i = int(np.argmax(np.where(valid, shares, -1.0)))
+    rho, theta, share = float(cand[i, 0]), float(cand[i, 1]), float(shares[i])
     density = _edge_density_above(edges, (rho, theta), band=max(8, h // 6))
     kind: HorizonKind = "water-coast" if density > cfg.coast_edge_density else "water-sky"
     return HorizonLine(rho / scale, theta, kind, share, density)
