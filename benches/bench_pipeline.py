@@ -57,8 +57,6 @@ def main() -> None:
                 {
                     **base,
                     "tracker.backend": "stonesoup",
-                    # Stone Soup's initiator sees every detection
-                    "tracker.initiate_in_gates": True,
                     "lidar.backend": "sklearn",
                     "lidar.los_backend": "numpy",
                 },

@@ -1,8 +1,8 @@
 """The pipeline's measurement models: the LiDAR centroid moved to the object's centre with a
 line-of-sight covariance, camera boxes read in pixel-centre coordinates and moved to the
 object's centre (cv2.projectPoints is the peer for where a water point images), the camera's
-coverage (cv2.calibrationMatrixValues for the field of view), coverage-based targets in the
-report, and the Stone Soup backend refusing an option it cannot reproduce."""
+coverage (cv2.calibrationMatrixValues for the field of view) and coverage-based targets in the
+report."""
 
 from __future__ import annotations
 
@@ -21,7 +21,6 @@ from usvfast.pipeline.config import SCHEMA
 from usvfast.pipeline.lidar_chain import LidarChain
 from usvfast.pipeline.pose import VesselPose
 from usvfast.pipeline.timing import StageTimer
-from usvfast.pipeline.tracker import make_tracker
 from usvfast.report.evaluate import _visible
 
 
@@ -134,9 +133,3 @@ def test_targets_are_what_some_sensor_covers():
     assert _visible(truth, nav, 40.0, None).all()  # all round, without coverage
     with pytest.raises(ValueError, match="coverage"):
         _visible(truth, nav, 40.0, {"camera": (40.0, 90.0)})
-
-
-def test_stonesoup_backend_refuses_initiate_in_gates_off():
-    settings = {**_defaults("tracker"), "backend": "stonesoup", "initiate_in_gates": False}
-    with pytest.raises(ValueError, match="initiate_in_gates"):
-        make_tracker(settings)
