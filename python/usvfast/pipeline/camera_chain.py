@@ -149,11 +149,20 @@ class CameraChain:
 
     def process(self, image: np.ndarray, pose: VesselPose) -> CameraResult:
         """Detect, filter and georeference one frame taken at `pose`."""
+        with self.timer("camera.detector"):
+            raw = self.detect(image)
+        return self.finish(raw, pose)
+
+    def detect(self, image: np.ndarray) -> Any:
+        """The detector's raw result on one frame (no state: safe on a worker thread while
+        the caller runs other chains; `finish` then completes the frame)."""
+        return self.detector([image])[0] if self.detector is not None else Detections.empty()
+
+    def finish(self, raw: Any, pose: VesselPose) -> CameraResult:
+        """Filter and georeference the detector's result `raw` of a frame taken at `pose`."""
         from usvfast.camera.georef import REASONS
 
         tm = self.timer
-        with tm("camera.detector"):
-            raw = self.detector([image])[0] if self.detector is not None else Detections.empty()
         det = as_detections(raw)
         with tm("camera.filters"):
             self.filters.horizon_line = self._horizon(pose)

@@ -105,6 +105,9 @@ _CAMERA = {
     "horizon": ("str", "attitude"),
     "horizon_margin_deg": ("float", 0.5),
     "horizon_line": ("floats:2", None),
+    # Pipeline.run: the detector network on a worker thread, overlapping the other stages
+    # (the scans reach the tracker in message order: the same tracks either way).
+    "worker_thread": ("bool", True),
 }
 _DETECTOR = {
     "backend": ("str", "none"),
