@@ -14,6 +14,7 @@ from hypothesis import strategies as st
 from yolo_nets import KnownBoxesYolo
 
 from usvfast.camera import REASONS, FovCamera, nms
+from usvfast.camera.detect import GridDetector
 from usvfast.camera.yolo import CameraPipeline, Detections, YoloDetector, decode, letterbox
 
 
@@ -71,6 +72,22 @@ def test_letterbox_inverse_is_exact():
     assert (out[:140] == 114).all() and (out[140:500] == 0).all()
     boxes = np.array([[100.5, 200.25, 300.0, 400.0], [0, 0, 1280, 720]])
     np.testing.assert_allclose(info.to_original(info.to_letterbox(boxes)), boxes, atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("size", "shape", "bgr"),
+    [((640, 368), (360, 640), True), ((320, 320), (333, 517), False), ((64, 48), (300, 100), True)],
+)
+def test_preprocess_is_letterbox_flip_and_divide(size, shape, bgr):
+    # The one-pass batch equals, bit for bit, letterbox -> BGR to RGB -> float32 / 255.
+    rng = np.random.default_rng(7)
+    ims = [rng.integers(0, 256, (*shape, 3), dtype=np.uint8) for _ in range(2)]
+    batch, infos = GridDetector(input_size=size, bgr=bgr).preprocess(ims)
+    boxed = [letterbox(im, size) for im in ims]
+    ref = np.stack([b[..., ::-1] if bgr else b for b, _ in boxed]).transpose(0, 3, 1, 2)
+    assert batch.flags.c_contiguous and batch.dtype == np.float32
+    np.testing.assert_array_equal(batch, ref.astype(np.float32) / np.float32(255.0))
+    assert infos == [info for _, info in boxed]
 
 
 # Original-image boxes the network "detects" in two frames of different sizes.

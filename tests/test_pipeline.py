@@ -138,6 +138,27 @@ def _same_tracks(cfg, seconds):
     assert len(seen_a) >= 4
 
 
+def test_camera_worker_thread_gives_the_same_updates(rec):
+    # The detector on a worker thread (default) or inline: the same scans in the same order.
+    runs, stages = [], []
+    for worker in (True, False):
+        cfg = load_config(rec.config, {"camera.worker_thread": worker})
+        pipe = Pipeline(cfg, detector=pr.disc_detector)
+        with pytest.warns(UserWarning, match="skipped 2"):
+            runs.append(list(pipe.run(end=pr.EPOCH + 6.0)))
+        stages.append(pipe.summary["stages"])
+    a, b = runs
+    assert [(u.time, u.sensor, u.detections) for u in a] == [
+        (u.time, u.sensor, u.detections) for u in b
+    ]
+    assert {u.sensor for u in a} == {"lidar", "camera"}
+    for x, y in zip(a, b, strict=True):
+        np.testing.assert_array_equal(x.tracks.ids, y.tracks.ids)
+        np.testing.assert_array_equal(x.tracks.states, y.tracks.states)
+    assert stages[0]["camera.detector"]["calls"] == stages[1]["camera.detector"]["calls"] > 0
+    assert "camera.wait" in stages[0] and "camera.wait" not in stages[1]
+
+
 def test_process_live_follows_navigation_messages(rec):
     cfg = load_config(rec.config)
     pipe = Pipeline(cfg, detector=pr.disc_detector)

@@ -1,8 +1,8 @@
 """The pipeline's measurement models: the LiDAR centroid moved to the object's centre with a
 line-of-sight covariance, camera boxes read in pixel-centre coordinates and moved to the
 object's centre (cv2.projectPoints is the peer for where a water point images), the camera's
-coverage (cv2.calibrationMatrixValues for the field of view), coverage-based targets in the
-report, and the Stone Soup backend refusing an option it cannot reproduce."""
+coverage (cv2.calibrationMatrixValues for the field of view) and coverage-based targets in the
+report."""
 
 from __future__ import annotations
 
@@ -13,15 +13,15 @@ import numpy as np
 import pytest
 
 from usvfast.camera.calibration import CameraModel
+from usvfast.camera.chain import CameraPipeline
 from usvfast.frames import Mount
 from usvfast.lidar.pipeline import LidarDetection
 from usvfast.metrics.tables import Nav, Truth
-from usvfast.pipeline.camera_chain import CameraChain
+from usvfast.pipeline.camera_chain import CameraChain, _depth_table
 from usvfast.pipeline.config import SCHEMA
 from usvfast.pipeline.lidar_chain import LidarChain
 from usvfast.pipeline.pose import VesselPose
 from usvfast.pipeline.timing import StageTimer
-from usvfast.pipeline.tracker import make_tracker
 from usvfast.report.evaluate import _visible
 
 
@@ -104,6 +104,31 @@ def test_camera_boxes_in_pixel_centre_coordinates_and_the_object_centre():
     assert np.linalg.norm(moved[0] - contact[0]) == pytest.approx(0.3, abs=0.02)
 
 
+def test_camera_class_with_a_known_depth():
+    # A 6 m hull seen side-on 12 m ahead: its box spans 6 m across the line of sight, so
+    # object_depth_factor x width would put it 3 m beyond the waterline; class 4 (vessel)
+    # has its centre half a beam (1.1 m) beyond it, with 1 m of extra standard deviation.
+    pose = VesselPose(0.0, 0.0, 0.0, 0.0)
+    chain, model = _camera_chain(0.5)
+    chain.settings.update(depth_classes=(4.0,), class_depth_m=(1.1,), class_depth_std_m=(1.0,))
+    chain.depth_table = _depth_table(chain.settings)
+    chain.filters = CameraPipeline(detector=lambda ims: [], camera=model, height=1.2)
+    ul, vl = _image(model, 12.0, -3.0)
+    ur, vr = _image(model, 12.0, 3.0)
+    box = [[ul + 0.5, min(vl, vr) - 20.0, ur + 0.5, (vl + vr) / 2 + 0.5]]
+    contact = chain._georeference(np.array(box), pose).positions[0]
+    vessel = chain.finish((box, [0.9], [4]), pose)
+    floating = chain.finish((box, [0.9], [0]), pose)
+    assert np.linalg.norm(vessel.positions[0] - contact) == pytest.approx(1.1, abs=1e-6)
+    assert np.linalg.norm(floating.positions[0] - contact) == pytest.approx(3.0, abs=0.05)
+    np.testing.assert_allclose(
+        vessel.covariances[0] - floating.covariances[0], np.eye(2), atol=1e-12
+    )
+    for bad in ({"class_depth_m": (1.0, 2.0)}, {"class_depth_std_m": (-1.0,)}):
+        with pytest.raises(ValueError, match="class_depth"):
+            _depth_table({**chain.settings, **bad})
+
+
 def test_camera_coverage_is_the_calibrated_field_of_view():
     chain, model = _camera_chain(0.0)
     chain.camera = CameraModel(model.camera_matrix, np.zeros(5), (640, 360))
@@ -134,9 +159,3 @@ def test_targets_are_what_some_sensor_covers():
     assert _visible(truth, nav, 40.0, None).all()  # all round, without coverage
     with pytest.raises(ValueError, match="coverage"):
         _visible(truth, nav, 40.0, {"camera": (40.0, 90.0)})
-
-
-def test_stonesoup_backend_refuses_initiate_in_gates_off():
-    settings = {**_defaults("tracker"), "backend": "stonesoup", "initiate_in_gates": False}
-    with pytest.raises(ValueError, match="initiate_in_gates"):
-        make_tracker(settings)

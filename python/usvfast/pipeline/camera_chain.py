@@ -132,6 +132,7 @@ class CameraChain:
             horizon_line=None if fixed is None else (float(fixed[0]), float(fixed[1])),
         )
         self.timer = timer
+        self.depth_table = _depth_table(settings)
 
     def _horizon(self, pose: VesselPose) -> tuple[float, float] | None:
         if self.settings.get("horizon") != "attitude" or not hasattr(self.camera, "project"):
@@ -149,11 +150,20 @@ class CameraChain:
 
     def process(self, image: np.ndarray, pose: VesselPose) -> CameraResult:
         """Detect, filter and georeference one frame taken at `pose`."""
+        with self.timer("camera.detector"):
+            raw = self.detect(image)
+        return self.finish(raw, pose)
+
+    def detect(self, image: np.ndarray) -> Any:
+        """The detector's raw result on one frame (no state: safe on a worker thread while
+        the caller runs other chains; `finish` then completes the frame)."""
+        return self.detector([image])[0] if self.detector is not None else Detections.empty()
+
+    def finish(self, raw: Any, pose: VesselPose) -> CameraResult:
+        """Filter and georeference the detector's result `raw` of a frame taken at `pose`."""
         from usvfast.camera.georef import REASONS
 
         tm = self.timer
-        with tm("camera.detector"):
-            raw = self.detector([image])[0] if self.detector is not None else Detections.empty()
         det = as_detections(raw)
         with tm("camera.filters"):
             self.filters.horizon_line = self._horizon(pose)
@@ -169,9 +179,11 @@ class CameraChain:
             good = g.reason == OK
             positions, covs = g.positions[good], g.covariances[good]
             depth = float(self.settings.get("object_depth_factor", 0.0))
-            if depth > 0 and good.any():
+            fixed, sigma = self._class_depths(det.classes[ok][good])
+            if (depth > 0 or np.isfinite(fixed).any()) and good.any():
                 with tm("camera.georeference"):
-                    positions = self._to_centre(boxes[good], positions, pose, depth)
+                    positions = self._to_centre(boxes[good], positions, pose, depth, fixed)
+                covs = covs + (sigma**2)[:, None, None] * np.eye(2)
         keep = reason == OK
         rejected: dict[str, int] = {}
         for code in np.unique(reason[~keep]):
@@ -226,13 +238,31 @@ class CameraChain:
             max_range=s.get("max_range"),
         )
 
+    def _class_depths(self, classes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per box: the fixed centre depth of its class (m beyond the near waterline; NaN:
+        none, use object_depth_factor) and the standard deviation (m) of that centre, from
+        camera.depth_classes / class_depth_m / class_depth_std_m."""
+        fixed = np.full(len(classes), np.nan)
+        sigma = np.zeros(len(classes))
+        for c, d, sd in self.depth_table:
+            hit = classes == c
+            fixed[hit], sigma[hit] = d, sd
+        return fixed, sigma
+
     def _to_centre(
-        self, boxes: np.ndarray, contact: np.ndarray, pose: VesselPose, factor: float
+        self,
+        boxes: np.ndarray,
+        contact: np.ndarray,
+        pose: VesselPose,
+        factor: float,
+        fixed: np.ndarray | None = None,
     ) -> np.ndarray:
         """The box's bottom edge images the object's near waterline; its centre lies farther
         along the line of sight by half its depth. With an unknown yaw the depth is on average
         the width seen across the line of sight (the distance between the georeferenced
-        bottom corners), so the point moves `factor` x that width away from the camera."""
+        bottom corners), so the point moves `factor` x that width away from the camera —
+        or, where `fixed` (per box, m) is finite, by that distance (a class whose depth is
+        known, e.g. half a vessel's beam: a long hull's seen width is its length)."""
         left = self._georeference(boxes, pose, "left").positions
         right = self._georeference(boxes, pose, "right").positions
         width = np.linalg.norm(right - left, axis=1)
@@ -241,5 +271,25 @@ class CameraChain:
         cam = np.array([pose.north + ch * lx - sh * ly, pose.east + sh * lx + ch * ly])
         los = contact - cam
         rng = np.linalg.norm(los, axis=1, keepdims=True)
-        shift = np.where(np.isfinite(width), factor * width, 0.0)[:, None]
+        shift = np.where(np.isfinite(width), factor * width, 0.0)
+        if fixed is not None:
+            shift = np.where(np.isfinite(fixed), fixed, shift)
+        shift = shift[:, None]
         return contact + shift * los / np.maximum(rng, 1e-9)
+
+
+def _depth_table(s: dict[str, Any]) -> list[tuple[int, float, float]]:
+    """(class id, centre depth m, its standard deviation m) from camera.depth_classes,
+    class_depth_m and class_depth_std_m (default 0); ValueError naming the keys when they
+    do not line up."""
+    ids = s.get("depth_classes") or ()
+    depth = s.get("class_depth_m") or ()
+    std = s.get("class_depth_std_m") or (0.0,) * len(ids)
+    if not (len(ids) == len(depth) == len(std)) or any(int(c) != c for c in ids):
+        raise ValueError(
+            "camera.depth_classes, class_depth_m, class_depth_std_m: expected lists of the same "
+            f"length (class ids, m, m), got {ids!r}, {depth!r}, {std!r}"
+        )
+    if any(d < 0 for d in depth) or any(v < 0 for v in std):
+        raise ValueError("camera.class_depth_m, class_depth_std_m: must be >= 0")
+    return [(int(c), float(d), float(v)) for c, d, v in zip(ids, depth, std, strict=True)]

@@ -55,7 +55,13 @@ def summary_tables(summary: dict[str, Any]) -> list[Table]:
     ]
     for k, v in rows:
         over.add_row(k, v)
-    stages = Table(title="time per stage")
+    title = "time per stage"
+    if "camera.wait" in summary["stages"]:
+        title += (
+            " (camera.detector ran on a worker thread alongside the others; camera.wait: "
+            "the main thread waiting for it)"
+        )
+    stages = Table(title=title)
     for col in ("stage", "calls", "ms / call", "total s", "share"):
         stages.add_column(col, justify="left" if col == "stage" else "right")
     total = sum(v["seconds"] for v in summary["stages"].values()) or 1.0

@@ -100,6 +100,12 @@ _CAMERA = {
     "pixel_sigma_uv": ("floats:2", None),
     "box_pixel_offset": ("float", 0.5),
     "object_depth_factor": ("float", 0.0),
+    # Classes whose centre lies a known distance beyond the near waterline (m), with the
+    # standard deviation of that centre (m, added to the covariance), e.g. vessels: half the
+    # beam, since a long hull's seen width is no measure of its depth.
+    "depth_classes": ("floats:0", None),
+    "class_depth_m": ("floats:0", None),
+    "class_depth_std_m": ("floats:0", None),
     "attitude_sigma_deg": ("float", 0.5),
     "height_sigma": ("float", 0.0),
     "heading_sigma_deg": ("float", 0.0),
@@ -110,6 +116,9 @@ _CAMERA = {
     "horizon": ("str", "attitude"),
     "horizon_margin_deg": ("float", 0.5),
     "horizon_line": ("floats:2", None),
+    # Pipeline.run: the detector network on a worker thread, overlapping the other stages
+    # (the scans reach the tracker in message order: the same tracks either way).
+    "worker_thread": ("bool", True),
 }
 _DETECTOR = {
     "backend": ("str", "none"),

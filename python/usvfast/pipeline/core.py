@@ -21,7 +21,9 @@ import json
 import math
 import time
 import warnings
+from collections import deque
 from collections.abc import Callable, Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from types import SimpleNamespace
@@ -134,6 +136,19 @@ class Pipeline:
         without a pose are counted (`no_pose`) and skipped. Raises ConfigError for a stream
         id the config does not have.
         """
+        scan = self._begin(message)
+        if scan is None:
+            return []
+        raw = None
+        if isinstance(scan.chain, CameraChain):
+            with self.timer("camera.detector"):
+                raw = scan.chain.detect(scan.image)
+        return self._end(scan, raw)
+
+    def _begin(self, message: Any) -> _Scan | None:
+        """The part of `process` that must run in message order: counts, pose, epoch, the
+        whole LiDAR chain (it keeps state between rotations), the camera image's checks.
+        None when the message gives no scan."""
         t = float(message.time)
         stream = message.stream
         data: Any = getattr(message, "data", None)
@@ -146,39 +161,50 @@ class Pipeline:
         if stream not in self.chains:
             if stream in self.config.navigation or stream == self.config.attitude:
                 self._live_nav(t, stream, data)
-            return []
+            return None
         pose = getattr(message, "pose", None)
         if not isinstance(pose, VesselPose):
             pose = self.live.at(t)
         if pose is None:
             self.counts[stream]["no_pose"] += 1
-            return []
+            return None
         if self.epoch is None:
             self.epoch = math.floor(t)
         chain = self.chains[stream]
         if isinstance(chain, LidarChain):
-            sensor = "lidar"
             dets = chain.process(data, pose, self._pose_source(message))
             if dets is None:
-                return []
+                return None
             z = np.array([d.position for d in dets], dtype=np.float64).reshape(-1, 2)
             covs = np.array([d.covariance for d in dets], dtype=np.float64).reshape(-1, 2, 2)
             scores = np.array([d.n_points for d in dets], dtype=np.float64)
+            return _Scan(t, stream, chain, pose, None, (z, covs, scores))
+        image = data.image if hasattr(data, "image") else data
+        if not isinstance(image, np.ndarray) or image.ndim not in (2, 3):
+            self.counts[stream]["damaged"] += 1
+            return None
+        if image.ndim == 2:
+            import cv2
+
+            image = cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
+        return _Scan(t, stream, chain, pose, image, None)
+
+    def _end(self, scan: _Scan, raw: Any) -> list[TrackUpdate]:
+        """The rest of `process`, in message order: the camera chain after its detector (on
+        the detector's result `raw`), the tracker, the outputs."""
+        t, pose = scan.time, scan.pose
+        assert self.epoch is not None  # set by _begin
+        if isinstance(scan.chain, LidarChain):
+            sensor = "lidar"
+            assert scan.lidar is not None
+            z, covs, scores = scan.lidar
         else:
             sensor = "camera"
-            image = data.image if hasattr(data, "image") else data
-            if not isinstance(image, np.ndarray) or image.ndim not in (2, 3):
-                self.counts[stream]["damaged"] += 1
-                return []
-            if image.ndim == 2:
-                import cv2
-
-                image = cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
-            res = chain.process(image, pose)
+            res = scan.chain.finish(raw, pose)
             z, covs, scores = res.positions, res.covariances, res.scores
             if self.writer is not None:
                 with self.timer("outputs"):
-                    self.writer.write_frame(t, image)
+                    self.writer.write_frame(t, scan.image)
         sid = SENSORS.index(sensor)
         with self.timer("tracker"):
             snap = self.tracker.step(
@@ -192,7 +218,17 @@ class Pipeline:
                 self.writer.write_nav(pose)
                 self.writer.write_detections(t, sensor, z, covs, scores)
                 self.writer.write_tracks(t, snap)
-        return [TrackUpdate(t, sensor, stream, len(z), snap, pose)]
+        return [TrackUpdate(t, sensor, scan.stream, len(z), snap, pose)]
+
+    def _collect(self, scan: _Scan, fut: Future[tuple[Any, float]] | None) -> list[TrackUpdate]:
+        """`_end` of a scan whose camera network ran on the worker (`fut`); the network's
+        time counts as camera.detector, this thread's wait for it as camera.wait."""
+        raw = None
+        if fut is not None:
+            with self.timer("camera.wait"):
+                raw, seconds = fut.result()
+            self.timer.add("camera.detector", seconds)
+        return self._end(scan, raw)
 
     def _pose_source(self, message: Any) -> Any:
         """The pose at any time for de-skewing a LiDAR rotation: the recording's track in
@@ -262,6 +298,17 @@ class Pipeline:
         last = 0.0
         span = self._nav.end - self._nav.start
         it = replay.__iter__()
+        # The camera network on a worker thread while this thread reads, runs the LiDAR chain
+        # and the tracker; scans still reach the tracker in message order.
+        worker = (
+            ThreadPoolExecutor(1, thread_name_prefix="usvfast-camera")
+            if cfg.camera["worker_thread"]
+            and any(
+                isinstance(c, CameraChain) and c.detector is not None for c in self.chains.values()
+            )
+            else None
+        )
+        pending: deque[tuple[_Scan, Future[tuple[Any, float]] | None]] = deque()
         try:
             while True:
                 t0 = time.perf_counter()
@@ -276,10 +323,24 @@ class Pipeline:
                 self.timer.add("pose", dp)
                 first = item.time if first is None else first
                 last = item.time
-                yield from self.process(item)
+                if worker is None:
+                    yield from self.process(item)
+                else:
+                    scan = self._begin(item)
+                    if scan is not None:
+                        fut = None
+                        if isinstance(scan.chain, CameraChain):
+                            fut = worker.submit(_timed, scan.chain.detect, scan.image)
+                        pending.append((scan, fut))
+                    while len(pending) > _LOOKAHEAD:
+                        yield from self._collect(*pending.popleft())
                 if progress is not None:
                     progress(item.time - self._nav.start, span)
+            while pending:
+                yield from self._collect(*pending.popleft())
         finally:
+            if worker is not None:
+                worker.shutdown(wait=True, cancel_futures=True)
             it.close()
             if self.writer is not None:
                 self.writer.close()
@@ -342,6 +403,29 @@ class Pipeline:
                 check_topic(spec.path, spec.topic)
             except ValueError as exc:
                 raise ConfigError(f"{self.config.path}: stream {spec.id!r}: {exc}") from None
+
+
+#: Scans read ahead of the tracker while the camera network runs on its worker thread.
+_LOOKAHEAD = 3
+
+
+@dataclass(frozen=True)
+class _Scan:
+    """A sensor message past `Pipeline._begin`: time (UNIX s), stream id, its chain, the pose,
+    the camera image (camera) or the LiDAR detections (z, covariances, scores)."""
+
+    time: float
+    stream: str
+    chain: LidarChain | CameraChain
+    pose: VesselPose
+    image: Any
+    lidar: tuple[np.ndarray, np.ndarray, np.ndarray] | None
+
+
+def _timed(fn: Callable[[Any], Any], arg: Any) -> tuple[Any, float]:
+    """fn(arg) and its wall-clock seconds."""
+    t0 = time.perf_counter()
+    return fn(arg), time.perf_counter() - t0
 
 
 def _report(

@@ -167,21 +167,19 @@ class NativeTracker(_Base):
 
 
 class StoneSoupTracker(_Base):
-    """Stone Soup's own tracker with the same components (thesis Codes 5.7-5.8)."""
+    """Stone Soup's own tracker with the same components (thesis Codes 5.7-5.8); with
+    `initiate_in_gates = false` its `MultiMeasurementInitiator` is wrapped in
+    `usvfast.pipeline.stonesoup_gates.InGateInitiator` (the native duplicate suppression)."""
 
     def __init__(self, settings: dict[str, Any]) -> None:
         super().__init__(settings)
-        if not settings.get("initiate_in_gates", True):
-            raise ValueError(
-                "tracker.initiate_in_gates: false has no Stone Soup equivalent (its initiator "
-                "sees every detection); set it true to compare the backends"
-            )
         try:
             import stonesoup  # noqa: F401
         except ImportError as exc:  # pragma: no cover - optional dependency
             raise ValueError(
                 "tracker.backend: 'stonesoup' needs Stone Soup (pip install usvfast[stonesoup])"
             ) from exc
+        from scipy.stats import chi2
         from stonesoup.dataassociator.neighbour import GNNWith2DAssignment
         from stonesoup.dataassociator.probability import JPDA
         from stonesoup.deleter.error import CovarianceBasedDeleter
@@ -200,6 +198,8 @@ class StoneSoupTracker(_Base):
         from stonesoup.tracker.simple import MultiTargetMixtureTracker, MultiTargetTracker
         from stonesoup.types.state import GaussianState
         from stonesoup.updater.kalman import KalmanUpdater
+
+        from usvfast.pipeline.stonesoup_gates import GateRecorder, InGateInitiator, duplicate_gate
 
         s = settings
         self._LinearGaussian = LinearGaussian
@@ -226,7 +226,7 @@ class StoneSoupTracker(_Base):
                 [CovarianceBasedDeleter(covar_trace_thresh=s["covariance_trace"]), deleter],
                 intersect=False,
             )
-        initiator = MultiMeasurementInitiator(
+        initiator: Any = MultiMeasurementInitiator(
             prior_state=GaussianState(
                 np.zeros((4, 1)),
                 np.diag([0.0, s["prior_velocity_var"], 0.0, s["prior_velocity_var"]]),
@@ -241,6 +241,7 @@ class StoneSoupTracker(_Base):
             updater=updater,
             min_points=s["min_points"],
         )
+        in_gates = bool(s["initiate_in_gates"])
         if s["association"] == "gnn":
             assoc: Any = GNNWith2DAssignment(
                 DistanceHypothesiser(
@@ -251,17 +252,29 @@ class StoneSoupTracker(_Base):
                 )
             )
             cls: Any = MultiTargetTracker
+            gate, recorder = float(s["gnn_missed_distance"]) ** 2, None
         else:
-            assoc = JPDA(
-                PDAHypothesiser(
-                    predictor=predictor,
-                    updater=updater,
-                    clutter_spatial_density=s["clutter_density"],
-                    prob_detect=s["prob_detect"],
-                    prob_gate=s["prob_gate"],
-                )
+            hyp: Any = PDAHypothesiser(
+                predictor=predictor,
+                updater=updater,
+                clutter_spatial_density=s["clutter_density"],
+                prob_detect=s["prob_detect"],
+                prob_gate=s["prob_gate"],
             )
+            gate, recorder = float(chi2.ppf(float(s["prob_gate"]), 2)), None
+            if not in_gates:
+                hyp = recorder = GateRecorder(hyp)
+            assoc = JPDA(hyp)
             cls = MultiTargetMixtureTracker
+        if not in_gates:
+            # The native duplicate suppression (usvfast.pipeline.stonesoup_gates).
+            initiator = InGateInitiator(
+                initiator=initiator,
+                updater=updater,
+                gate_threshold=duplicate_gate(gate),
+                recorder=recorder,
+                sensor_models=self.models,
+            )
         self.tracker = cls(
             initiator=initiator,
             deleter=deleter,
@@ -269,6 +282,8 @@ class StoneSoupTracker(_Base):
             data_associator=assoc,
             updater=updater,
         )
+        if not in_gates:
+            initiator.confirmed = lambda: self.tracker.tracks
         self._ids: dict[int, int] = {}
         self._next = 0
 
@@ -285,7 +300,14 @@ class StoneSoupTracker(_Base):
                 if self.per_detection and covs is not None
                 else self.models[int(sensors[k])]
             )
-            dets.append(self._Detection(z[k].reshape(2, 1), timestamp=ts, measurement_model=model))
+            dets.append(
+                self._Detection(
+                    z[k].reshape(2, 1),
+                    timestamp=ts,
+                    measurement_model=model,
+                    metadata={"sensor": int(sensors[k]), "row": k},
+                )
+            )
         row_of = {id(d): k for k, d in enumerate(dets)}
         _, tracks = self.tracker.update_tracker(ts, set(dets))
         from stonesoup.types.update import Update
