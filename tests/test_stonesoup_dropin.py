@@ -381,10 +381,17 @@ def test_track_metadata_equals_stonesoups(with_metadata):
 def test_fast_constructors_equal_stonesoups():
     from datetime import datetime
 
+    from stonesoup.models.transition.linear import ConstantVelocity
+    from stonesoup.types.array import Matrix
     from stonesoup.types.detection import MissedDetection
-    from stonesoup.types.hypothesis import SingleHypothesis, SingleProbabilityHypothesis
+    from stonesoup.types.hypothesis import (
+        SingleDistanceHypothesis,
+        SingleHypothesis,
+        SingleProbabilityHypothesis,
+    )
     from stonesoup.types.multihypothesis import MultipleHypothesis
-    from stonesoup.types.prediction import GaussianStatePrediction
+    from stonesoup.types.numeric import Probability
+    from stonesoup.types.prediction import GaussianMeasurementPrediction, GaussianStatePrediction
     from stonesoup.types.update import GaussianStateUpdate
 
     from usvfast.stonesoup_objects import StoneSoupObjects
@@ -396,16 +403,56 @@ def test_fast_constructors_equal_stonesoups():
     pred = ob.state(False, x, p, ts)
     ref_pred = GaussianStatePrediction(x.reshape(4, 1), p, timestamp=ts)
     miss, ref_miss = ob.missed(ts), MissedDetection(timestamp=ts)
-    hyp = ob.multiple([ob.probability(pred, miss, 0.25), ob.single(pred, miss)])
+    z, s, c = x[:2], p[:2, :2] + np.eye(2), p[:, :2]
+    mp = ob.measurement_prediction(z, s, c, ts)
+    ref_mp = GaussianMeasurementPrediction(z.reshape(2, 1), s, ts, cross_covar=Matrix(c))
+    hyp = ob.multiple([ob.probability(pred, miss, 0.25), ob.probability(pred, miss, 0.75, mp)])
     ref_hyp = MultipleHypothesis(
         [
-            SingleProbabilityHypothesis(ref_pred, ref_miss, 0.25),
-            SingleHypothesis(ref_pred, ref_miss),
-        ]
+            SingleProbabilityHypothesis(ref_pred, ref_miss, Probability(0.25)),
+            SingleProbabilityHypothesis(ref_pred, ref_miss, Probability(0.75), ref_mp),
+        ],
+        normalise=True,
+        total_weight=1,
     )
     upd = ob.state(True, x, p, ts, hyp)
     ref_upd = GaussianStateUpdate(x.reshape(4, 1), p, hypothesis=ref_hyp, timestamp=ts)
-    for a, b in ((pred, ref_pred), (miss, ref_miss), (hyp, ref_hyp), (upd, ref_upd)):
+    first = ob.state(True, x, p, ts, ob.single(pred, miss))
+    ref_first = GaussianStateUpdate(
+        x.reshape(4, 1), p, hypothesis=SingleHypothesis(ref_pred, ref_miss), timestamp=ts
+    )
+    cv = ConstantVelocity(0.1)
+    # A predictor's prediction from a state whose hypothesis's prediction has a prior: Stone
+    # Soup's Prediction constructor turns that prior into a weak reference, so does the drop-in.
+    sv, cm = ob.vector(x), ob.matrix(p)
+    from_first = ob.prediction(sv, cm, ts, cv, ob.state(True, x, p, ts, ob.single(pred, miss)))
+    ref_from_first = GaussianStatePrediction(
+        x.reshape(4, 1), p, ts, transition_model=cv, prior=ref_first
+    )
+    dist = ob.distance(from_first, miss, np.float64(1.5), mp)
+    ref_dist = SingleDistanceHypothesis(ref_from_first, ref_miss, np.float64(1.5), ref_mp)
+    pairs = (
+        (pred, ref_pred),
+        (miss, ref_miss),
+        (mp, ref_mp),
+        (hyp, ref_hyp),
+        (upd, ref_upd),
+        (from_first, ref_from_first),
+        (dist, ref_dist),
+    )
+    for a, b in pairs:
         assert type(a) is type(b) and list(vars(a)) == list(vars(b))
-    assert repr(upd) == repr(ref_upd)
+        assert [type(v) for v in vars(a).values()] == [type(v) for v in vars(b).values()]
+    assert repr(first) == repr(ref_first) and repr(dist) == repr(ref_dist)
+    # Stone Soup normalises on construction (its log-domain sum moves the last bit).
+    assert [type(h.probability) for h in hyp] == [type(h.probability) for h in ref_hyp]
+    assert [float(h.probability) for h in hyp] == pytest.approx([0.25, 0.75], abs=1e-15)
+    assert [float(h.probability) for h in ref_hyp] == pytest.approx([0.25, 0.75], abs=1e-15)
     assert miss.metadata == {} and miss.metadata is not ob.missed(ts).metadata
+    # The weak reference of the prior of an older prediction.
+    ref_next = GaussianStatePrediction(x.reshape(4, 1), p, ts, transition_model=cv, prior=ref_upd)
+    ours_next = ob.prediction(sv, cm, ts, cv, ob.state(True, x, p, ts, dist))
+    assert type(vars(dist)["_property_prediction"].__dict__["_property_prior"]).__name__ == (
+        "ReferenceType"
+    )
+    assert ours_next.prior.hypothesis is dist and ref_next.prior is ref_upd

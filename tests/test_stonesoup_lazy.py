@@ -63,46 +63,54 @@ def _same_state(a, b) -> None:
     assert np.allclose(a.covar, b.covar, atol=ATOL)
 
 
-def _same_hypothesis(ha, hb) -> None:
-    """A state's hypothesis. JPDA updates: a MultipleHypothesis with the same detections (the
-    very objects Stone Soup got, MissedDetection at the same time), probabilities and
-    predictions. Updates of the initiator's tentative phase (Stone Soup: its GNN's
-    SingleDistanceHypothesis; the drop-in: the same kind as its JPDA updates, documented) and
-    the first state (SingleHypothesis without prediction): the same detection and prediction.
-    The drop-in leaves `measurement_prediction` None (documented)."""
-    from stonesoup.types.hypothesis import SingleDistanceHypothesis
+# Hypothesis attributes (predictions, measurement predictions, distances, probabilities).
+HYP_TOL = 1e-9
 
-    if isinstance(hb, SingleDistanceHypothesis):
-        if not hasattr(ha, "single_hypotheses"):  # GNN: a SingleHypothesis
-            best = ha
-        elif len(ha) > 1:
-            best = max((h for h in ha if h), key=lambda h: h.probability)
+
+def _same_value(va, vb, where: str, priors: dict) -> None:
+    """One attribute of a Stone Soup object: the same class and the same value (arrays and
+    numbers within HYP_TOL, relative or absolute), recursively for Stone Soup objects."""
+    from stonesoup.base import Base
+    from stonesoup.types.detection import Detection, MissedDetection
+    from stonesoup.types.state import State
+
+    assert type(va) is type(vb), f"{where}: {type(va).__name__} != {type(vb).__name__}"
+    if isinstance(vb, Detection) and not isinstance(vb, MissedDetection):
+        assert va is vb, where  # the very Detection objects of the scan
+    elif isinstance(vb, State) and id(vb) in priors:
+        assert va is priors[id(vb)], where  # a prior: the track's previous state
+    elif isinstance(vb, Base):
+        _same_object(va, vb, where, priors)
+    elif isinstance(vb, np.ndarray):
+        assert va.shape == vb.shape, where
+        np.testing.assert_allclose(va, vb, rtol=HYP_TOL, atol=HYP_TOL, err_msg=where)
+    elif isinstance(vb, list):
+        assert len(va) == len(vb), where
+        for k, (x, y) in enumerate(zip(va, vb, strict=True)):
+            _same_value(x, y, f"{where}[{k}]", priors)
+    elif isinstance(vb, (float, np.floating)) or type(vb).__name__ == "Probability":
+        assert float(va) == pytest.approx(float(vb), rel=HYP_TOL, abs=HYP_TOL), where
+    else:
+        assert va == vb, where
+
+
+def _same_object(a, b, where: str, priors: dict) -> None:
+    """Every declared property of two Stone Soup objects (states, hypotheses, predictions,
+    measurement predictions, missed detections), stored the same way (same `__dict__` keys
+    in the same order, values of the same class: e.g. a prior kept as a weak reference where
+    Stone Soup keeps one) and of the same value; transition models by their parameters."""
+    from stonesoup.models.base import Model
+
+    assert type(a) is type(b), f"{where}: {type(a).__name__} != {type(b).__name__}"
+    da, db = vars(a), vars(b)
+    assert list(da) == list(db), where
+    assert [type(v) for v in da.values()] == [type(v) for v in db.values()], where
+    for name in type(b).properties:
+        va, vb = getattr(a, name), getattr(b, name)
+        if isinstance(vb, Model):
+            assert type(va) is type(vb) and repr(va) == repr(vb), f"{where}.{name}"
         else:
-            best = ha[0]
-        assert best.measurement is hb.measurement
-        _same_state(best.prediction, hb.prediction)
-        return
-    assert type(ha) is type(hb)
-    if not hasattr(hb, "single_hypotheses"):
-        assert ha.measurement is hb.measurement and ha.prediction is hb.prediction is None
-        return
-    # Stone Soup normalises on construction (normalise=True, `Probability` values); the
-    # drop-in's probabilities come normalised (normalise=False, floats; documented).
-    assert len(ha) == len(hb) and ha.total_weight == hb.total_weight
-
-    def key(h):
-        return id(h.measurement) if h else None
-
-    by_a, by_b = {key(h): h for h in ha}, {key(h): h for h in hb}
-    assert by_a.keys() == by_b.keys()
-    for k, h in by_b.items():
-        g = by_a[k]
-        assert type(g) is type(h)
-        assert float(g.probability) == pytest.approx(float(h.probability), abs=1e-9)
-        assert type(g.measurement) is type(h.measurement)
-        assert g.measurement.timestamp == h.measurement.timestamp
-        assert g.measurement_prediction is None
-        _same_state(g.prediction, h.prediction)
+            _same_value(va, vb, f"{where}.{name}", priors)
 
 
 def _same_track(a, b) -> int:
@@ -117,11 +125,12 @@ def _same_track(a, b) -> int:
     assert np.allclose(a.state_vector, b.state_vector, atol=ATOL)
     assert a.metadata == b.metadata and a.metadatas == b.metadatas
     n = 0
+    priors = {id(sb): sa for sa, sb in zip(a.states, b.states, strict=True)}
     for i, (sa, sb) in enumerate(zip(a, b, strict=True)):
         _same_state(sa, sb)
         assert a[i] is sa and sa in a.states and a.states.index(sa) == i
+        _same_object(sa, sb, f"state {i}", priors)
         if isinstance(sb, Update):
-            _same_hypothesis(sa.hypothesis, sb.hypothesis)
             n += 1
     mid = b.states[len(b) // 2].timestamp
     assert a[mid] is a.states[len(a) // 2] or a[mid].timestamp == mid

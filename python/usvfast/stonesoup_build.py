@@ -50,6 +50,10 @@ class StateBuilder:
     _scan_md: dict
     _history_start: bool
     _newest_cache: dict | None
+    _phases: dict  # see `_phase`
+    _hr: dict  # see `_linear_model`
+    initiator: Any
+    data_associator: Any
     hypotheses: bool
     _mixture: bool
 
@@ -126,9 +130,12 @@ class StateBuilder:
         preds = self._predictions(f, xs, ps, times, scans, upds) if self.hypotheses else {}
         svs, cms = ob.rows(xs, ps)
         fast = ob.append_plain
+        states = track.__dict__["_property_states"]
+        prior = list.__getitem__(states, -1) if list.__len__(states) else None
         for j in range(n):
             scan = scans[j]
             time = self._scan_time[scan]
+            initiator = scan <= f.birth_scan
             hyp = None
             if upds[j]:
                 det = dets[j]
@@ -136,21 +143,29 @@ class StateBuilder:
                 if self.hypotheses:
                     pred = None
                     if j in preds:
-                        pred = ob.state_of(False, *preds[j], time)
+                        model = self._phase(initiator)[0]
+                        pred = ob.prediction(*preds[j], time, model, prior)
                     elif det >= 0:  # the first state: its detection, no prediction
                         hyp = ob.single(None, scan_dets[det])
                     if hyp is None:
                         a, b = offs[j], offs[j + 1]
                         hyp = self._make_hypothesis(
-                            pred, scan_dets, time, assoc_det[a:b], assoc_p[a:b], missed[j], det
+                            pred,
+                            scan_dets,
+                            time,
+                            (assoc_det[a:b], assoc_p[a:b], missed[j], det),
+                            initiator,
                         )
                 if hyp is None:
                     hyp = self._placeholder(time)
-            state = ob.state_of(upds[j], svs[j], cms[j], time, hyp)
+                state = ob.state_of(True, svs[j], cms[j], time, hyp)
+            else:
+                state = self._prediction_state(initiator, svs[j], cms[j], time, prior)
             if upds[j] and self._has_metadata(scan):
                 Track.append(track, state)
             else:
                 fast(track, state)
+            prior = state
         f.prev = (times[-1], xs[-1], ps[-1])
         f.have += n
         f.next_scan = scans[-1] + 1
@@ -219,22 +234,23 @@ class StateBuilder:
         ob = self._objects
         x, p, upd = nw["states"][r], nw["covariances"][r], nw["is_update"][r]
         hyp = None
+        prior = list.__getitem__(f.track.__dict__["_property_states"], -1)
         if upd:
             if self.hypotheses:
-                pred = ob.state_of(False, *nw["pred"][r], time)
+                pred = ob.prediction(*nw["pred"][r], time, self._phase(False)[0], prior)
                 a, b = nw["assoc_offsets"][r], nw["assoc_offsets"][r + 1]
-                hyp = self._make_hypothesis(
-                    pred,
-                    self._dets_of(scan),
-                    time,
+                assoc = (
                     nw["assoc_detection"][a:b],
                     nw["assoc_probability"][a:b],
                     nw["missed_probability"][r],
                     nw["detection"][r],
                 )
+                hyp = self._make_hypothesis(pred, self._dets_of(scan), time, assoc, False)
             if hyp is None:
                 hyp = self._placeholder(time)
-        state = ob.state_of(upd, nw["sv"][r], nw["cm"][r], time, hyp)
+            state = ob.state_of(True, nw["sv"][r], nw["cm"][r], time, hyp)
+        else:
+            state = self._prediction_state(False, nw["sv"][r], nw["cm"][r], time, prior)
         if upd and self._has_metadata(scan):
             Track.append(f.track, state)
         else:
@@ -246,17 +262,114 @@ class StateBuilder:
     def _placeholder(self, time: Any) -> Any:
         return self._objects.single(None, self._objects.missed(time))
 
-    def _make_hypothesis(self, pred, scan_dets, time, dets, probs, missed, det) -> Any:
+    def _prediction_state(self, initiator: bool, sv: Any, cm: Any, time: Any, prior: Any) -> Any:
+        """The state of a scan without update: under GNN (the initiator's, or the tracker's
+        when it is not a mixture tracker) Stone Soup appends its predictor's prediction
+        (transition model, prior); the mixture tracker a bare `GaussianStatePrediction`."""
+        if initiator or not self._mixture:
+            return self._objects.prediction(sv, cm, time, self._phase(initiator)[0], prior)
+        return self._objects.state_of(False, sv, cm, time)
+
+    def _phase(self, initiator: bool) -> tuple:
+        """(transition model, updater, measure or None) of the initiator's hypothesiser or the
+        tracker's: the Stone Soup objects its predictions and measurement predictions name."""
+        hit = self._phases.get(initiator)
+        if hit is None:
+            owner = self.initiator if initiator else self
+            hyp = owner.data_associator.hypothesiser
+            hit = (hyp.predictor.transition_model, hyp.updater, getattr(hyp, "measure", None))
+            self._phases[initiator] = hit
+        return hit
+
+    def _linear_model(self, model: Any, updater: Any) -> tuple | None:
+        """(H, R) of a detection's measurement model (or the updater's when it has none) when
+        the updater predicts measurements as a Kalman updater does (linear model, Kalman or
+        extended Kalman updater), else None."""
+        from stonesoup.models.base import LinearModel
+        from stonesoup.updater.kalman import ExtendedKalmanUpdater, KalmanUpdater
+
+        if model is None:
+            model = updater.measurement_model
+        key = (id(model), id(updater))
+        hit = self._hr.get(key)
+        if hit is None:
+            ok = isinstance(model, LinearModel) and type(updater) in (
+                KalmanUpdater,
+                ExtendedKalmanUpdater,
+            )
+            hr = None
+            if ok:
+                hr = (np.asarray(model.matrix(), float), np.asarray(model.covar(), float))
+            hit = (hr, model)
+            if len(self._hr) > _MD_CACHE:
+                self._hr.clear()
+            self._hr[key] = hit
+        return hit[0]
+
+    def _measurement_predictions(self, initiator: bool, pred: Any, dets: list) -> list:
+        """Stone Soup's measurement prediction of `pred` for each detection, one object per
+        measurement model (as the updater's cache gives): mean H x, innovation covariance
+        H P Hᵀ + R, cross covariance P Hᵀ (linear models), or the updater's own
+        `predict_measurement` otherwise."""
+        _, updater, _ = self._phase(initiator)
+        x = np.asarray(pred.state_vector, dtype=np.float64)
+        p = np.asarray(pred.covar, dtype=np.float64)
+        ts = pred.timestamp
+        out, mine = [], {}
+        for d in dets:
+            model = d.measurement_model
+            key = id(model)
+            mp = mine.get(key)
+            if mp is None:
+                hr = self._linear_model(model, updater)
+                if hr is None:
+                    mp = updater.predict_measurement(pred, model)
+                else:
+                    h, r = hr
+                    cross = p @ h.T
+                    mp = self._objects.measurement_prediction(
+                        (h @ x).ravel(), h @ cross + r, cross, ts
+                    )
+                mine[key] = mp
+            out.append(mp)
+        return out
+
+    def _distance(self, initiator: bool, mp: Any, det: Any) -> Any:
+        """The hypothesiser's measure (Mahalanobis or its square) between the measurement
+        prediction and the detection."""
+        from stonesoup.measures import Mahalanobis, SquaredMahalanobis
+
+        measure = self._phase(initiator)[2]
+        if type(measure) in (Mahalanobis, SquaredMahalanobis) and measure.mapping is None:
+            v = (
+                np.asarray(det.state_vector, dtype=np.float64).ravel()
+                - np.asarray(mp.state_vector, dtype=np.float64).ravel()
+            )
+            d2 = np.float64(v @ np.linalg.pinv(np.asarray(mp.covar, dtype=np.float64)) @ v)
+            return np.sqrt(d2) if type(measure) is Mahalanobis else d2
+        return measure(mp, det)
+
+    def _make_hypothesis(self, pred, scan_dets, time, assoc: tuple, initiator: bool) -> Any:
+        """The hypothesis of an update: JPDA (mixture tracker after confirmation) a
+        MultipleHypothesis of SingleProbabilityHypothesis (missed detection first), GNN (the
+        initiator, `MultiTargetTracker`) the chosen SingleDistanceHypothesis; each detection's
+        with its measurement prediction. `assoc` is (detections, probabilities, missed
+        probability, chosen detection) from the core."""
+        dets, probs, missed, det = assoc
         ob = self._objects
-        if self._mixture and np.isfinite(missed):
+        if self._mixture and not initiator and np.isfinite(missed):
+            measured = [scan_dets[int(j)] for j in dets]
+            mps = self._measurement_predictions(False, pred, measured)
             prob = ob.probability
             hyps = [prob(pred, ob.missed(time), float(missed))]
             hyps += [
-                prob(pred, scan_dets[int(j)], float(p)) for j, p in zip(dets, probs, strict=True)
+                prob(pred, d, float(q), mp) for d, q, mp in zip(measured, probs, mps, strict=True)
             ]
             return ob.multiple(hyps)
         if det >= 0:
-            return ob.single(pred, scan_dets[det])
+            d = scan_dets[det]
+            mp = self._measurement_predictions(initiator, pred, [d])[0]
+            return ob.distance(pred, d, self._distance(initiator, mp, d), mp)
         return None
 
 

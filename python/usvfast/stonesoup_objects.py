@@ -13,6 +13,7 @@ correctness.
 
 from __future__ import annotations
 
+import weakref
 from datetime import datetime
 from typing import Any
 
@@ -78,20 +79,43 @@ class StoneSoupObjects:
     """Factories for the Stone Soup objects of a drop-in run (see the module docstring)."""
 
     def __init__(self) -> None:
-        from stonesoup.types.array import CovarianceMatrix, StateVector
+        from stonesoup.types.array import CovarianceMatrix, Matrix, StateVector
         from stonesoup.types.detection import MissedDetection
-        from stonesoup.types.hypothesis import SingleHypothesis, SingleProbabilityHypothesis
+        from stonesoup.types.hypothesis import (
+            SingleDistanceHypothesis,
+            SingleHypothesis,
+            SingleProbabilityHypothesis,
+        )
         from stonesoup.types.multihypothesis import MultipleHypothesis
-        from stonesoup.types.prediction import GaussianStatePrediction
+        from stonesoup.types.numeric import Probability
+        from stonesoup.types.prediction import (
+            GaussianMeasurementPrediction,
+            GaussianStatePrediction,
+        )
         from stonesoup.types.update import GaussianStateUpdate
 
-        self._sv, self._cm = StateVector, CovarianceMatrix
+        self._sv, self._cm, self._mat = StateVector, CovarianceMatrix, Matrix
+        self._p = Probability
         ts = datetime(2024, 1, 1)
         x = np.arange(4.0).reshape(4, 1).view(StateVector)
         p = np.eye(4).view(CovarianceMatrix)
         none2 = {"transition_model": None, "prior": None}
         self._pred = _Builder(
             GaussianStatePrediction, ("state_vector", "covar", "timestamp"), none2, (x, p, ts)
+        )
+        # A predictor's prediction (hypotheses; GNN's missed scans): with its transition model
+        # and prior state.
+        self._pred_of = _Builder(
+            GaussianStatePrediction,
+            ("state_vector", "covar", "timestamp", "transition_model", "prior"),
+            {},
+            (x, p, ts, None, None),
+        )
+        self._mpred = _Builder(
+            GaussianMeasurementPrediction,
+            ("state_vector", "covar", "timestamp", "cross_covar"),
+            {},
+            (x[:2], p[:2, :2], ts, np.zeros((4, 2)).view(Matrix)),
         )
         self._upd = _Builder(
             GaussianStateUpdate,
@@ -115,15 +139,22 @@ class StoneSoupObjects:
         )
         self._prob = _Builder(
             SingleProbabilityHypothesis,
-            ("prediction", "measurement", "probability"),
-            {"measurement_prediction": None},
-            (pred, miss, 0.5),
+            ("prediction", "measurement", "probability", "measurement_prediction"),
+            {},
+            (pred, miss, Probability(0.5), None),
         )
+        self._dist = _Builder(
+            SingleDistanceHypothesis,
+            ("prediction", "measurement", "distance", "measurement_prediction"),
+            {},
+            (pred, miss, np.float64(1.5), None),
+        )
+        # Normalised on construction by Stone Soup; the core's probabilities come normalised.
         self._multi = _Builder(
             MultipleHypothesis,
             ("single_hypotheses",),
-            {"normalise": False, "total_weight": 1},
-            ([],),
+            {"normalise": True, "total_weight": 1},
+            ([self._prob.make(pred, miss, Probability(1.0), None)],),
         )
         self._fast_append = self._check_append()
 
@@ -170,7 +201,17 @@ class StoneSoupObjects:
         """True when every class uses the fast path (the checks passed)."""
         return all(
             b.fast
-            for b in (self._pred, self._upd, self._missed, self._single, self._prob, self._multi)
+            for b in (
+                self._pred,
+                self._pred_of,
+                self._mpred,
+                self._upd,
+                self._missed,
+                self._single,
+                self._prob,
+                self._dist,
+                self._multi,
+            )
         )
 
     def vector(self, x: np.ndarray) -> Any:
@@ -215,10 +256,41 @@ class StoneSoupObjects:
         """`SingleHypothesis(prediction, measurement)`."""
         return self._single.make(prediction, measurement)
 
-    def probability(self, prediction: Any, measurement: Any, probability: float) -> Any:
-        """`SingleProbabilityHypothesis(prediction, measurement, probability)`."""
-        return self._prob.make(prediction, measurement, probability)
+    def probability(
+        self, prediction: Any, measurement: Any, probability: float, mpred: Any = None
+    ) -> Any:
+        """`SingleProbabilityHypothesis(prediction, measurement, Probability(probability),
+        mpred)` (`mpred` the measurement prediction, None for a missed detection)."""
+        return self._prob.make(prediction, measurement, self._p(probability), mpred)
+
+    def distance(self, prediction: Any, measurement: Any, distance: Any, mpred: Any) -> Any:
+        """`SingleDistanceHypothesis(prediction, measurement, distance, mpred)`."""
+        return self._dist.make(prediction, measurement, distance, mpred)
 
     def multiple(self, hypotheses: list) -> Any:
-        """`MultipleHypothesis(hypotheses, normalise=False)` (all SingleHypothesis)."""
+        """`MultipleHypothesis(hypotheses, normalise=True, total_weight=1)` of
+        SingleProbabilityHypothesis whose probabilities already sum to 1 (Stone Soup would
+        normalise them on construction; this keeps them)."""
         return self._multi.make(hypotheses)
+
+    def prediction(self, sv: Any, cm: Any, ts: Any, model: Any, prior: Any) -> Any:
+        """A predictor's `GaussianStatePrediction` (with `transition_model` and `prior`), on a
+        StateVector and CovarianceMatrix already made; like Stone Soup's `Prediction`
+        constructor it turns the prior's own hypothesis prediction's prior into a weak
+        reference."""
+        hyp = getattr(prior, "hypothesis", None)
+        older = getattr(hyp, "prediction", None)
+        if older is not None:
+            d = older.__dict__
+            back = d.get("_property_prior")
+            if back is not None and not isinstance(back, weakref.ReferenceType):
+                d["_property_prior"] = weakref.ref(back)
+        return self._pred_of.make(sv, cm, ts, model, prior)
+
+    def measurement_prediction(self, z: Any, s: Any, cross: Any, ts: Any) -> Any:
+        """`GaussianMeasurementPrediction(z, s, ts, cross_covar=cross)`: z (m,) the predicted
+        measurement, s (m, m) the innovation covariance, cross (n, m) the state-measurement
+        cross covariance."""
+        return self._mpred.make(
+            self.vector(z), self.matrix(s), ts, np.asarray(cross, dtype=np.float64).view(self._mat)
+        )

@@ -136,6 +136,8 @@ class _DropInTracker(StateBuilder):
         self._scan_md: dict[int, bool] = {}  # scan -> a detection of it carries metadata
         self._history_start = True  # the core's history(track_id, start) is available
         self._newest_cache: dict | None = None  # see `_newest`
+        self._phases: dict = {}  # see `StateBuilder._phase`
+        self._hr: dict = {}  # see `StateBuilder._linear_model`
 
     # -- Stone Soup's Tracker protocol -------------------------------------------------------
 
