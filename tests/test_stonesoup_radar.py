@@ -136,6 +136,26 @@ def test_radar_detections_give_stonesoups_tracks(update, gnn):
     assert len(dropin._sensor_specs) == 1 and dropin._sensor_specs[0][0] == "polar"
 
 
+@pytest.mark.parametrize("gnn", [False, True], ids=["jpda", "gnn"])
+def test_radar_hypotheses_are_stonesoups(gnn):
+    # Every attribute of every state and hypothesis (measurement predictions by the updater's
+    # own predict_measurement for bearing-range detections, Mahalanobis distances, JPDA
+    # probabilities, priors) as Stone Soup's, within its finite-difference Jacobian's error.
+    from stonesoup.tracker.simple import MultiTargetMixtureTracker, MultiTargetTracker
+    from test_stonesoup_lazy import same_tracks_deeply
+
+    dets = detections(scenario(5, lidar=True))
+    ss_cls = MultiTargetTracker if gnn else MultiTargetMixtureTracker
+    ours_cls = us.MultiTargetTracker if gnn else us.MultiTargetMixtureTracker
+    ref, ours = set(), set()
+    for _, tracks in ss_cls(detector=dets, **components("ekf", gnn)):
+        ref |= tracks
+    for _, tracks in ours_cls(detector=dets, **components("ekf", gnn)):
+        ours |= tracks
+    assert len(ours) == len(ref) >= 2
+    assert same_tracks_deeply(list(ours), list(ref), TOL) > 40
+
+
 def test_radar_and_lidar_detections_in_one_tracker():
     ours, ref, dropin = run_both(scenario(3, lidar=True), "ukf", False, predictor="unscented")
     assert H.compare_runs(ours, ref, atol=TOL) == []
