@@ -1,9 +1,11 @@
 """The drop-in's lazily built Stone Soup tracks against Stone Soup's own tracker: every way a
 Stone Soup user reads a track (`len`, `state`, `states`, indexing by position and by time,
-slices, iteration, proxied state attributes, `metadata(s)`, each state's `hypothesis` with its
-prediction, measurements and probabilities, copies and pickles) gives what Stone Soup's
-`MultiTargetMixtureTracker` gives, whether the tracks are read every scan, now and then, or
-only at the end; plus the list type itself."""
+slices, iteration, proxied state attributes, `metadata(s)`, copies and pickles) gives what
+Stone Soup's `MultiTargetMixtureTracker` and `MultiTargetTracker` give, whether the tracks are
+read every scan, now and then, or only at the end; every state and its hypothesis compared
+class by class and attribute by attribute (predictions with transition model and prior,
+detections, measurement predictions, distances, probabilities) in the tentative and the
+confirmed phase; plus the list type itself."""
 
 from __future__ import annotations
 
@@ -118,10 +120,17 @@ def _same_object(a, b, where: str, priors: dict, tol: float = HYP_TOL) -> None:
             _same_value(va, vb, f"{where}.{name}", priors, tol)
 
 
+def _sharing(objs: list) -> list:
+    """Which of `objs` are the same object: the index of each one's first occurrence."""
+    first: dict = {}
+    return [None if o is None else first.setdefault(id(o), len(first)) for o in objs]
+
+
 def _same_track(a, b) -> Counter:
     """Every read of two tracks agrees; returns how many states of each kind were compared:
     (phase, state class, hypothesis class or whether a prediction has a prior), the phase
     "tentative" up to the initiator's `min_points`-th update, then "confirmed"."""
+    from stonesoup.types.multihypothesis import MultipleHypothesis
     from stonesoup.types.update import Update
 
     assert type(a) is type(b)
@@ -141,6 +150,11 @@ def _same_track(a, b) -> Counter:
         phase = "tentative" if updates < MIN_POINTS else "confirmed"
         if isinstance(sb, Update):
             updates += 1
+            if isinstance(sb.hypothesis, MultipleHypothesis):
+                # Which hypotheses share their prediction / measurement prediction object.
+                for name in ("prediction", "measurement_prediction"):
+                    shared = _sharing([getattr(h, name) for h in sa.hypothesis])
+                    assert shared == _sharing([getattr(h, name) for h in sb.hypothesis]), name
             kinds[phase, type(sb).__name__, type(sb.hypothesis).__name__] += 1
         else:
             kinds[phase, type(sb).__name__, sb.prior is not None] += 1

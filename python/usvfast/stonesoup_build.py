@@ -9,9 +9,11 @@ time step; anything older (a track read after several scans, a new track with it
 history, a deleted track) from the core's history of that track. Either way the objects are
 the ones Stone Soup's tracker would have appended: Update or Prediction with the same mean,
 covariance and time; for updates their hypotheses — the prediction from the previous state
-by the tracker's (after confirmation) or the initiator's (before) transition model, the
-scan's own Detection objects, the JPDA probabilities — and the track metadata merged by
-Stone Soup's own `Track.append` whenever a detection of that scan carries metadata.
+by the tracker's (after confirmation) or the initiator's (before) transition model (with
+that model and the previous state as its prior), the scan's own Detection objects, the
+measurement predictions of the detection's measurement model, the GNN distance or the JPDA
+probabilities — and the track metadata merged by Stone Soup's own `Track.append` whenever a
+detection of that scan carries metadata.
 """
 
 from __future__ import annotations
@@ -285,69 +287,73 @@ class StateBuilder:
         """(H, R) of a detection's measurement model (or the updater's when it has none) when
         the updater predicts measurements as a Kalman updater does (linear model, Kalman or
         extended Kalman updater), else None."""
+        key = (id(model), id(updater))
+        hit = self._hr.get(key)
+        if hit is not None:
+            return hit[0]
         from stonesoup.models.base import LinearModel
         from stonesoup.updater.kalman import ExtendedKalmanUpdater, KalmanUpdater
 
-        if model is None:
-            model = updater.measurement_model
-        key = (id(model), id(updater))
-        hit = self._hr.get(key)
-        if hit is None:
-            ok = isinstance(model, LinearModel) and type(updater) in (
-                KalmanUpdater,
-                ExtendedKalmanUpdater,
-            )
-            hr = None
-            if ok:
-                hr = (np.asarray(model.matrix(), float), np.asarray(model.covar(), float))
-            hit = (hr, model)
-            if len(self._hr) > _MD_CACHE:
-                self._hr.clear()
-            self._hr[key] = hit
-        return hit[0]
+        own = updater.measurement_model if model is None else model
+        hr = None
+        if isinstance(own, LinearModel) and type(updater) in (KalmanUpdater, ExtendedKalmanUpdater):
+            h = np.array(own.matrix(), dtype=np.float64)
+            hr = (h, h.T.copy(), np.array(own.covar(), dtype=np.float64))
+        if len(self._hr) > _MD_CACHE:
+            self._hr.clear()
+        self._hr[key] = (hr, model, updater)  # keeps the ids alive
+        return hr
 
     def _measurement_predictions(self, initiator: bool, pred: Any, dets: list) -> list:
         """Stone Soup's measurement prediction of `pred` for each detection, one object per
         measurement model (as the updater's cache gives): mean H x, innovation covariance
         H P Hᵀ + R, cross covariance P Hᵀ (linear models), or the updater's own
         `predict_measurement` otherwise."""
-        _, updater, _ = self._phase(initiator)
-        x = np.asarray(pred.state_vector, dtype=np.float64)
-        p = np.asarray(pred.covar, dtype=np.float64)
-        ts = pred.timestamp
+        updater = self._phase(initiator)[1]
+        if len(dets) == 1:
+            return [self._measurement_prediction(updater, pred, dets[0].measurement_model)]
         out, mine = [], {}
         for d in dets:
             model = d.measurement_model
-            key = id(model)
-            mp = mine.get(key)
+            mp = mine.get(id(model))
             if mp is None:
-                hr = self._linear_model(model, updater)
-                if hr is None:
-                    mp = updater.predict_measurement(pred, model)
-                else:
-                    h, r = hr
-                    cross = p @ h.T
-                    mp = self._objects.measurement_prediction(
-                        (h @ x).ravel(), h @ cross + r, cross, ts
-                    )
-                mine[key] = mp
+                mp = mine[id(model)] = self._measurement_prediction(updater, pred, model)
             out.append(mp)
         return out
 
+    def _measurement_prediction(self, updater: Any, pred: Any, model: Any) -> Any:
+        hr = self._linear_model(model, updater)
+        if hr is None:
+            return updater.predict_measurement(pred, model)
+        h, ht, r = hr
+        d = pred.__dict__
+        x = d["_property_state_vector"].view(np.ndarray)
+        cross = d["_property_covar"].view(np.ndarray) @ ht
+        ts = d["_property_timestamp"]
+        return self._objects.measurement_prediction(h @ x, h @ cross + r, cross, ts)
+
     def _distance(self, initiator: bool, mp: Any, det: Any) -> Any:
         """The hypothesiser's measure (Mahalanobis or its square) between the measurement
-        prediction and the detection."""
+        prediction and the detection (Stone Soup's pseudo-inverse of the innovation covariance
+        equals its inverse: R is positive definite)."""
         from stonesoup.measures import Mahalanobis, SquaredMahalanobis
 
         measure = self._phase(initiator)[2]
-        if type(measure) in (Mahalanobis, SquaredMahalanobis) and measure.mapping is None:
-            v = (
-                np.asarray(det.state_vector, dtype=np.float64).ravel()
-                - np.asarray(mp.state_vector, dtype=np.float64).ravel()
-            )
-            d2 = np.float64(v @ np.linalg.pinv(np.asarray(mp.covar, dtype=np.float64)) @ v)
-            return np.sqrt(d2) if type(measure) is Mahalanobis else d2
-        return measure(mp, det)
+        kind = type(measure)
+        if kind not in (Mahalanobis, SquaredMahalanobis) or measure.mapping is not None:
+            return measure(mp, det)
+        v = (
+            np.asarray(det.state_vector, dtype=np.float64).ravel()
+            - np.asarray(mp.state_vector, dtype=np.float64).ravel()
+        )
+        s = np.asarray(mp.covar, dtype=np.float64)
+        if v.shape == (2,):
+            a, b, c, e = s[0, 0], s[0, 1], s[1, 0], s[1, 1]
+            d2 = (e * v[0] * v[0] - (b + c) * v[0] * v[1] + a * v[1] * v[1]) / (a * e - b * c)
+        else:
+            d2 = v @ np.linalg.pinv(s) @ v
+        d2 = np.float64(d2)
+        return np.sqrt(d2) if kind is Mahalanobis else d2
 
     def _make_hypothesis(self, pred, scan_dets, time, assoc: tuple, initiator: bool) -> Any:
         """The hypothesis of an update: JPDA (mixture tracker after confirmation) a

@@ -13,6 +13,7 @@ correctness.
 
 from __future__ import annotations
 
+import math
 import weakref
 from datetime import datetime
 from typing import Any
@@ -261,7 +262,11 @@ class StoneSoupObjects:
     ) -> Any:
         """`SingleProbabilityHypothesis(prediction, measurement, Probability(probability),
         mpred)` (`mpred` the measurement prediction, None for a missed detection)."""
-        return self._prob.make(prediction, measurement, self._p(probability), mpred)
+        if probability > 0:
+            value = self._p(math.log(probability), log_value=True)
+        else:
+            value = self._p(probability)
+        return self._prob.make(prediction, measurement, value, mpred)
 
     def distance(self, prediction: Any, measurement: Any, distance: Any, mpred: Any) -> Any:
         """`SingleDistanceHypothesis(prediction, measurement, distance, mpred)`."""
@@ -288,9 +293,12 @@ class StoneSoupObjects:
         return self._pred_of.make(sv, cm, ts, model, prior)
 
     def measurement_prediction(self, z: Any, s: Any, cross: Any, ts: Any) -> Any:
-        """`GaussianMeasurementPrediction(z, s, ts, cross_covar=cross)`: z (m,) the predicted
-        measurement, s (m, m) the innovation covariance, cross (n, m) the state-measurement
-        cross covariance."""
+        """`GaussianMeasurementPrediction(z, s, ts, cross_covar=cross)`: z (m,) or (m, 1) the
+        predicted measurement, s (m, m) the innovation covariance, cross (n, m) the
+        state-measurement cross covariance."""
         return self._mpred.make(
-            self.vector(z), self.matrix(s), ts, np.asarray(cross, dtype=np.float64).view(self._mat)
+            np.asarray(z, dtype=np.float64).reshape(-1, 1).view(self._sv),
+            np.asarray(s, dtype=np.float64).view(self._cm),
+            ts,
+            np.asarray(cross, dtype=np.float64).view(self._mat),
         )

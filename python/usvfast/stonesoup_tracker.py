@@ -391,14 +391,25 @@ class MultiTargetMixtureTracker(_DropInTracker):
 
     Same keywords (`initiator`, `deleter`, `detector`, `data_associator`, `updater`), same
     protocol: iterating yields `(datetime, set of Track)` per scan of `detector`;
-    `update_tracker(time, detections)` processes one scan. Update states carry a
-    `MultipleHypothesis` of `SingleProbabilityHypothesis` (prediction, detection or
-    MissedDetection, JPDA probability; `measurement_prediction` is None; the probabilities
-    come normalised as floats, `normalise=False`); the initiator's tentative updates carry
-    the same kind (Stone Soup: its GNN's `SingleDistanceHypothesis`), the first state
-    `SingleHypothesis(None, detection)`. `hypotheses=False` skips building them: update
-    states then carry a placeholder `SingleHypothesis(None, MissedDetection)`, so do not feed
-    such tracks to Stone Soup deleters.
+    `update_tracker(time, detections)` processes one scan. The states and their hypotheses
+    are Stone Soup's, class by class and attribute by attribute (tests/test_stonesoup_lazy.py,
+    1e-9): the first state carries `SingleHypothesis(None, detection)`; the initiator's
+    tentative updates its GNN's `SingleDistanceHypothesis` (prediction, detection, the
+    hypothesiser's Mahalanobis distance, measurement prediction) and its missed scans the
+    predictor's `GaussianStatePrediction` (with `transition_model` and `prior`, the previous
+    state); confirmed updates a `MultipleHypothesis` (`normalise=True`, `total_weight=1`)
+    of `SingleProbabilityHypothesis` — MissedDetection first, then the gated detections in
+    the scan's order — with `Probability` JPDA probabilities, the predictor's prediction and,
+    for detections, the updater's `GaussianMeasurementPrediction` (mean H x, innovation
+    covariance H P Hᵀ + R, cross covariance P Hᵀ; one per measurement model, as the updater's
+    cache shares it; from the updater's own `predict_measurement` for non-linear models). A
+    prior's older predictions keep their priors as weak references, as Stone Soup's
+    `Prediction` makes them. What is not bit for bit: the probabilities (Stone Soup
+    renormalises in log space; ours come normalised from the core, within 1e-15) and, for
+    bearing-range detections, everything built on the state (Stone Soup's finite-difference
+    Jacobian, ~1e-4). `hypotheses=False` skips building hypotheses: update states then
+    carry a placeholder `SingleHypothesis(None, MissedDetection)`, so do not feed such
+    tracks to Stone Soup deleters.
 
     Laziness: a track's `states` and `metadatas` are `usvfast.stonesoup_lazy.LazyList`s (list
     subclasses; copies and pickles are plain lists) that build the missing states on any read
@@ -424,6 +435,8 @@ class MultiTargetMixtureTracker(_DropInTracker):
 
 class MultiTargetTracker(_DropInTracker):
     """Stone Soup's `MultiTargetTracker` (GNN: DistanceHypothesiser + GNNWith2DAssignment) run
-    by the usvfast core; same keywords and protocol as `MultiTargetMixtureTracker`."""
+    by the usvfast core; same keywords and protocol as `MultiTargetMixtureTracker`. Confirmed
+    updates carry the chosen `SingleDistanceHypothesis` and missed scans the predictor's
+    prediction, as in the initiator's tentative phase (see `MultiTargetMixtureTracker`)."""
 
     _mixture = False
