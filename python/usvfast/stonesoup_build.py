@@ -208,6 +208,8 @@ class StateBuilder:
         nw["scan"] = self._scan
         nw["row"] = row = {tid: r for r, tid in enumerate(nw["ids"])}
         nw["pred"] = pred = {}
+        nw["mp"] = {}
+        raw: dict[int, tuple] = {}
         if self.hypotheses:
             t = (self._scan_time[-1] - self._t0).total_seconds()
             by_dt: dict[float, list[Any]] = {}
@@ -222,8 +224,44 @@ class StateBuilder:
                 psv, pcm = self._objects.rows(xp, pp)
                 for k, (r, _) in enumerate(group):
                     pred[r] = (psv[k], pcm[k])
+                    raw[r] = (xp[k], pp[k])
+            nw["mp"] = self._newest_measurement_predictions(nw, raw)
         self._newest_cache = nw
         return nw
+
+    def _newest_measurement_predictions(self, nw: dict, raw: dict) -> dict:
+        """{row: {id(model): (z, S, C)}}: the measurement predictions of the newest scan's
+        updates for linear models, batched per model over the tracks (raw: row -> predicted
+        mean and covariance arrays); see `_measurement_prediction`."""
+        updater = self._phase(False)[1]
+        dets = self._dets_of(self._scan - 1)
+        offs, adet = nw["assoc_offsets"], nw["assoc_detection"]
+        groups: dict[int, tuple[Any, list[int]]] = {}
+        for r in raw:
+            if not nw["is_update"][r]:
+                continue
+            js = adet[offs[r] : offs[r + 1]] if self._mixture else [nw["detection"][r]]
+            for j in js:
+                if j < 0:
+                    continue
+                model = dets[j].measurement_model
+                g = groups.get(id(model))
+                if g is None:
+                    g = groups[id(model)] = (model, [])
+                if not g[1] or g[1][-1] != r:
+                    g[1].append(r)
+        out: dict[int, dict] = {}
+        for key, (model, rs) in groups.items():
+            hr = self._linear_model(model, updater)
+            if hr is None:
+                continue
+            h, ht, noise = hr
+            x = np.array([raw[r][0] for r in rs])
+            c = np.array([raw[r][1] for r in rs]) @ ht
+            z, sc = x @ ht, h @ c + noise
+            for i, r in enumerate(rs):
+                out.setdefault(r, {})[key] = (z[i], sc[i], c[i])
+        return out
 
     def _build_newest(self, f: Filler) -> None:
         """Append the newest scan's state of alive track `f` (see `_build`)."""
@@ -247,7 +285,8 @@ class StateBuilder:
                     nw["missed_probability"][r],
                     nw["detection"][r],
                 )
-                hyp = self._make_hypothesis(pred, self._dets_of(scan), time, assoc, False)
+                pre = nw["mp"].get(r)
+                hyp = self._make_hypothesis(pred, self._dets_of(scan), time, assoc, False, pre)
             if hyp is None:
                 hyp = self._placeholder(time)
             state = ob.state_of(True, nw["sv"][r], nw["cm"][r], time, hyp)
@@ -297,31 +336,37 @@ class StateBuilder:
         own = updater.measurement_model if model is None else model
         hr = None
         if isinstance(own, LinearModel) and type(updater) in (KalmanUpdater, ExtendedKalmanUpdater):
+            own_any: Any = own  # a LinearModel that is also a measurement model (covar)
             h = np.array(own.matrix(), dtype=np.float64)
-            hr = (h, h.T.copy(), np.array(own.covar(), dtype=np.float64))
+            hr = (h, h.T.copy(), np.array(own_any.covar(), dtype=np.float64))
         if len(self._hr) > _MD_CACHE:
             self._hr.clear()
         self._hr[key] = (hr, model, updater)  # keeps the ids alive
         return hr
 
-    def _measurement_predictions(self, initiator: bool, pred: Any, dets: list) -> list:
+    def _measurement_predictions(
+        self, initiator: bool, pred: Any, dets: list, pre: dict | None = None
+    ) -> list:
         """Stone Soup's measurement prediction of `pred` for each detection, one object per
         measurement model (as the updater's cache gives): mean H x, innovation covariance
-        H P Hᵀ + R, cross covariance P Hᵀ (linear models), or the updater's own
-        `predict_measurement` otherwise."""
+        H P Hᵀ + R, cross covariance P Hᵀ (linear models; `pre`: id(model) -> those arrays
+        when already computed), or the updater's own `predict_measurement` otherwise."""
         updater = self._phase(initiator)[1]
         if len(dets) == 1:
-            return [self._measurement_prediction(updater, pred, dets[0].measurement_model)]
+            return [self._measurement_prediction(updater, pred, dets[0].measurement_model, pre)]
         out, mine = [], {}
         for d in dets:
             model = d.measurement_model
             mp = mine.get(id(model))
             if mp is None:
-                mp = mine[id(model)] = self._measurement_prediction(updater, pred, model)
+                mp = mine[id(model)] = self._measurement_prediction(updater, pred, model, pre)
             out.append(mp)
         return out
 
-    def _measurement_prediction(self, updater: Any, pred: Any, model: Any) -> Any:
+    def _measurement_prediction(self, updater: Any, pred: Any, model: Any, pre: Any) -> Any:
+        hit = pre.get(id(model)) if pre is not None else None
+        if hit is not None:
+            return self._objects.measurement_prediction(*hit, pred.timestamp)
         hr = self._linear_model(model, updater)
         if hr is None:
             return updater.predict_measurement(pred, model)
@@ -355,17 +400,19 @@ class StateBuilder:
         d2 = np.float64(d2)
         return np.sqrt(d2) if kind is Mahalanobis else d2
 
-    def _make_hypothesis(self, pred, scan_dets, time, assoc: tuple, initiator: bool) -> Any:
+    def _make_hypothesis(
+        self, pred, scan_dets, time, assoc: tuple, initiator: bool, pre: dict | None = None
+    ) -> Any:
         """The hypothesis of an update: JPDA (mixture tracker after confirmation) a
         MultipleHypothesis of SingleProbabilityHypothesis (missed detection first), GNN (the
         initiator, `MultiTargetTracker`) the chosen SingleDistanceHypothesis; each detection's
         with its measurement prediction. `assoc` is (detections, probabilities, missed
-        probability, chosen detection) from the core."""
+        probability, chosen detection) from the core; `pre` as `_measurement_predictions`."""
         dets, probs, missed, det = assoc
         ob = self._objects
         if self._mixture and not initiator and np.isfinite(missed):
             measured = [scan_dets[int(j)] for j in dets]
-            mps = self._measurement_predictions(False, pred, measured)
+            mps = self._measurement_predictions(False, pred, measured, pre)
             prob = ob.probability
             hyps = [prob(pred, ob.missed(time), float(missed))]
             hyps += [
@@ -374,7 +421,7 @@ class StateBuilder:
             return ob.multiple(hyps)
         if det >= 0:
             d = scan_dets[det]
-            mp = self._measurement_predictions(initiator, pred, [d])[0]
+            mp = self._measurement_predictions(initiator, pred, [d], pre)[0]
             return ob.distance(pred, d, self._distance(initiator, mp, d), mp)
         return None
 

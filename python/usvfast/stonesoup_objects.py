@@ -48,10 +48,14 @@ class _Builder:
         ok = ok and all(isinstance(v, _IMMUTABLE) for v in constants.values())
         # Properties in the class's order: a copy of it per object keeps that order.
         self.template = {f"_property_{n}": constants.get(n) for n in names}
+        self.plain = not constants and self.keys == tuple(self.template)
         self.fast = ok and self._check(sample)
 
     def _fast(self, values: tuple) -> Any:
         obj = self.cls.__new__(self.cls)
+        if self.plain:  # no constants, arguments in the class's order
+            obj.__dict__ = dict(zip(self.keys, values, strict=True))
+            return obj
         d = self.template.copy()
         for k, v in zip(self.keys, values, strict=True):
             d[k] = v
