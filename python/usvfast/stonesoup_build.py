@@ -208,8 +208,7 @@ class StateBuilder:
         nw["scan"] = self._scan
         nw["row"] = row = {tid: r for r, tid in enumerate(nw["ids"])}
         nw["pred"] = pred = {}
-        nw["mp"] = {}
-        raw: dict[int, tuple] = {}
+        nw["mp"] = {}  # see `_newest_measurement_predictions`
         if self.hypotheses:
             t = (self._scan_time[-1] - self._t0).total_seconds()
             by_dt: dict[float, list[Any]] = {}
@@ -222,45 +221,30 @@ class StateBuilder:
                 xp = np.array([g[1][1] for g in group]) @ fm.T
                 pp = fm @ np.array([g[1][2] for g in group]) @ fm.T + q
                 psv, pcm = self._objects.rows(xp, pp)
-                for k, (r, _) in enumerate(group):
+                rows = [r for r, _ in group]
+                for k, r in enumerate(rows):
                     pred[r] = (psv[k], pcm[k])
-                    raw[r] = (xp[k], pp[k])
-            nw["mp"] = self._newest_measurement_predictions(nw, raw)
+                nw["mp"].update(self._newest_measurement_predictions(xp, pp, rows))
         self._newest_cache = nw
         return nw
 
-    def _newest_measurement_predictions(self, nw: dict, raw: dict) -> dict:
-        """{row: {id(model): (z, S, C)}}: the measurement predictions of the newest scan's
-        updates for linear models, batched per model over the tracks (raw: row -> predicted
-        mean and covariance arrays); see `_measurement_prediction`."""
+    def _newest_measurement_predictions(self, xp: np.ndarray, pp: np.ndarray, rows: list) -> dict:
+        """{row: {id(model): (z, S, C)}}: the measurement predictions, for each linear
+        measurement model of the newest scan's detections, of the predicted means xp (k, n)
+        and covariances pp (k, n, n) of the tracks in `rows`, batched (see
+        `_measurement_prediction`)."""
         updater = self._phase(False)[1]
-        dets = self._dets_of(self._scan - 1)
-        offs, adet = nw["assoc_offsets"], nw["assoc_detection"]
-        groups: dict[int, tuple[Any, list[int]]] = {}
-        for r in raw:
-            if not nw["is_update"][r]:
-                continue
-            js = adet[offs[r] : offs[r + 1]] if self._mixture else [nw["detection"][r]]
-            for j in js:
-                if j < 0:
-                    continue
-                model = dets[j].measurement_model
-                g = groups.get(id(model))
-                if g is None:
-                    g = groups[id(model)] = (model, [])
-                if not g[1] or g[1][-1] != r:
-                    g[1].append(r)
+        models = {id(d.measurement_model): d.measurement_model for d in self._scan_dets[-1] or ()}
         out: dict[int, dict] = {}
-        for key, (model, rs) in groups.items():
+        for key, model in models.items():
             hr = self._linear_model(model, updater)
             if hr is None:
                 continue
             h, ht, noise = hr
-            x = np.array([raw[r][0] for r in rs])
-            c = np.array([raw[r][1] for r in rs]) @ ht
-            z, sc = x @ ht, h @ c + noise
-            for i, r in enumerate(rs):
-                out.setdefault(r, {})[key] = (z[i], sc[i], c[i])
+            c = pp @ ht
+            zs, ss, cs = self._objects.measurement_rows(xp @ ht, h @ c + noise, c)
+            for i, r in enumerate(rows):
+                out.setdefault(r, {})[key] = (zs[i], ss[i], cs[i])
         return out
 
     def _build_newest(self, f: Filler) -> None:
@@ -366,7 +350,7 @@ class StateBuilder:
     def _measurement_prediction(self, updater: Any, pred: Any, model: Any, pre: Any) -> Any:
         hit = pre.get(id(model)) if pre is not None else None
         if hit is not None:
-            return self._objects.measurement_prediction(*hit, pred.timestamp)
+            return self._objects.measurement_prediction_of(*hit, pred.timestamp)
         hr = self._linear_model(model, updater)
         if hr is None:
             return updater.predict_measurement(pred, model)

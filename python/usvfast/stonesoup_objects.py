@@ -296,6 +296,24 @@ class StoneSoupObjects:
                 d["_property_prior"] = weakref.ref(back)
         return self._pred_of.make(sv, cm, ts, model, prior)
 
+    def measurement_rows(self, zs: np.ndarray, ss: np.ndarray, cs: np.ndarray) -> tuple:
+        """StateVectors, CovarianceMatrices and cross-covariance Matrices of the rows of zs
+        (k, m), ss (k, m, m) and cs (k, n, m), fresh float64 arrays (views, as `rows`), for
+        `measurement_prediction_of`."""
+        k, m = zs.shape
+        get = np.ndarray.__getitem__
+        z = zs.reshape(k, m, 1).view(self._sv)
+        s, c = ss.view(self._cm), cs.view(self._mat)
+        return (
+            [get(z, i) for i in range(k)],
+            [get(s, i) for i in range(k)],
+            [get(c, i) for i in range(k)],
+        )
+
+    def measurement_prediction_of(self, z: Any, s: Any, cross: Any, ts: Any) -> Any:
+        """As `measurement_prediction`, on arrays already made (see `measurement_rows`)."""
+        return self._mpred.make(z, s, ts, cross)
+
     def measurement_prediction(self, z: Any, s: Any, cross: Any, ts: Any) -> Any:
         """`GaussianMeasurementPrediction(z, s, ts, cross_covar=cross)`: z (m,) or (m, 1) the
         predicted measurement, s (m, m) the innovation covariance, cross (n, m) the
