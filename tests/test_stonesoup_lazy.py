@@ -206,6 +206,21 @@ def test_lazy_tracks_read_like_stonesoups(read_every, associator):
     assert kinds["tentative", pred, True] > 0
 
 
+@pytest.mark.parametrize("associator", ["ehm", "gnn"])
+def test_hypotheses_of_detections_without_a_model(associator):
+    # Detections without a measurement model (the updater's is used), JPDA by pyehm's EHM.
+    scenario = H.crossing(2)
+    scans = H.stonesoup_scans(scenario, models=[None] * 4)
+    assert all(d.measurement_model is None for _, dets in scans for d in dets)
+    cfg = H.Code57(associator=associator, **SHORT)
+    ref = _collect(H.build_stonesoup(cfg, detector=scans)[0], 2)
+    ours = _collect(dropin_for(H.build_stonesoup(cfg)[0], scans), 2)
+    pairs = _match(ours, ref)
+    kinds = sum((_same_track(a, b) for a, b in pairs), Counter())
+    confirmed = "MultipleHypothesis" if associator == "ehm" else "SingleDistanceHypothesis"
+    assert kinds["confirmed", "GaussianStateUpdate", confirmed] > 20
+
+
 def test_tracks_read_by_stonesoup_code_and_appended_to():
     # Stone Soup's own readers (a deleter on the drop-in's tracks) and a user's Track.append
     # onto a lazy track behave as on Stone Soup's tracks.

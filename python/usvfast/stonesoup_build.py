@@ -293,6 +293,7 @@ class StateBuilder:
         (transition model, prior); the mixture tracker a bare `GaussianStatePrediction`."""
         if initiator or not self._mixture:
             return self._objects.prediction(sv, cm, time, self._phase(initiator)[0], prior)
+        self._objects.predicted_from(prior)  # Stone Soup's hypothesiser predicted from it
         return self._objects.state_of(False, sv, cm, time)
 
     def _phase(self, initiator: bool) -> tuple:

@@ -287,6 +287,15 @@ class StoneSoupObjects:
         StateVector and CovarianceMatrix already made; like Stone Soup's `Prediction`
         constructor it turns the prior's own hypothesis prediction's prior into a weak
         reference."""
+        self.predicted_from(prior)
+        return self._pred_of.make(sv, cm, ts, model, prior)
+
+    @staticmethod
+    def predicted_from(prior: Any) -> None:
+        """What Stone Soup's `Prediction` constructor does to its prior: the prior of the
+        prior's hypothesis's prediction becomes a weak reference. Stone Soup's hypothesisers
+        predict every track every scan, also when the mixture tracker then appends a bare
+        prediction: call this for each state a track's next state was predicted from."""
         hyp = getattr(prior, "hypothesis", None)
         older = getattr(hyp, "prediction", None)
         if older is not None:
@@ -294,7 +303,6 @@ class StoneSoupObjects:
             back = d.get("_property_prior")
             if back is not None and not isinstance(back, weakref.ReferenceType):
                 d["_property_prior"] = weakref.ref(back)
-        return self._pred_of.make(sv, cm, ts, model, prior)
 
     def measurement_rows(self, zs: np.ndarray, ss: np.ndarray, cs: np.ndarray) -> tuple:
         """StateVectors, CovarianceMatrices and cross-covariance Matrices of the rows of zs
