@@ -136,15 +136,16 @@ def test_radar_detections_give_stonesoups_tracks(update, gnn):
     assert len(dropin._sensor_specs) == 1 and dropin._sensor_specs[0][0] == "polar"
 
 
+@pytest.mark.parametrize("seed", [5, 8])  # 8: a gated bearing across ±π
 @pytest.mark.parametrize("gnn", [False, True], ids=["jpda", "gnn"])
-def test_radar_hypotheses_are_stonesoups(gnn):
+def test_radar_hypotheses_are_stonesoups(gnn, seed):
     # Every attribute of every state and hypothesis (measurement predictions by the updater's
     # own predict_measurement for bearing-range detections, Mahalanobis distances, JPDA
     # probabilities, priors) as Stone Soup's, within its finite-difference Jacobian's error.
     from stonesoup.tracker.simple import MultiTargetMixtureTracker, MultiTargetTracker
     from test_stonesoup_lazy import same_tracks_deeply
 
-    dets = detections(scenario(5, lidar=True))
+    dets = detections(scenario(seed, lidar=True))
     ss_cls = MultiTargetTracker if gnn else MultiTargetMixtureTracker
     ours_cls = us.MultiTargetTracker if gnn else us.MultiTargetMixtureTracker
     ref, ours = set(), set()

@@ -364,13 +364,18 @@ class StateBuilder:
 
     def _distance(self, initiator: bool, mp: Any, det: Any) -> Any:
         """The hypothesiser's measure (Mahalanobis or its square) between the measurement
-        prediction and the detection (Stone Soup's pseudo-inverse of the innovation covariance
-        equals its inverse: R is positive definite)."""
+        prediction and the detection: computed here for linear models (Stone Soup's
+        pseudo-inverse of the innovation covariance equals its inverse: R is positive
+        definite), by the measure itself otherwise (bearings wrap, Stone Soup's `Bearing`)."""
         from stonesoup.measures import Mahalanobis, SquaredMahalanobis
 
-        measure = self._phase(initiator)[2]
+        _, updater, measure = self._phase(initiator)
         kind = type(measure)
-        if kind not in (Mahalanobis, SquaredMahalanobis) or measure.mapping is not None:
+        if (
+            kind not in (Mahalanobis, SquaredMahalanobis)
+            or measure.mapping is not None
+            or self._linear_model(det.measurement_model, updater) is None
+        ):
             return measure(mp, det)
         v = (
             np.asarray(det.state_vector, dtype=np.float64).ravel()
