@@ -356,7 +356,7 @@ def run(
 
 def main(argv: Sequence[str] | None = None) -> None:
     """Command line: `python -m usvfast.camera.train_demo [--out DIR] [--seed S] [--steps N]
-    [--vessel-weight W] [--trash-weight W] [--train-seeds N] [--threads T]`."""
+    [--vessel-weight W] [--trash-weight W] [--train-seeds N] [--threads T] [--crop-size W H]`."""
     ap = argparse.ArgumentParser(description=(__doc__ or "").partition("\n")[0])
     ap.add_argument("--out", type=Path, default=Path("python/usvfast/data/models"))
     ap.add_argument("--seed", type=int, default=0)
@@ -368,6 +368,9 @@ def main(argv: Sequence[str] | None = None) -> None:
         "--train-seeds", type=int, default=len(TRAIN_SEEDS), help="simulator seeds 1000, 1001, ..."
     )
     ap.add_argument("--threads", type=int, default=TrainConfig.threads)
+    ap.add_argument(
+        "--crop-size", type=int, nargs=2, default=TrainConfig.crop_size, help="W H input px"
+    )
     ap.add_argument("--cache", type=Path, default=None, help="keep rendered frames here")
     args = ap.parse_args(argv)
     from usvfast.sim import TRUTH_KINDS
@@ -380,6 +383,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         trash_weight=args.trash_weight,
         train_seeds=tuple(range(1000, 1000 + args.train_seeds)),
         threads=args.threads,
+        crop_size=(int(args.crop_size[0]), int(args.crop_size[1])),
         classes=TRUTH_KINDS,
     )
     render = render_frames if args.cache is None else cached(render_frames, args.cache)
