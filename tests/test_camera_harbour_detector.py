@@ -119,3 +119,31 @@ def test_training_is_reproducible():
         nets[0].state_dict().items(), nets[1].state_dict().items(), strict=True
     ):
         assert torch.equal(a, b), k
+
+
+def test_evaluate_per_class_recall():
+    """Each class's recall counts only its own boxes, matched by detections of its class."""
+    boxes = np.array([[0, 0, 10, 10], [20, 0, 30, 10], [40, 0, 50, 10.0]])
+    frame = Frame(np.zeros((16, 64, 3), np.uint8), boxes, np.array([0, 1, 1]))
+    # truth 0 found with its class; truth 1 found with the wrong class; truth 2 missed
+    det = Detections(boxes[:2], np.array([0.9, 0.8]), np.array([0, 0]))
+    m = evaluate(lambda _: [det], [frame], min_box_px=3.0)
+    assert m["recall"] == pytest.approx(2 / 3) and m["class_recall"] == pytest.approx(1 / 3)
+    assert m["class0_recall"] == 1.0 and m["class0_truth"] == 1
+    assert m["class1_recall"] == 0.0 and m["class1_truth"] == 2
+
+
+def test_class_weights_centre_more_crops_on_the_rare_class():
+    """With a weight of 8 on class 1, most object-centred crops hold the class-1 box."""
+    from usvfast.camera.train_demo import Sample, random_crop
+
+    boxes = np.array([[10.0, 10, 30, 30], [290, 150, 310, 170]])
+    s = Sample(np.zeros((192, 320, 3), np.uint8), boxes, np.array([0, 1]))
+    w = np.array([1.0, 8.0])
+
+    def share(weights):
+        rng = np.random.default_rng(1)
+        crops = [random_crop(s, (96, 64), rng, weights) for _ in range(400)]
+        return np.mean([1 in c for _, _, c in crops])
+
+    assert share(w) > 0.6 > 0.5 > share(None)

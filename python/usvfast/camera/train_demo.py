@@ -59,6 +59,7 @@ class TrainConfig:
     min_box_px: float = 3.0
     conf_threshold: float = 0.3
     trash_weight: float = 1.0
+    vessel_weight: float = 1.0
     threads: int = 2
     train_seeds: tuple[int, ...] = TRAIN_SEEDS
     heldout_seeds: tuple[int, ...] = HELDOUT_SEEDS
@@ -114,15 +115,21 @@ def evaluate(
     min_box_px: float,
     iou: float = 0.5,
 ) -> dict[str, float]:
-    """Precision and recall at IoU >= `iou` over `frames`, class-agnostic and class-aware;
+    """Precision and recall at IoU >= `iou` over `frames`, class-agnostic and class-aware, and
+    each class's class-aware recall (`class{k}_recall`, over `class{k}_truth` boxes);
     ground-truth boxes whose shorter side is under `min_box_px` px are ignored."""
     tot = np.zeros((2, 3), dtype=np.int64)
+    per_class: dict[int, np.ndarray] = {}
     n_frames = 0
     for f in frames:
         (det,) = detector([f.image])
         small = np.min(f.boxes[:, 2:] - f.boxes[:, :2], axis=1) < min_box_px
         for k, aware in enumerate((False, True)):
             tot[k] += match_counts(det, f.boxes, f.classes, small, iou, aware)
+        # class-aware recall of each class: the other classes' boxes are ignored
+        for c in np.unique(f.classes).tolist():
+            counts = match_counts(det, f.boxes, f.classes, small | (f.classes != c), iou, True)
+            per_class[c] = per_class.get(c, np.zeros(3, np.int64)) + counts
         n_frames += 1
     out: dict[str, float] = {"frames": n_frames, "truth": int(tot[0, 0] + tot[0, 2])}
     for k, name in enumerate(("", "class_")):
@@ -130,6 +137,10 @@ def evaluate(
         out[f"{name}precision"] = tp / max(tp + fp, 1)
         out[f"{name}recall"] = tp / max(tp + fn, 1)
         out[f"{name}tp"], out[f"{name}fp"], out[f"{name}fn"] = tp, fp, fn
+    for c in sorted(per_class):
+        tp, fn = int(per_class[c][0]), int(per_class[c][2])
+        out[f"class{c}_recall"] = tp / max(tp + fn, 1)
+        out[f"class{c}_truth"] = tp + fn
     return out
 
 
@@ -252,11 +263,15 @@ def train(
     from usvfast.camera.harbour_net import fit
 
     samples = [to_sample(f, config.input_size) for f in train_frames]
-    # The first three classes are the small floating objects (usvfast.sim.FLOAT_KINDS).
+    # The first three classes are the small floating objects (usvfast.sim.FLOAT_KINDS). A
+    # moving vessel renders like a moored boat (hull + cabin) and is several times rarer in
+    # the frames, so `vessel_weight` centres more crops on vessels to balance the two.
     weights = None
-    if config.trash_weight != 1.0:
+    if config.trash_weight != 1.0 or config.vessel_weight != 1.0:
         weights = np.ones(len(config.classes))
         weights[:3] = config.trash_weight
+        if "vessel" in config.classes:
+            weights[list(config.classes).index("vessel")] = config.vessel_weight
     return fit(
         len(config.classes),
         config.input_size,
@@ -340,18 +355,36 @@ def run(
 
 
 def main(argv: Sequence[str] | None = None) -> None:
-    """Command line: `python -m usvfast.camera.train_demo [--out DIR] [--seed S] [--steps N]`."""
+    """Command line: `python -m usvfast.camera.train_demo [--out DIR] [--seed S] [--steps N]
+    [--vessel-weight W] [--trash-weight W] [--train-seeds N] [--threads T] [--crop-size W H]`."""
     ap = argparse.ArgumentParser(description=(__doc__ or "").partition("\n")[0])
     ap.add_argument("--out", type=Path, default=Path("python/usvfast/data/models"))
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--steps", type=int, default=TrainConfig.steps)
     ap.add_argument("--frames-per-seed", type=int, default=TrainConfig.frames_per_seed)
+    ap.add_argument("--vessel-weight", type=float, default=TrainConfig.vessel_weight)
+    ap.add_argument("--trash-weight", type=float, default=TrainConfig.trash_weight)
+    ap.add_argument(
+        "--train-seeds", type=int, default=len(TRAIN_SEEDS), help="simulator seeds 1000, 1001, ..."
+    )
+    ap.add_argument("--threads", type=int, default=TrainConfig.threads)
+    ap.add_argument(
+        "--crop-size", type=int, nargs=2, default=TrainConfig.crop_size, help="W H input px"
+    )
     ap.add_argument("--cache", type=Path, default=None, help="keep rendered frames here")
     args = ap.parse_args(argv)
     from usvfast.sim import TRUTH_KINDS
 
     config = TrainConfig(
-        seed=args.seed, steps=args.steps, frames_per_seed=args.frames_per_seed, classes=TRUTH_KINDS
+        seed=args.seed,
+        steps=args.steps,
+        frames_per_seed=args.frames_per_seed,
+        vessel_weight=args.vessel_weight,
+        trash_weight=args.trash_weight,
+        train_seeds=tuple(range(1000, 1000 + args.train_seeds)),
+        threads=args.threads,
+        crop_size=(int(args.crop_size[0]), int(args.crop_size[1])),
+        classes=TRUTH_KINDS,
     )
     render = render_frames if args.cache is None else cached(render_frames, args.cache)
     run(config, render, args.out)
