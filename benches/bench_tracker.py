@@ -22,7 +22,6 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from usvfast import tracking as T
-from usvfast.kalman import constant_velocity_2d
 
 import ssharness as H
 
@@ -50,19 +49,7 @@ def scenario(n, spacing, n_scans, clutter=0.0, seed=0):
 
 
 def ours(scans, warm=0):
-    tracker = T.Tracker(
-        motion_model=constant_velocity_2d(0.001),
-        sensors=[T.Sensor.position(SIGMA)],
-        association=T.JPDA(0.85, 0.95, 0.125),
-        deleter=T.AnyOf(T.CovarianceTrace(1.5), T.StepsSinceUpdate(35)),
-        initiator=T.MultiMeasurementInitiator(
-            np.zeros(4),
-            np.diag([0, 0.3, 0, 0.3]),
-            min_points=2,
-            deleter=T.StepsSinceUpdate(3),
-            missed_distance=0.3,
-        ),
-    )
+    tracker = T.code_5_7([T.Sensor.position(SIGMA)])
     per = []
     for t, z in scans:
         t0 = time.perf_counter()

@@ -75,19 +75,7 @@ def grid(side, budget, n_scans=15, spacing=2.0):
     rng = np.random.default_rng(0)
     n = side * side
     pos = np.column_stack([np.arange(n) % side, np.arange(n) // side]) * spacing
-    tr = T.Tracker(
-        motion_model=constant_velocity_2d(0.001),
-        sensors=[T.Sensor.position(0.25)],
-        association=T.JPDA(0.85, 0.95, 0.125, max_hypotheses=budget),
-        deleter=T.AnyOf(T.CovarianceTrace(1.5), T.StepsSinceUpdate(35)),
-        initiator=T.MultiMeasurementInitiator(
-            np.zeros(4),
-            np.diag([0, 0.3, 0, 0.3]),
-            min_points=2,
-            deleter=T.StepsSinceUpdate(3),
-            missed_distance=0.3,
-        ),
-    )
+    tr = T.code_5_7([T.Sensor.position(0.25)], T.JPDA(0.85, 0.95, 0.125, max_hypotheses=budget))
     per, approx, largest = [], 0, 0
     for k in range(1, n_scans + 1):
         seen = rng.random(n) < 0.95

@@ -58,20 +58,7 @@ def scenario(seed, n_targets=4, n_scans=25, clutter=2.0, spread=20.0):
 
 def code57(association, **kw):
     """The thesis's Code 5.7 configuration (two sensors instead of one)."""
-    return T.Tracker(
-        motion_model=constant_velocity_2d(0.001),
-        sensors=[T.Sensor.position(s) for s in NOISE],
-        association=association,
-        deleter=T.AnyOf(T.CovarianceTrace(1.5), T.StepsSinceUpdate(35)),
-        initiator=T.MultiMeasurementInitiator(
-            np.zeros(4),
-            np.diag([0, 0.3, 0, 0.3]),
-            min_points=2,
-            deleter=T.StepsSinceUpdate(3),
-            missed_distance=0.3,
-        ),
-        **kw,
-    )
+    return T.code_5_7([T.Sensor.position(s) for s in NOISE], association, **kw)
 
 
 def stonesoup_run(scans, gnn):

@@ -85,17 +85,8 @@ def test_tracker_with_every_cluster_approximated_stays_close():
     pos = np.column_stack([np.arange(16) % 4, np.arange(16) // 4]) * 0.5
 
     def make(budget):
-        return T.Tracker(
-            motion_model=constant_velocity_2d(0.001),
-            sensors=[T.Sensor.position(0.25)],
-            association=T.JPDA(0.85, 0.95, 0.125, max_hypotheses=budget),
-            deleter=T.AnyOf(T.CovarianceTrace(1.5), T.StepsSinceUpdate(35)),
-            initiator=T.MultiMeasurementInitiator(
-                np.zeros(4),
-                np.diag([0, 0.3, 0, 0.3]),
-                deleter=T.StepsSinceUpdate(3),
-                missed_distance=0.3,
-            ),
+        return T.code_5_7(
+            [T.Sensor.position(0.25)], T.JPDA(0.85, 0.95, 0.125, max_hypotheses=budget)
         )
 
     exact, approx = make(None), make(1)

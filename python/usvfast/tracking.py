@@ -37,6 +37,7 @@ Native API (stable; the Stone Soup drop-in builds on it)::
             prior_state=np.zeros(4), prior_covariance=np.diag([0, 0.3, 0, 0.3]),
             min_points=2, deleter=StepsSinceUpdate(3), missed_distance=0.3),
     )
+    tracker = code_5_7([lidar, camera])                 # the same tracker in one call
     tracks = tracker.step(t, measurements, sensor_ids)   # (k, 2) metres, (k,) ints
     tracks = tracker.step(t, measurements, sensor_ids, covariances=r_k)  # (k, 2, 2) m² each
     tracks.ids, tracks.states, tracks.covariances
@@ -123,6 +124,7 @@ __all__ = [
     "TrackHistory",
     "Tracker",
     "Tracks",
+    "code_5_7",
 ]
 
 
@@ -880,3 +882,26 @@ class Tracker:
     def last_time(self) -> float | None:
         """Time of the last processed scan."""
         return self._core.last_time
+
+
+def code_5_7(sensors: Sequence[Sensor], association: Any = None, **kw: Any) -> Tracker:
+    """The thesis's Code 5.7 tracker: constant velocity (q = 0.001 m²/s³), JPDA (P_D 0.85,
+    P_G 0.95, clutter 0.125 per m²) unless `association` is given, deletion at covariance
+    trace 1.5 or 35 steps without update, and a 2-point initiator (prior velocity variance
+    0.3 m²/s², tentative deletion after 3 steps, GNN distance 0.3). `kw` goes to `Tracker`."""
+    from usvfast.kalman import constant_velocity_2d
+
+    return Tracker(
+        motion_model=constant_velocity_2d(0.001),
+        sensors=list(sensors),
+        association=JPDA(0.85, 0.95, 0.125) if association is None else association,
+        deleter=AnyOf(CovarianceTrace(1.5), StepsSinceUpdate(35)),
+        initiator=MultiMeasurementInitiator(
+            np.zeros(4),
+            np.diag([0, 0.3, 0, 0.3]),
+            min_points=2,
+            deleter=StepsSinceUpdate(3),
+            missed_distance=0.3,
+        ),
+        **kw,
+    )
