@@ -78,6 +78,30 @@ def test_belief_propagation_error_against_exact_ehm():
     np.testing.assert_allclose(_core.jpda_marginals(w, "lbp"), _core.jpda_marginals(w, "ehm"))
 
 
+def test_kbest_marginals_against_exact_ehm():
+    # Murty's k-best: exact once k exceeds the joint hypotheses; on 16 tracks 1 m apart (where
+    # belief propagation is furthest off, and the weight sits on few joint hypotheses) the
+    # 1,000 best come closer than belief propagation.
+    rng = np.random.default_rng(4)
+    w = grid_cluster(rng, 4, 0.5)
+    np.testing.assert_allclose(
+        _core.jpda_marginals(w, "kbest", 10**6), _core.jpda_marginals(w, "ehm"), atol=1e-12
+    )
+    e_lbp, e_kb = [], []
+    for _ in range(10):
+        w = grid_cluster(rng, 16, 1.0)
+        exact = _core.jpda_marginals(w, "ehm")
+        kb = _core.jpda_marginals(w, "kbest", 1000)
+        np.testing.assert_allclose(kb.sum(1), 1.0, atol=1e-12)
+        e_kb.append(np.abs(exact - kb).max())
+        e_lbp.append(np.abs(exact - _core.jpda_marginals(w, "lbp")).max())
+    assert max(e_kb) < 0.05 and max(e_kb) < max(e_lbp), (max(e_kb), max(e_lbp))
+    with pytest.raises(ValueError, match="k_best"):
+        _core.jpda_marginals(w, "kbest", 0)
+    with pytest.raises(ValueError, match="method"):
+        _core.jpda_marginals(w, "murty")
+
+
 def test_tracker_with_every_cluster_approximated_stays_close():
     # 16 targets 0.5 m apart: the tracker with a budget of 1 (every shared cluster by belief
     # propagation) keeps the exact tracker's tracks within 5 cm.

@@ -9,7 +9,8 @@ use super::tracker_config::{
 };
 use crate::error::Error;
 use crate::tracking::gating::chi2_quantile;
-use crate::tracking::jpda::{marginals, TrackHypotheses};
+use crate::tracking::jpda::{marginals, Method, TrackHypotheses};
+use crate::tracking::kbest::marginals_kbest;
 use crate::tracking::track::Track;
 use crate::tracking::tracker::{OutOfOrder, Tracker, TrackerConfig};
 use numpy::{
@@ -639,15 +640,28 @@ fn linear_sum_assignment<'py>(
 }
 
 /// JPDA marginals of one cluster: `likelihoods` is `(tracks, 1 + detections)`, column 0 the
-/// missed-detection weight, a weight `<= 0` in another column meaning "not gated".
+/// missed-detection weight, a weight `<= 0` in another column meaning "not gated". `method`
+/// "ehm", "brute_force", "lbp" or "kbest" (the `k_best` most likely joint hypotheses).
 #[pyfunction]
-#[pyo3(signature = (likelihoods, method="ehm"))]
+#[pyo3(signature = (likelihoods, method="ehm", k_best=1000))]
 fn jpda_marginals<'py>(
     py: Python<'py>,
     likelihoods: PyReadonlyArray2<'py, f64>,
     method: &str,
+    k_best: i64,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let meth = super::tracker_config::method(method)?;
+    let kbest = method == "kbest";
+    if kbest && k_best < 1 {
+        return Err(to_py_err(Error::param(
+            "k_best",
+            format!("must be >= 1, got {k_best}"),
+        )));
+    }
+    let meth = if kbest {
+        Method::Ehm
+    } else {
+        super::tracker_config::method(method)?
+    };
     let s = likelihoods.shape();
     let (nt, nc) = (s[0], s[1]);
     if nc == 0 {
@@ -667,7 +681,16 @@ fn jpda_marginals<'py>(
                 .collect(),
         })
         .collect();
-    let m = py.detach(|| marginals(&cluster, meth)).map_err(to_py_err)?;
+    let m = py
+        .detach(|| {
+            if kbest {
+                let k = usize::try_from(k_best).unwrap_or(usize::MAX);
+                marginals_kbest(&cluster, k).map(|r| r.marginals)
+            } else {
+                marginals(&cluster, meth)
+            }
+        })
+        .map_err(to_py_err)?;
     let mut out = vec![0.0; nt * nc];
     for (t, (mm, h)) in m.iter().zip(&cluster).enumerate() {
         out[t * nc] = mm.missed;

@@ -5,7 +5,7 @@
 //! | predict / update | [`crate::kalman`], [`hypothesise`] (innovations, posterior covariance), [`imm`], [`polar`] | `KalmanPredictor`, `KalmanUpdater`, `Extended/UnscentedKalmanUpdater` |
 //! | gating | [`gating`] (χ² gate, spatial grid), [`hypothesise`] (`gate_pairs`) | `PDAHypothesiser` / `DistanceHypothesiser` gates |
 //! | clustering | [`clustering`] | `JPDA` clusters |
-//! | JPDA | [`jpda`] (EHM, brute force, belief propagation past a budget) | `JPDA`, `JPDAwithEHM` |
+//! | JPDA | [`jpda`] (EHM, brute force, belief propagation past a budget), [`kbest`] (Murty k-best) | `JPDA`, `JPDAwithEHM` |
 //! | GNN | [`gnn`], [`assign`] | `GNNWith2DAssignment` |
 //! | initiator | [`initiator`] | `MultiMeasurementInitiator` |
 //! | deleters | [`deleters`] | `UpdateTimeStepsDeleter`, `CovarianceBasedDeleter`, ... |
@@ -21,6 +21,7 @@ pub mod hypothesise;
 pub mod imm;
 mod initiator;
 pub mod jpda;
+pub mod kbest;
 pub mod polar;
 pub mod run;
 pub mod track;
