@@ -6,10 +6,11 @@ turbulent white trail behind its stern, flanked by the two arms of the Kelvin we
 fraction 0..1 of each point of the water surface, computed in the vessel's own frame (x
 forward along its heading, y to starboard, m) from its speed: the trail is
 `TRAIL_SECONDS` × speed long and the foam's brightness grows with speed up to
-`FULL_FOAM_SPEED`. The white water that rises above the surface (the bow wave's crest, the
-wash at the transom) is drawn as low foam boxes around the hull (`splash_boxes`). The renderer paints it on the water pixels (the points where the pixel's
-ray meets the sea), so the wake moves with the camera's roll and pitch and is hidden by any
-body in front of it, the vessel's own hull included.
+`FULL_FOAM_SPEED`. The white water that rises above the surface (the bow wave's crest,
+the wash at the transom) is drawn as low foam boxes around the hull (`splash_boxes`). The
+renderer paints the foam on the water pixels (where the pixel's ray meets the sea), so the
+wake moves with the camera's roll and pitch and is hidden by any body in front of it, the
+vessel's own hull included.
 """
 
 from __future__ import annotations
