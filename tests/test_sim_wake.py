@@ -11,7 +11,7 @@ def test_foam_lies_behind_and_beside_a_moving_hull_and_grows_with_speed():
     # points on the track behind the transom, far ahead, and far abeam
     behind = foam(np.array([-4.0, -5.0]), np.array([0.0, 0.3]), length=6, beam=2.2, speed=2.0)
     assert (behind > 0.2).all()
-    ahead = foam(np.array([8.0, 0.0]), np.array([0.0, 6.0]), length=length, beam=beam, speed=2.0)
+    ahead = foam(np.array([8.0, 0.0, 1e4]), np.array([0.0, 6.0, 0.0]), length=6, beam=2.2, speed=2)
     assert (ahead == 0).all()
     assert (foam(np.array([-4.0]), np.array([0.0]), length=6, beam=2.2, speed=0.0) == 0).all()
     # 7 m behind the transom: beyond a 1 m/s trail (3 m), inside a 2.5 m/s one (7.5 m)

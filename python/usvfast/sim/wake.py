@@ -50,11 +50,12 @@ def foam(x: np.ndarray, y: np.ndarray, *, length: float, beam: float, speed: flo
     # stern trail: behind the transom, widening and fading with distance u
     u = np.float32(-length / 2) - x
     behind = (u >= 0) & (u <= trail)
-    width = half * (0.8 + 0.12 * np.maximum(u, 0))
+    u = np.clip(u, 0.0, trail)  # (the bands below are kept only behind the transom)
+    width = half * (0.8 + 0.12 * u)
     core = np.clip(1.0 - (ay / width) ** 2, 0.0, 1.0) * np.exp(-u / (0.6 * trail))
     out = np.where(behind, np.maximum(out, 0.9 * core), out)
     # Kelvin arms: thin bands from the stern quarters at arctan(1/sqrt(8)) to the track
-    off = np.abs(ay - (half + _KELVIN * np.maximum(u, 0)))
+    off = np.abs(ay - (half + _KELVIN * u))
     arm = np.clip(1.0 - off / 0.3, 0.0, 1.0) * np.exp(-u / (0.5 * trail))
     out = np.where(behind, np.maximum(out, 0.7 * arm), out)
     # bow wave: a band along the forward half of each side and around the stem
