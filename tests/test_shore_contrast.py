@@ -183,3 +183,25 @@ def test_regdtv9_scores_of_the_training_free_detector(mardct_annotations):
     # measured 0.448 / 0.325 (56 TP, 27 FP, 69 FN of 125 boxes)
     assert c.tp + c.fn == 125
     assert c.tpr > 0.4 and c.far < 0.36
+
+
+def test_shore_command_with_the_contrast_detector(tmp_path):
+    import cv2
+    from typer.testing import CliRunner
+
+    from usvfast.cli import app
+    from usvfast.shore.mot import read_mot
+
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    for k in range(4):
+        cv2.imwrite(str(frames / f"f_{k:03d}.png"), scene(10 + k, (90 + 8 * k, 100, 60, 28)))
+    out = tmp_path / "out"
+    args = ["shore", str(frames), "--out", str(out), "--no-progress", "--no-video"]
+    res = CliRunner().invoke(app, [*args, "--detector", "contrast", "--tracker", "sort"])
+    assert res.exit_code == 0, res.output
+    det = read_mot(out / "detections.txt")
+    assert det[:, 0].tolist() == [1, 2, 3, 4]
+    assert np.allclose(det[:, 2], [90 + 8 * k for k in range(4)], atol=3)
+    bad = CliRunner().invoke(app, [*args, "--detector", "nope"])
+    assert bad.exit_code != 0 and "detector" in bad.output
