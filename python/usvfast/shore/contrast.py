@@ -29,7 +29,7 @@ import cv2
 import numpy as np
 
 from usvfast._validate import image as check_image
-from usvfast._validate import instance
+from usvfast._validate import instance, integer, real
 from usvfast.shore.boxes import Detections
 from usvfast.shore.horizon import HorizonConfig, HorizonLine, detect_horizon
 
@@ -68,22 +68,28 @@ class ContrastConfig:
     horizon: HorizonConfig = field(default_factory=HorizonConfig)
 
     def __post_init__(self) -> None:
-        if not np.isfinite(self.threshold) or self.threshold <= 0:
-            raise ValueError(f"threshold: must be finite and > 0, got {self.threshold}")
-        if self.work_width < 16:
-            raise ValueError(f"work_width: must be >= 16 px, got {self.work_width}")
-        if self.blur < 1 or self.blur % 2 == 0:
+        real("threshold", self.threshold, positive=True)
+        integer("work_width", self.work_width, low=16)
+        blur = integer("blur", self.blur, low=1)
+        if blur % 2 == 0:
             raise ValueError(f"blur: must be odd and >= 1, got {self.blur}")
-        if not self.mad_floor > 0:
-            raise ValueError(f"mad_floor: must be > 0, got {self.mad_floor}")
-        if self.model_step < 1:
-            raise ValueError(f"model_step: must be >= 1, got {self.model_step}")
-        if self.open_px < 1:
-            raise ValueError(f"open_px: must be >= 1, got {self.open_px}")
-        if len(self.close) != 2 or not all(0 <= c < 1 for c in self.close):
-            raise ValueError(f"close: expected two fractions in [0, 1), got {self.close}")
-        if not 0 <= self.min_width < 1 or self.min_aspect < 0:
-            raise ValueError("min_width: must be in [0, 1) and min_aspect >= 0")
+        real("mad_floor", self.mad_floor, positive=True)
+        integer("open_px", self.open_px, low=1)
+        integer("border_px", self.border_px, low=0)
+        integer("model_step", self.model_step, low=1)
+        if not isinstance(self.close, tuple) or len(self.close) != 2:
+            raise TypeError(f"close: expected a (width, height) tuple, got {self.close!r}")
+        for name, value, high in (
+            ("close", self.close[0], 1.0),
+            ("close", self.close[1], 1.0),
+            ("min_width", self.min_width, 1.0),
+            ("min_fill", self.min_fill, 1.0),
+            ("straddle", self.straddle, 1.0),
+            ("wet", self.wet, 1.0),
+        ):
+            if not 0.0 <= real(name, value) < high:
+                raise ValueError(f"{name}: expected a fraction in [0, 1), got {value}")
+        real("min_aspect", self.min_aspect, low=0.0)
         instance("horizon", self.horizon, HorizonConfig)
 
 
@@ -109,12 +115,25 @@ def _row_models(plane: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.nda
     return med, mad
 
 
+def _check_frame(image: np.ndarray, horizon: HorizonLine | None) -> None:
+    check_image("image", image)
+    if image.ndim != 3 or image.shape[2] != 3 or image.dtype != np.uint8:
+        raise ValueError(f"image: expected (h, w, 3) uint8 BGR, got {image.shape} {image.dtype}")
+    if horizon is not None:
+        instance("horizon", horizon, HorizonLine)
+        real("horizon.rho", horizon.rho)
+        if not np.sin(real("horizon.theta", horizon.theta)) > 1e-3:
+            raise ValueError(f"horizon: a near-vertical line (theta {horizon.theta}) is no horizon")
+
+
 def contrast_map(
     image: np.ndarray, horizon: HorizonLine | None, config: ContrastConfig
 ) -> tuple[np.ndarray, np.ndarray, float]:
     """The robust contrast (z, background spreads) of every pixel of a BGR frame at the
     working size, the line's row per working column (all 0 without a line) and the scale
     working / input px. Pixels on the frame's border and in rows without a model get 0."""
+    _check_frame(image, horizon)
+    instance("config", config, ContrastConfig)
     h0, w0 = image.shape[:2]
     s = config.work_width / w0 if w0 > config.work_width else 1.0
     small = (
@@ -164,12 +183,8 @@ class ContrastDetector:
 
     def detect(self, image: np.ndarray, horizon: HorizonLine | None = None) -> Detections:
         """Boats of one BGR uint8 frame (h, w, 3) (module doc)."""
-        check_image("image", image)
-        if image.ndim != 3 or image.shape[2] != 3 or image.dtype != np.uint8:
-            raise ValueError(f"image: expected (h, w, 3) uint8 BGR, got {image.shape}")
-        if horizon is not None:
-            instance("horizon", horizon, HorizonLine)
-        else:
+        _check_frame(image, horizon)
+        if horizon is None:
             horizon = detect_horizon(image, config=self.config.horizon)
         cfg = self.config
         z, line, s = contrast_map(image, horizon, cfg)

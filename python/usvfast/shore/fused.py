@@ -15,9 +15,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from usvfast._validate import instance
+from usvfast._validate import as_float_array, instance, real
 from usvfast.shore.boxes import Detections
-from usvfast.shore.contrast import ContrastConfig, contrast_map
+from usvfast.shore.contrast import ContrastConfig, _check_frame, contrast_map
 from usvfast.shore.horizon import HorizonLine, detect_horizon
 
 #: Default fused-score threshold (chosen by inner validation on the training videos; see
@@ -32,8 +32,14 @@ FUSED_CNN_FLOOR = 0.1
 def box_support(z: np.ndarray, boxes: np.ndarray, scale: float, threshold: float) -> np.ndarray:
     """Share (k,) of the pixels of each box (k, 4) x, y, w, h input px whose contrast `z`
     (h, w, at `scale` working / input px) exceeds `threshold` (0 for an empty box)."""
-    b = np.asarray(boxes, dtype=float).reshape(-1, 4)
-    if len(b) == 0:
+    z = as_float_array("z", z, 2, finite=False)
+    b = as_float_array("boxes", boxes)
+    if b.size % 4 or (b.ndim != 2 and b.size):
+        raise ValueError(f"boxes: expected (k, 4) x, y, w, h, got shape {b.shape}")
+    b = b.reshape(-1, 4)
+    real("scale", scale, positive=True)
+    real("threshold", threshold)
+    if len(b) == 0 or z.size == 0:
         return np.zeros(0)
     h, w = z.shape
     ii = np.zeros((h + 1, w + 1))
@@ -65,9 +71,9 @@ class FusedDetector:
             instance("config", config, ContrastConfig)
         if not callable(getattr(cnn, "detect", None)):
             raise TypeError("cnn: expected an object with a detect(image) method")
-        if not 0.0 <= float(threshold) <= 1.0:
+        if not 0.0 <= real("threshold", threshold) <= 1.0:
             raise ValueError(f"threshold: expected a value in [0, 1], got {threshold}")
-        if not 0.0 <= float(relative) <= 1.0:
+        if not 0.0 <= real("relative", relative) <= 1.0:
             raise ValueError(f"relative: expected a value in [0, 1], got {relative}")
         self.relative = float(relative)
         self.cnn = cnn
@@ -76,7 +82,10 @@ class FusedDetector:
 
     def score(self, image: np.ndarray, horizon: HorizonLine | None = None) -> Detections:
         """Every CNN box with its fused score (none dropped)."""
+        _check_frame(image, horizon)
         d = self.cnn.detect(image)
+        if not isinstance(d, Detections):
+            raise TypeError(f"cnn: detect() must return Detections, got {type(d).__name__}")
         if len(d) == 0:
             return d
         if horizon is None:
@@ -94,7 +103,9 @@ class FusedDetector:
 def fused_keep(scores: np.ndarray, threshold: float, relative: float) -> np.ndarray:
     """Mask (k,) of one frame's fused `scores` (k,) at least `threshold` and at least
     `relative` × their maximum."""
-    s = np.asarray(scores, dtype=float)
+    s = as_float_array("scores", scores, 1)
+    real("threshold", threshold)
+    real("relative", relative)
     if len(s) == 0:
         return np.zeros(0, dtype=bool)
     return (s >= threshold) & (s >= relative * s.max())
