@@ -20,8 +20,11 @@ Frames: MarDCT's regDTV9 frames resized to each size when ../shared/data is pres
   the reflection filter; without `--cnn`, an untrained network of the same architecture and
   input size is timed (same cost per frame; it finds nothing, so NMS and tracking are idle).
   Per-stage milliseconds (detect / horizon / track) are printed for each run.
+* The training-free contrast detector (`usvfast.shore.contrast`) and the fused CNN +
+  contrast score (`usvfast.shore.fused`, on the `--cnn` model or the untrained one).
 
 Run: python benches/bench_shore.py [--frames N] [--repeat R] [--cascade boat.xml]
+    [--cnn MODEL.onnx] [--only contrast fused]
 """
 
 from __future__ import annotations
@@ -204,6 +207,7 @@ def main() -> None:
         "--cascade", type=Path, default=None, help="Cascade XML (usvfast shore-train) to time"
     )
     ap.add_argument("--cnn", type=Path, default=None, help="CNN ONNX (shore-train) to time")
+    ap.add_argument("--only", nargs="*", default=None, help="Time only these detector rows")
     a = ap.parse_args()
     cv2.setNumThreads(2)
     tmp = tempfile.TemporaryDirectory()
@@ -233,6 +237,10 @@ def main() -> None:
         cnn_cfg = ShoreConfig(detector="cnn", cnn_model=cnn, tracker="sort")
         runs.append((cnn_name, "sift", None, cnn_cfg))
         runs.append((f"{cnn_name} +refl", "sift", None, replace(cnn_cfg, reflection_filter=True)))
+        runs.append(("contrast", "sift", None, ShoreConfig(detector="contrast", tracker="sort")))
+        runs.append(("fused", "sift", None, replace(cnn_cfg, detector="fused")))
+        if a.only:
+            runs = [r for r in runs if r[0] in a.only]
         for name, kp, model, cfg in runs:
             fps, stages = chain_fps(frames, kp, model, cfg)
             ms = " ".join(f"{k} {v:.2f}" for k, v in stages.items())

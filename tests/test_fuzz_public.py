@@ -68,6 +68,8 @@ MODULES = [
     "usvfast.shore.scores",
     "usvfast.shore.mot",
     "usvfast.shore.annotate",
+    "usvfast.shore.contrast",
+    "usvfast.shore.fused",
     "usvfast.fusion.associate",
     "usvfast.fusion.rotation",
     "usvfast.fusion.visual",

@@ -56,7 +56,7 @@ def shore_command(
             tracker=tracker,  # pyright: ignore[reportArgumentType]
             horizon_filter=horizon_filter,
             cascade_model=model if detector == "cascade" else None,
-            cnn_model=model if detector in ("cnn", "auto") else None,
+            cnn_model=model if detector in ("cnn", "auto", "fused") else None,
             reflection_filter=reflection_filter,
             wake_model=wake_model,
         )

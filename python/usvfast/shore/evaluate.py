@@ -20,6 +20,9 @@ the model of `DIR` trained without it (`shore-cnn-hn-without-VIDEO.onnx`, the ha
 round of :mod:`usvfast.shore.cnn_mining`, else `shore-cnn-without-VIDEO.onnx`; train them with
 `python -m usvfast.shore.evaluate_det --detectors cnn [--hard-negatives] --models DIR`) at its
 card's confidence threshold (chosen on the training videos), detection and tracking rows.
+`--detector contrast` scores the training-free detector of :mod:`usvfast.shore.contrast`
+and `--detector fused` the fold's CNN rescored by it (:mod:`usvfast.shore.fused`, its
+default thresholds).
 
 MarDCT boxes carry no identities: the ground-truth ids are derived by linking the boxes of
 consecutive annotated frames (optimal assignment on centre distance, gated at two box
@@ -157,6 +160,46 @@ def cnn_row(frames: Sequence[AnnotatedFrame], cache: FrameCache, models: Path, h
     return row
 
 
+def cue_row(
+    frames: Sequence[AnnotatedFrame],
+    cache: FrameCache,
+    name: str,
+    models: Path | None = None,
+    held: str = "",
+) -> dict:
+    """Detection and tracking rows of the training-free contrast detector (`name`
+    'contrast', :mod:`usvfast.shore.contrast`, default parameters) or of the fused CNN +
+    contrast score ('fused', :mod:`usvfast.shore.fused`, its default thresholds; the CNN of
+    `models` trained without `held`, see :func:`cnn_fold_model`). Adds the detections to
+    `cache` under `name`."""
+    from usvfast.shore.contrast import ContrastDetector
+
+    det: object
+    row: dict = {}
+    if name == "fused":
+        from usvfast.shore.cnn import CnnDetector
+        from usvfast.shore.fused import FUSED_CNN_FLOOR, FusedDetector
+
+        path = cnn_fold_model(models or Path(), held)
+        det = FusedDetector(CnnDetector(path, conf_threshold=FUSED_CNN_FLOOR))
+        row["fused_model"] = path.name
+    else:
+        det = ContrastDetector()
+    cache.raw[name] = [
+        det.detect(read_image(f.path, cv2.IMREAD_COLOR), hz)  # pyright: ignore[reportAttributeAccessIssue]
+        for f, hz in zip(frames, cache.horizon, strict=True)
+    ]
+    hcfg = HorizonConfig()
+    for use_h in (False, True):
+        c = count(frames, kept(frames, cache, name, use_h, hcfg))
+        row[f"{name}_{'horizon' if use_h else 'no_horizon'}"] = counts_dict(c)
+    row["tracking"] = {
+        name: tracking_rows(frames, kept(frames, cache, name, True, hcfg)),
+        f"{name} no horizon": tracking_rows(frames, kept(frames, cache, name, False, hcfg)),
+    }
+    return row
+
+
 def evaluate(
     data: Path,
     grid: Sequence[float] = THRESHOLD_GRID,
@@ -168,10 +211,12 @@ def evaluate(
     """Leave-one-video-out results per video (module doc); a JSON-ready dict. With `cascade`,
     a Haar cascade is also trained on the three other videos and scored. `detectors`:
     'bayes' and/or 'cnn' (the latter needs `models`, see :func:`cnn_fold_model`)."""
-    unknown = set(detectors) - {"bayes", "cnn"}
+    unknown = set(detectors) - {"bayes", "cnn", "contrast", "fused"}
     if unknown or not detectors:
-        raise ValueError(f"detectors: expected 'bayes' and/or 'cnn', got {list(detectors)}")
-    if "cnn" in detectors and models is None:
+        raise ValueError(
+            f"detectors: expected 'bayes', 'cnn', 'contrast', 'fused', got {list(detectors)}"
+        )
+    if {"cnn", "fused"} & set(detectors) and models is None:
         raise ValueError("models: the cnn detector needs the folder of its fold models")
     all_videos = load_mardct(data)
     names = list(videos) if videos else list(all_videos)
@@ -182,7 +227,16 @@ def evaluate(
             frames = all_videos[v]
             cache = run_detectors(frames, {}, hcfg)
             row = {"frames": len(frames), "boxes": int(sum(len(f.boxes) for f in frames))}
-            row.update(cnn_row(frames, cache, models or Path(), v))
+            row["tracking"] = {}
+            if "cnn" in detectors:
+                extra = cnn_row(frames, cache, models or Path(), v)
+                row["tracking"].update(extra.pop("tracking"))
+                row.update(extra)
+            for name in ("contrast", "fused"):
+                if name in detectors:
+                    extra = cue_row(frames, cache, name, models, v)
+                    row["tracking"].update(extra.pop("tracking"))
+                    row.update(extra)
             row["tracking"]["truth boxes"] = tracking_rows(frames, truth_detections(frames))
             results[v] = row
         return results
@@ -266,6 +320,10 @@ def print_tables(results: dict, console: Console | None = None) -> None:
             rows.append(("cnn", f"{r['cnn_model']} (confidence {r['cnn_conf']:g})"))
         if "cascade_horizon" in r:
             rows.append(("cascade", f"cascade ({r['cascade_stages']} stages)"))
+        if "contrast_horizon" in r:
+            rows.append(("contrast", "contrast (training-free)"))
+        if "fused_horizon" in r:
+            rows.append(("fused", f"fused ({r['fused_model']} + contrast)"))
         for label, name in rows:
             for h in ("no_horizon", "horizon"):
                 s = r[f"{label}_{h}"]
@@ -331,12 +389,16 @@ def main(argv: Sequence[str] | None = None) -> None:
     p.add_argument("--videos", nargs="*", default=None, help="Score only these videos")
     p.add_argument("--no-cascade", action="store_true", help="Skip the cascade detector")
     p.add_argument(
-        "--detector", nargs="+", default=["bayes"], choices=["bayes", "cnn"], help="Detectors"
+        "--detector",
+        nargs="+",
+        default=["bayes"],
+        choices=["bayes", "cnn", "contrast", "fused"],
+        help="Detectors",
     )
     p.add_argument("--models", type=Path, default=None, help="CNN fold models (evaluate_det)")
     a = p.parse_args(argv)
-    if "cnn" in a.detector and a.models is None:
-        p.error("--models: the cnn detector needs the folder of its fold models")
+    if {"cnn", "fused"} & set(a.detector) and a.models is None:
+        p.error("--models: the cnn and fused detectors need the folder of its fold models")
     cascade = None if a.no_cascade or "bayes" not in a.detector else CascadeConfig()
     results = evaluate(
         a.data or default_data(),

@@ -2,7 +2,8 @@
 frames, in the layout of Bloisi et al.'s Tables I–II (per video: horizon filter NO/YES, TPR,
 FAR, real and detection size).
 
-    python -m usvfast.shore.evaluate_det [--data DIR] [--detectors bayes cnn cascade]
+    python -m usvfast.shore.evaluate_det [--data DIR]
+        [--detectors bayes cnn contrast fused cascade]
         [--models DIR] [--steps N] [--hard-negatives] [--json OUT.json]
 
 For each video, every trained part is fitted on the three other videos only:
@@ -17,6 +18,13 @@ For each video, every trained part is fitted on the three other videos only:
   `--hard-negatives`, the second round of :mod:`usvfast.shore.cnn_mining` on that model's
   false alarms (`shore-cnn-hn-without-VIDEO.onnx`, `--steps` of it, default 2,000), scored
   at the threshold its inner validation on the three other videos chose.
+* contrast: the training-free "object on the water" detector of
+  :mod:`usvfast.shore.contrast` (nothing learnt); its contrast threshold is picked on the
+  three other videos (:func:`pick`), and every grid value is scored (horizon on).
+* fused: the CNN trained without the video (as above), its boxes rescored by the contrast
+  cue (:mod:`usvfast.shore.fused`); the fused threshold and the share of each frame's best
+  score are picked on the three other videos (:func:`pick`; the CNN has seen those frames,
+  so this validation is optimistic), and a few grid values are scored beside.
 * cascade: the Haar cascade of :mod:`usvfast.shore.cascade` trained on the three other
   videos with 4 jittered copies of every boat as extra positives (slow: minutes per video),
   with and without the reflection filter.
@@ -53,6 +61,17 @@ CNN_SWEEP: tuple[float, ...] = (0.2, 0.3, 0.4)
 #: Share of the second round's training views centred on a hard negative, and its steps.
 HARD_NEGATIVE_SHARE = 0.35
 HN_STEPS = 2000
+
+#: Contrast thresholds (robust z) tried for the training-free detector.
+CONTRAST_GRID: tuple[float, ...] = (2.5, 3.0, 4.0, 5.0)
+
+#: Fused (threshold, share of the frame's best score) pairs tried.
+FUSED_GRID: tuple[tuple[float, float], ...] = tuple(
+    (t, r) for t in (0.1, 0.2, 0.3, 0.4) for r in (0.0, 0.5, 0.7, 0.8, 0.9)
+)
+
+#: The FAR bound of the aim (Bloisi et al.'s EO range); :func:`pick` maximises TPR under it.
+FAR_AIM = 0.15
 
 #: EO thresholds tried when fitting the Bayes detector's level on the training videos.
 THRESHOLD_GRID: tuple[float, ...] = (40, 60, 80, 100, 120, 140, 160, 180, 200, 220)
@@ -112,6 +131,113 @@ def both_horizons(video, dets, hcfg, extra=None, label: str = "") -> list[dict]:
         {"horizon": h, "filters": label, **score(video, dets, hcfg, h, extra)}
         for h in (False, True)
     ]
+
+
+def pick(candidates: Sequence, pooled: Callable[[object], dict]) -> object:
+    """The candidate whose pooled scores on the training videos (`pooled(c)`: TP, FP, FN)
+    have the highest TPR with FAR ≤ :data:`FAR_AIM`; when none reaches that FAR, the best
+    F1 (ties: the first)."""
+    scored = [(c, pooled(c)) for c in candidates]
+
+    def rate(s: dict) -> tuple[float, float]:
+        tpr = s["tp"] / max(s["tp"] + s["fn"], 1)
+        far = s["fp"] / max(s["tp"] + s["fp"], 1)
+        return tpr, far
+
+    ok = [(c, s) for c, s in scored if rate(s)[1] <= FAR_AIM and s["tp"] > 0]
+    if ok:
+        return max(ok, key=lambda cs: rate(cs[1])[0])[0]
+    return max(scored, key=lambda cs: f1(cs[1]))[0]
+
+
+def pooled_score(
+    videos: dict[str, VideoFrames], names: Sequence[str], dets: dict, hcfg: HorizonConfig
+) -> dict:
+    """TP, FP, FN summed over videos `names` of per-video detections `dets[v]` (horizon on)."""
+    tot = {"tp": 0, "fp": 0, "fn": 0}
+    for v in names:
+        s = score(videos[v], dets[v], hcfg, True)
+        tot = {k: tot[k] + s[k] for k in tot}
+    return tot
+
+
+def contrast_rows(
+    videos: dict[str, VideoFrames], held: str, hcfg: HorizonConfig, cache: dict
+) -> list[dict]:
+    """The training-free contrast detector's rows for held-out video `held`."""
+    from usvfast.shore.contrast import ContrastConfig, ContrastDetector
+
+    for k in CONTRAST_GRID:
+        key = f"contrast {k:g}"
+        if key not in cache:
+            det = ContrastDetector(ContrastConfig(threshold=k, horizon=hcfg))
+            cache[key] = {
+                v: [det.detect(im, hz) for im, hz in zip(vf.images, vf.horizons, strict=True)]
+                for v, vf in videos.items()
+            }
+    train = [v for v in videos if v != held]
+    best = pick(
+        CONTRAST_GRID, lambda k: pooled_score(videos, train, cache[f"contrast {k:g}"], hcfg)
+    )
+    name = f"contrast z>{best:g} (picked on the others)"
+    rows = [
+        {"detector": name, **r}
+        for r in both_horizons(videos[held], cache[f"contrast {best:g}"][held], hcfg)
+    ]
+    for k in CONTRAST_GRID:
+        rows.append(
+            {
+                "detector": f"contrast z>{k:g}",
+                "horizon": True,
+                "filters": "",
+                **score(videos[held], cache[f"contrast {k:g}"][held], hcfg, True),
+            }
+        )
+    return rows
+
+
+def fused_rows(
+    data: Path,
+    videos: dict[str, VideoFrames],
+    held: str,
+    hcfg: HorizonConfig,
+    models: Path,
+    steps: int | None,
+    log,
+    cache: dict,
+) -> tuple[list[dict], dict]:
+    """The fused detector's rows for held-out video `held` (CNN trained without it)."""
+    from usvfast.shore.cnn import CnnDetector
+    from usvfast.shore.contrast import ContrastConfig
+    from usvfast.shore.fused import FUSED_CNN_FLOOR, FusedDetector, fused_keep
+
+    path = cnn_model(data, held, models, steps, log)
+    cnn = CnnDetector(path, conf_threshold=FUSED_CNN_FLOOR)
+    fused = FusedDetector(cnn, ContrastConfig(horizon=hcfg))
+    scored = {
+        v: [fused.score(im, hz) for im, hz in zip(vf.images, vf.horizons, strict=True)]
+        for v, vf in videos.items()
+    }
+
+    def kept(t: float, r: float) -> dict:
+        return {v: [d.subset(fused_keep(d.scores, t, r)) for d in ds] for v, ds in scored.items()}
+
+    train = [v for v in videos if v != held]
+    t, r = pick(FUSED_GRID, lambda tr: pooled_score(videos, train, kept(*tr), hcfg))  # pyright: ignore[reportGeneralTypeIssues]
+    rows = [
+        {"detector": f"fused ≥ {t:g}, ≥ {r:g} × best (picked on the others)", **row}
+        for row in both_horizons(videos[held], kept(t, r)[held], hcfg)
+    ]
+    for tt, rr in ((0.2, 0.0), (0.3, 0.0), (0.1, 0.9), (0.2, 0.8), (0.2, 0.9)):
+        rows.append(
+            {
+                "detector": f"fused ≥ {tt:g}, ≥ {rr:g} × best",
+                "horizon": True,
+                "filters": "",
+                **score(videos[held], kept(tt, rr)[held], hcfg, True),
+            }
+        )
+    return rows, {"fused_threshold": t, "fused_relative": r, "cnn_model": path.name}
 
 
 def bayes_rows(
@@ -297,6 +423,12 @@ def evaluate(
             )
             entry["rows"] += rows
             entry.update(info)
+        if "contrast" in detectors:
+            entry["rows"] += contrast_rows(videos, held, hcfg, cache)
+        if "fused" in detectors:
+            rows, info = fused_rows(data, videos, held, hcfg, models, steps, log, cache)
+            entry["rows"] += rows
+            entry.update(info)
         if "cascade" in detectors:
             rows, info = cascade_rows(videos, mardct, held, hcfg)
             entry["rows"] += rows
@@ -348,7 +480,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     )
     p.add_argument("--json", type=Path, default=None, help="Write the results as JSON here")
     a = p.parse_args(argv)
-    unknown = set(a.detectors) - {"bayes", "cnn", "cascade"}
+    unknown = set(a.detectors) - {"bayes", "cnn", "contrast", "fused", "cascade"}
     if unknown:
         p.error(f"--detectors: unknown {sorted(unknown)}")
     results = evaluate(

@@ -24,18 +24,20 @@ from usvfast.shore.annotate import draw_frame
 from usvfast.shore.bayes import BayesDetector, BayesDetectorConfig
 from usvfast.shore.boxes import Detections
 from usvfast.shore.cascade import CascadeConfig, CascadeDetector
+from usvfast.shore.contrast import ContrastConfig, ContrastDetector
 from usvfast.shore.daynight import DayNightClassifier
 from usvfast.shore.filters import ReflectionFilter, WakeFilter
 from usvfast.shore.frames import FrameSource
+from usvfast.shore.fused import FUSED_CNN_FLOOR, FUSED_RELATIVE, FUSED_THRESHOLD, FusedDetector
 from usvfast.shore.horizon import HorizonConfig, HorizonLine, detect_horizon, horizon_keep
 from usvfast.shore.mot import mot_rows, write_mot
 from usvfast.shore.particle import ParticleConfig, ParticleTracker
 from usvfast.shore.pixel_kalman import AdaptiveConfig, AdaptiveTracker
 from usvfast.shore.sort import SortConfig, SortTracker
 
-DetectorName = Literal["auto", "bayes", "cascade", "cnn"]
+DetectorName = Literal["auto", "bayes", "cascade", "cnn", "contrast", "fused"]
 TrackerName = Literal["sort", "adaptive", "particle"]
-DETECTORS: tuple[str, ...] = ("auto", "bayes", "cascade", "cnn")
+DETECTORS: tuple[str, ...] = ("auto", "bayes", "cascade", "cnn", "contrast", "fused")
 TRACKERS: tuple[str, ...] = ("sort", "adaptive", "particle")
 
 
@@ -44,13 +46,16 @@ class ShoreConfig:
     """The chain: `detector` ('bayes': Kim, Chung and Lee's threshold + keypoints; 'cascade':
     Bloisi et al.'s Haar cascade, from the OpenCV XML file `cascade_model` that
     `usvfast shore-train` writes; 'cnn': a YOLO-layout network, `cnn_model` an ONNX or
-    TorchScript file, default :func:`usvfast.shore.cnn.default_model`; 'auto': 'cnn' when a
-    CNN model is available, else 'bayes'), `reflection_filter` (drop boxes with few ORB
+    TorchScript file,
+    default :func:`usvfast.shore.cnn.default_model`; 'auto': 'cnn' when a CNN model is
+    available, else 'bayes'; 'contrast': the training-free "object on the water" detector of
+    :mod:`usvfast.shore.contrast`; 'fused': the CNN's boxes rescored by that contrast,
+    :class:`usvfast.shore.fused.FusedDetector`), `reflection_filter` (drop boxes with few ORB
     keypoints), `wake_model` (a one-stage cascade XML from `WakeFilter`, drops wakes), `tracker`
     ('sort': Kalman + IoU assignment + colour re-identification; 'adaptive': the same paper's
     single-vessel adaptive Kalman tracker; 'particle': Bloisi et al.'s two-tier particle
-    filter), `horizon_filter` (drop detections well above the
-    horizon line) and the parameters of each part."""
+    filter), `horizon_filter` (drop detections well above the horizon line) and the parameters
+    of each part."""
 
     detector: DetectorName = "auto"
     tracker: TrackerName = "sort"
@@ -65,13 +70,16 @@ class ShoreConfig:
     adaptive: AdaptiveConfig = field(default_factory=AdaptiveConfig)
     particle: ParticleConfig = field(default_factory=ParticleConfig)
     cascade: CascadeConfig = field(default_factory=CascadeConfig)
+    contrast: ContrastConfig = field(default_factory=ContrastConfig)
+    fused_threshold: float = FUSED_THRESHOLD
+    fused_relative: float = FUSED_RELATIVE
 
     def __post_init__(self) -> None:
         if self.detector not in DETECTORS:
             raise ValueError(f"detector: expected one of {DETECTORS}, got {self.detector!r}")
         if self.tracker not in TRACKERS:
             raise ValueError(f"tracker: expected one of {TRACKERS}, got {self.tracker!r}")
-        if self.detector in ("auto", "cnn") and self.cnn_model is None:
+        if self.detector in ("auto", "cnn", "fused") and self.cnn_model is None:
             from usvfast.shore.cnn import default_model
 
             self.cnn_model = default_model()
@@ -125,6 +133,16 @@ class ShoreChain:
             from usvfast.shore.cnn import CnnDetector
 
             self.cnn = CnnDetector(cfg.cnn_model)
+        self.contrast: ContrastDetector | FusedDetector | None = None
+        if cfg.detector == "contrast":
+            self.contrast = ContrastDetector(cfg.contrast)
+        elif cfg.detector == "fused":
+            from usvfast.shore.cnn import CnnDetector
+
+            cnn = CnnDetector(cfg.cnn_model, conf_threshold=FUSED_CNN_FLOOR)
+            self.contrast = FusedDetector(
+                cnn, cfg.contrast, cfg.fused_threshold, cfg.fused_relative
+            )
         self.reflection = ReflectionFilter() if cfg.reflection_filter else None
         self.wake = None
         if cfg.wake_model is not None:
@@ -148,7 +166,14 @@ class ShoreChain:
             )
         cfg = self.config
         t0 = time.perf_counter()
-        if self.cnn is not None:
+        horizon: HorizonLine | None = None
+        found = False
+        if self.contrast is not None:
+            frame_class = self.classifier.classify(image)
+            horizon = detect_horizon(image, infrared=frame_class == "ir", config=cfg.horizon)
+            found = True
+            raw = self.contrast.detect(image, horizon)
+        elif self.cnn is not None:
             raw = self.cnn.detect(image)
             frame_class = self.classifier.classify(image)
         elif self.cascade is None:
@@ -162,7 +187,8 @@ class ShoreChain:
         if self.wake is not None and len(raw):
             raw = raw.subset(self.wake.keep(image, raw))
         t1 = time.perf_counter()
-        horizon = detect_horizon(image, infrared=frame_class == "ir", config=cfg.horizon)
+        if not found:
+            horizon = detect_horizon(image, infrared=frame_class == "ir", config=cfg.horizon)
         kept = raw
         if cfg.horizon_filter:
             kept = raw.subset(horizon_keep(raw, horizon, image.shape[0], cfg.horizon))
