@@ -136,6 +136,10 @@ class _DropInTracker(StateBuilder):
         self._scan_md: dict[int, bool] = {}  # scan -> a detection of it carries metadata
         self._history_start = True  # the core's history(track_id, start) is available
         self._newest_cache: dict | None = None  # see `_newest`
+        self._newest_models: list = []  # see `StateBuilder._newest_batch`
+        self._newest_z = np.empty((0, 2))
+        self._batch_scan = -1
+        self._kit: Any = None  # see `StateBuilder._native_kit`
         self._phases: dict = {}  # see `StateBuilder._phase`
         self._hr: dict = {}  # see `StateBuilder._linear_model`
 
@@ -254,6 +258,7 @@ class _DropInTracker(StateBuilder):
         dets = list(detections)
         known = self._sensor_of_model
         found = []
+        models = []
         for d in dets:
             if d.timestamp != time:
                 raise ValueError(
@@ -261,6 +266,7 @@ class _DropInTracker(StateBuilder):
                     "needs every detection of a scan to carry the scan time"
                 )
             model = d.measurement_model
+            models.append(model)
             hit = known.get(id(model))
             found.append(hit if hit is not None else self._sensor_index(model))
         sids = np.fromiter((f[0] for f in found), dtype=np.int64, count=len(dets))
@@ -275,6 +281,7 @@ class _DropInTracker(StateBuilder):
                 [(0.0, 0.0) if o is None else o for _, _, o in found], dtype=np.float64
             ).reshape(len(dets), 2)
         z = self._measurements(dets, m)
+        self._newest_models, self._newest_z = models, z
         if self._t0 is None:
             self._t0 = time
         t = (time - self._t0).total_seconds()
