@@ -16,11 +16,14 @@
 
 use super::tracker::TrackerCore;
 use nalgebra::DMatrix;
-use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
+use numpy::npyffi::{npy_intp, PY_ARRAY_API};
+use numpy::{
+    Element, PyArray2, PyArrayDescrMethods, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods,
+};
 use pyo3::exceptions::PyValueError;
 use pyo3::intern;
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList, PyString};
+use pyo3::types::{PyDict, PyList, PyString, PyType};
 use std::collections::HashMap;
 
 /// One Stone Soup class: `new(cls)`, then `__dict__` = a copy of `template` (or a fresh dict)
@@ -99,8 +102,6 @@ pub struct StoneSoupKit {
     b: Vec<Builder>,
     /// `StateVector`, `CovarianceMatrix`, `Matrix`.
     arrays: [Py<PyAny>; 3],
-    /// `numpy.ndarray.__getitem__` (a subclass's own indexing may differ).
-    getitem: Py<PyAny>,
     float64: Py<PyAny>,
     weakref: Py<PyAny>,
     /// `linear_model(model) -> (H, Hᵀ, R) | None` of the tracker's updater.
@@ -188,23 +189,40 @@ impl StoneSoupKit {
         Ok(hr)
     }
 
-    /// Views `(k, rows, cols)` of `data` as `cls` (index into `arrays`), one per row.
-    fn views<'py>(
+    /// A new C-contiguous float64 array `(rows, cols)` of class `arrays[cls]` (an ndarray
+    /// subclass: numpy makes it as it makes that class's views) holding `data` (row-major).
+    fn array<'py>(
         &self,
         py: Python<'py>,
-        data: Vec<f64>,
-        k: usize,
+        cls: usize,
         rows: usize,
         cols: usize,
-        cls: usize,
-    ) -> PyResult<Vec<Bound<'py, PyAny>>> {
-        if k == 0 {
-            return Ok(Vec::new());
+        data: &[f64],
+    ) -> PyResult<Bound<'py, PyAny>> {
+        debug_assert_eq!(data.len(), rows * cols);
+        let mut dims = [rows as npy_intp, cols as npy_intp];
+        let sub = self.arrays[cls].bind(py).cast::<PyType>()?;
+        let obj = unsafe {
+            let ptr = PY_ARRAY_API.PyArray_NewFromDescr(
+                py,
+                sub.as_type_ptr(),
+                f64::get_dtype(py).into_dtype_ptr(),
+                2,
+                dims.as_mut_ptr(),
+                std::ptr::null_mut(),
+                std::ptr::null_mut(),
+                0,
+                std::ptr::null_mut(),
+            );
+            Bound::from_owned_ptr_or_err(py, ptr)?
+        };
+        let a = obj.cast::<PyArray2<f64>>()?;
+        if a.len() != data.len() || !a.is_c_contiguous() {
+            return Err(PyValueError::new_err("usvfast: unexpected array layout"));
         }
-        let base = PyArray1::from_vec(py, data).reshape([k, rows, cols])?;
-        let view = base.call_method1(intern!(py, "view"), (self.arrays[cls].bind(py),))?;
-        let get = self.getitem.bind(py);
-        (0..k).map(|i| get.call1((&view, i))).collect()
+        // SAFETY: a fresh C-contiguous array of data.len() float64 that nothing else sees yet.
+        unsafe { std::ptr::copy_nonoverlapping(data.as_ptr(), a.data(), data.len()) };
+        Ok(obj)
     }
 
     /// Stone Soup's `Prediction` constructor's change to its prior: the prior's hypothesis's
@@ -284,7 +302,6 @@ impl StoneSoupKit {
                 .map(Builder::from_spec)
                 .collect::<PyResult<_>>()?,
             arrays: [arrays.0.unbind(), arrays.1.unbind(), arrays.2.unbind()],
-            getitem: np.getattr("ndarray")?.getattr("__getitem__")?.unbind(),
             float64: np.getattr("float64")?.unbind(),
             weakref: py.import("weakref")?.getattr("ref")?.unbind(),
             linear_model: linear_model.unbind(),
@@ -383,52 +400,25 @@ impl StoneSoupKit {
             )?);
         }
 
-        // One array per kind of view.
-        let tracks: Vec<_> = rows
-            .iter()
-            .zip(&ids)
-            .filter_map(|(r, id)| r.as_ref().map(|r| (r, &inner.tracks[by_id[id]])))
-            .collect();
-        let (mut xs, mut ps) = (Vec::new(), Vec::new());
-        let (mut pxs, mut pps) = (Vec::new(), Vec::new());
-        let (mut mz, mut ms, mut mc) = (Vec::new(), Vec::new(), Vec::new());
-        for (r, tr) in &tracks {
-            let h = &tr.history;
-            xs.extend_from_slice(&h.states[r.last * n..(r.last + 1) * n]);
-            ps.extend_from_slice(&h.covariances[r.last * n * n..(r.last + 1) * n * n]);
-            if let Some((x, p)) = &r.pred {
-                pxs.extend_from_slice(x);
-                pps.extend_from_slice(p);
-            }
-            for (_, a, b, c) in &r.mps {
-                mz.extend_from_slice(a);
-                ms.extend_from_slice(b);
-                mc.extend_from_slice(c);
-            }
-        }
-        let k = tracks.len();
-        let kp = pxs.len() / n.max(1);
-        let km = mz.len() / zm.max(1);
-        let mut svs = self.views(py, xs, k, n, 1, 0)?.into_iter();
-        let mut cms = self.views(py, ps, k, n, n, 1)?.into_iter();
-        let mut psv = self.views(py, pxs, kp, n, 1, 0)?.into_iter();
-        let mut pcm = self.views(py, pps, kp, n, n, 1)?.into_iter();
-        let mut mzv = self.views(py, mz, km, zm, 1, 0)?.into_iter();
-        let mut msv = self.views(py, ms, km, zm, zm, 1)?.into_iter();
-        let mut mcv = self.views(py, mc, km, n, zm, 2)?.into_iter();
-
+        let arr = |cls: usize, rows: usize, cols: usize, data: &[f64]| {
+            self.array(py, cls, rows, cols, data)
+        };
         let none = py.None().into_bound(py);
         let out = PyList::empty(py);
         let empty_md = || PyDict::new(py).into_any();
-        for (row, prior) in rows.iter().zip(&priors) {
+        for ((row, prior), id) in rows.iter().zip(&priors).zip(&ids) {
             let Some(r) = row else {
                 out.append(&none)?;
                 continue;
             };
-            let (sv, cm) = (
-                svs.next().unwrap_or_else(|| none.clone()),
-                cms.next().unwrap_or_else(|| none.clone()),
-            );
+            let h = &inner.tracks[by_id[id]].history;
+            let sv = arr(0, n, 1, &h.states[r.last * n..(r.last + 1) * n])?;
+            let cm = arr(
+                1,
+                n,
+                n,
+                &h.covariances[r.last * n * n..(r.last + 1) * n * n],
+            )?;
             if !r.update {
                 self.predicted_from(py, prior)?;
                 let st = if mixture {
@@ -440,21 +430,14 @@ impl StoneSoupKit {
                 continue;
             }
             let mut hyp: Option<Bound<'py, PyAny>> = None;
-            if let (true, Some(_)) = (hypotheses, &r.pred) {
-                let (a, b) = (
-                    psv.next().unwrap_or_else(|| none.clone()),
-                    pcm.next().unwrap_or_else(|| none.clone()),
-                );
+            if let (true, Some((xp, pp))) = (hypotheses, &r.pred) {
+                let (a, b) = (arr(0, n, 1, xp)?, arr(1, n, n, pp)?);
                 self.predicted_from(py, prior)?;
                 let pred =
                     self.b[PRED_OF].make(py, &[&a, &b, &timestamp, &transition_model, prior])?;
                 let mut mp_objs = Vec::with_capacity(r.mps.len());
-                for _ in &r.mps {
-                    let (a, b, c) = (
-                        mzv.next().unwrap_or_else(|| none.clone()),
-                        msv.next().unwrap_or_else(|| none.clone()),
-                        mcv.next().unwrap_or_else(|| none.clone()),
-                    );
+                for (_, zp, sp, cp) in &r.mps {
+                    let (a, b, c) = (arr(0, zm, 1, zp)?, arr(1, zm, zm, sp)?, arr(2, n, zm, cp)?);
                     mp_objs.push(self.b[MPRED].make(py, &[&a, &b, &timestamp, &c])?);
                 }
                 if mixture && r.missed.is_finite() {
