@@ -77,7 +77,7 @@ class StateBuilder:
         """Whether a detection of `scan` carries metadata (Track.append then merges it)."""
         hit = self._scan_md.get(scan)
         if hit is None:
-            hit = any(d.metadata for d in self._dets_of(scan) if d.metadata is not None)
+            hit = any(d.metadata for d in self._dets_of(scan))  # None and {} alike: none
             self._scan_md[scan] = hit
             if len(self._scan_md) > _MD_CACHE:
                 self._scan_md.clear()
@@ -309,18 +309,22 @@ class StateBuilder:
             self.hypotheses,
         )
         md = self._has_metadata(scan)
-        fast = self._objects.append_plain
+        # `append_plain` written out on the lists' own methods (they are disarmed first: an
+        # armed list would fill itself).
+        plain = self._objects._fast_append
+        append, get, size = list.append, list.__getitem__, list.__len__
         for f, state in zip(fillers, states, strict=True):
             if state is None:
                 continue
             d = f.track.__dict__
-            d["_property_states"]._fill = None  # before appending (an armed list fills)
-            d["metadatas"]._fill = None
+            sts, mds = d["_property_states"], d["metadatas"]
+            sts._fill = mds._fill = None
             sd = state.__dict__
-            if md and "_property_hypothesis" in sd:
+            if (md and "_property_hypothesis" in sd) or not plain:
                 Track.append(f.track, state)
             else:
-                fast(f.track, state)
+                append(mds, (get(mds, -1) if size(mds) else d["_property_init_metadata"]).copy())
+                append(sts, state)
             f.prev = (t_now, sd["_property_state_vector"], sd["_property_covar"])
             f.have += 1
             f.next_scan = scan + 1
