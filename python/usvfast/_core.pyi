@@ -234,6 +234,8 @@ class TrackerCore:
     @property
     def last_time(self) -> float | None: ...
 
+def confirmed_ids(core: TrackerCore) -> list[int]: ...
+
 class StoneSoupKit:
     def __init__(
         self,
@@ -258,7 +260,7 @@ class StoneSoupKit:
         transition_model: Any,
         mixture: bool,
         hypotheses: bool,
-    ) -> list[Any]: ...
+    ) -> tuple[bool, list[Any]]: ...
 
 def linear_sum_assignment(cost: npt.NDArray[np.float64]) -> npt.NDArray[np.int64]: ...
 def jpda_marginals(

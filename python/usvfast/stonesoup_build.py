@@ -56,6 +56,7 @@ class StateBuilder:
     _newest_z: np.ndarray  # and their measurements (k, m)
     _batch_scan: int  # the scan `_newest_batch` last ran at
     _kit: Any  # see `_native_kit` (None: not made yet, False: unavailable)
+    _track_cls: Any  # stonesoup.types.track.Track
     _phases: dict  # see `_phase`
     _hr: dict  # see `_linear_model`
     initiator: Any
@@ -280,8 +281,6 @@ class StateBuilder:
         """Append the newest scan's state to every alive track that lacks only that one, built
         by the native kit in one call (tracks it cannot build stay armed for
         `_build_newest_py`); their lists are disarmed."""
-        from stonesoup.types.track import Track
-
         scan = self._scan - 1
         if self._raw is None or scan < 1:
             return
@@ -293,7 +292,7 @@ class StateBuilder:
         t_now = (time - self._t0).total_seconds()
         dt = t_now - (self._scan_time[scan - 1] - self._t0).total_seconds()
         priors = [list.__getitem__(f.track.__dict__["_property_states"], -1) for f in fillers]
-        states = kit.newest(
+        md, states = kit.newest(
             self._raw,
             scan,
             [f.tid for f in fillers],
@@ -308,7 +307,11 @@ class StateBuilder:
             self._mixture,
             self.hypotheses,
         )
-        md = self._has_metadata(scan)
+        self._scan_md[scan] = md  # as `_has_metadata`
+        if len(self._scan_md) > _MD_CACHE:
+            self._scan_md.clear()
+            self._scan_md[scan] = md
+        Track = self._track_cls
         # `append_plain` written out on the lists' own methods (they are disarmed first: an
         # armed list would fill itself).
         plain = self._objects._fast_append

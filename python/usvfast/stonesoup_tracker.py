@@ -140,6 +140,13 @@ class _DropInTracker(StateBuilder):
         self._newest_z = np.empty((0, 2))
         self._batch_scan = -1
         self._kit: Any = None  # see `StateBuilder._native_kit`
+        from stonesoup.types.track import Track
+
+        self._track_cls = Track
+        from usvfast import _core
+
+        # Alive confirmed ids as a list (None: an older core; `track_ids` then).
+        self._confirmed_ids = getattr(_core, "confirmed_ids", None)
         self._phases: dict = {}  # see `StateBuilder._phase`
         self._hr: dict = {}  # see `StateBuilder._linear_model`
 
@@ -297,7 +304,8 @@ class _DropInTracker(StateBuilder):
         if self._raw is not None:
             # The core's own validation applies (NaN, sensor ids, covariances).
             self._raw.step(t, z, sids, covs, origins)
-            alive = self._raw.track_ids()[0].tolist()
+            ids = self._confirmed_ids
+            alive = ids(self._raw) if ids is not None else self._raw.track_ids()[0].tolist()
         elif self._core is not None:
             alive = self._core.step(t, z, sids, covs, origins).ids.tolist()
         else:
@@ -372,7 +380,7 @@ class _DropInTracker(StateBuilder):
         from stonesoup.types.track import Track
 
         tracks = self._tracks
-        if len(alive) != len(tracks) or any(tid not in tracks for tid in alive):
+        if len(alive) != len(tracks) or not all(map(tracks.__contains__, alive)):
             alive_set = set(alive)
             for tid in [k for k in tracks if k not in alive_set]:
                 del tracks[tid]

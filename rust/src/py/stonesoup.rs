@@ -406,8 +406,9 @@ impl StoneSoupKit {
     }
 
     /// The newest states of confirmed tracks `ids` of `core` at scan `scan` (their previous
-    /// states `priors`, built at scan − 1, `dt` seconds earlier): a list with, per track, its
-    /// Stone Soup state, or None where this cannot build it exactly (see the module docs).
+    /// states `priors`, built at scan − 1, `dt` seconds earlier): (whether a detection of the
+    /// scan carries metadata, a list with, per track, its Stone Soup state or None where this
+    /// cannot build it exactly (see the module docs)).
     /// `transition` (F, Q) over dt; `detections` the scan's Detection objects, `models` their
     /// measurement models, `z` (k, m) their measurements; `timestamp` the scan's datetime,
     /// `transition_model` the predictor's; `mixture`: JPDA hypotheses (else GNN);
@@ -433,7 +434,7 @@ impl StoneSoupKit {
         transition_model: Bound<'py, PyAny>,
         mixture: bool,
         hypotheses: bool,
-    ) -> PyResult<Bound<'py, PyList>> {
+    ) -> PyResult<(bool, Bound<'py, PyList>)> {
         let inner = &core.inner;
         let n = inner.config().motion_model.ndim();
         let (fm, q) = (&transition.0, &transition.1);
@@ -484,6 +485,14 @@ impl StoneSoupKit {
             self.array(py, cls, rows, cols, data)
         };
         let none = py.None().into_bound(py);
+        // Whether a detection carries metadata (Stone Soup's `Track.append` then merges it).
+        let mut has_metadata = false;
+        for d in detections.iter() {
+            if d.getattr(intern!(py, "metadata"))?.is_truthy()? {
+                has_metadata = true;
+                break;
+            }
+        }
         let out = PyList::empty(py);
         let empty_md = || PyDict::new(py).into_any();
         for ((row, prior), id) in rows.iter().zip(&priors).zip(&ids) {
@@ -554,7 +563,7 @@ impl StoneSoupKit {
             };
             out.append(self.b[UPD].make(py, &[&sv, &cm, &hyp, &timestamp])?)?;
         }
-        Ok(out)
+        Ok((has_metadata, out))
     }
 }
 
@@ -661,7 +670,18 @@ impl StoneSoupKit {
     }
 }
 
+/// Ids of the alive confirmed tracks of `core`, in the core's order, as a list (what the
+/// drop-in reads every scan; `TrackerCore.track_ids` also lists the deleted ones).
+#[pyfunction]
+fn confirmed_ids<'py>(
+    py: Python<'py>,
+    core: PyRef<'py, TrackerCore>,
+) -> PyResult<Bound<'py, PyList>> {
+    PyList::new(py, core.inner.tracks.iter().map(|t| t.id))
+}
+
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<StoneSoupKit>()?;
+    m.add_function(wrap_pyfunction!(confirmed_ids, m)?)?;
     Ok(())
 }
