@@ -147,6 +147,7 @@ class _DropInTracker(StateBuilder):
 
         # Alive confirmed ids as a list (None: an older core; `track_ids` then).
         self._confirmed_ids = getattr(_core, "confirmed_ids", None)
+        self._tentative_first = getattr(_core, "tentative_first_scan", None)
         self._phases: dict = {}  # see `StateBuilder._phase`
         self._hr: dict = {}  # see `StateBuilder._linear_model`
 
@@ -356,11 +357,15 @@ class _DropInTracker(StateBuilder):
         # tentative tracks (a track confirmed later brings its whole tentative history). A
         # track confirmed since the last look was tentative then or started later: its first
         # scan is at least the boundary of that look (`_freed`).
-        if self._raw is not None:
-            first = self._raw.snapshot(tentative=True)["first_scan"]
+        if self._raw is not None and self._tentative_first is not None:
+            first = self._tentative_first(self._raw)
+            oldest = min(self._scan if first is None else first, self._scan - 1)
         else:
-            first = self._core.tentative_tracks.first_scan
-        oldest = min(int(first.min()) if len(first) else self._scan, self._scan - 1)
+            if self._raw is not None:
+                firsts = self._raw.snapshot(tentative=True)["first_scan"]
+            else:
+                firsts = self._core.tentative_tracks.first_scan
+            oldest = min(int(firsts.min()) if len(firsts) else self._scan, self._scan - 1)
         pending = self._pending
         stale = [f for f in pending.values() if f.next_scan < self._scan - _LAZY_HORIZON]
         for f in stale:  # unread for long: built now, so that memory stays bounded

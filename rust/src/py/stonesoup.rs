@@ -680,8 +680,20 @@ fn confirmed_ids<'py>(
     PyList::new(py, core.inner.tracks.iter().map(|t| t.id))
 }
 
+/// The oldest first scan of `core`'s tentative tracks (their histories refer to the detections
+/// of that scan on), None without tentative tracks.
+#[pyfunction]
+fn tentative_first_scan(core: PyRef<'_, TrackerCore>) -> Option<i64> {
+    core.inner
+        .tentative
+        .iter()
+        .filter_map(|t| t.history.scan.first().copied())
+        .min()
+}
+
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<StoneSoupKit>()?;
     m.add_function(wrap_pyfunction!(confirmed_ids, m)?)?;
+    m.add_function(wrap_pyfunction!(tentative_first_scan, m)?)?;
     Ok(())
 }
