@@ -191,6 +191,15 @@ pub struct StoneSoupKit {
     models: HashMap<usize, (Py<PyAny>, Linear)>,
 }
 
+/// A measurement prediction of one model (by pointer): z = H x (m), S = H P Hᵀ + R (m, m),
+/// C = P Hᵀ (n, m), row-major.
+struct MeasurementPrediction {
+    model: usize,
+    z: Vec<f64>,
+    s: Vec<f64>,
+    c: Vec<f64>,
+}
+
 /// What one track's newest state needs, gathered before any object is made.
 struct Row {
     /// History entry (row-major state and covariance) of the newest state.
@@ -203,9 +212,9 @@ struct Row {
     assoc: Vec<(usize, f64)>,
     missed: f64,
     det: i64,
-    /// Distinct models of the gated detections: (model pointer, z, S, C), and per gated
+    /// Measurement predictions of the distinct models of the gated detections, and per gated
     /// detection its index there.
-    mps: Vec<(usize, Vec<f64>, Vec<f64>, Vec<f64>)>,
+    mps: Vec<MeasurementPrediction>,
     mp_of: Vec<usize>,
 }
 
@@ -525,7 +534,13 @@ impl StoneSoupKit {
                 let pred =
                     self.b[PRED_OF].make(py, &[&a, &b, &timestamp, &transition_model, prior])?;
                 let mut mp_objs = Vec::with_capacity(r.mps.len());
-                for (_, zp, sp, cp) in &r.mps {
+                for MeasurementPrediction {
+                    z: zp,
+                    s: sp,
+                    c: cp,
+                    ..
+                } in &r.mps
+                {
                     let (a, b, c) = (arr(0, zm, 1, zp)?, arr(1, zm, zm, sp)?, arr(2, n, zm, cp)?);
                     mp_objs.push(self.b[MPRED].make(py, &[&a, &b, &timestamp, &c])?);
                 }
@@ -544,7 +559,7 @@ impl StoneSoupKit {
                 } else if r.det >= 0 {
                     let d = r.det as usize;
                     let det = detections.get_item(d)?;
-                    let (_, zp, s, _) = &r.mps[0];
+                    let MeasurementPrediction { z: zp, s, .. } = &r.mps[0];
                     let v0 = zs[d * zm] - zp[0];
                     let v1 = zs[d * zm + 1] - zp[1];
                     let (a, b, c, e) = (s[0], s[1], s[2], s[3]);
@@ -644,7 +659,7 @@ impl StoneSoupKit {
         for d in wanted {
             let model = models.get_item(d)?;
             let key = model.as_ptr() as usize;
-            if let Some(i) = row.mps.iter().position(|m| m.0 == key) {
+            if let Some(i) = row.mps.iter().position(|m| m.model == key) {
                 row.mp_of.push(i);
                 continue;
             }
@@ -663,7 +678,12 @@ impl StoneSoupKit {
                 *v += rv;
             }
             row.mp_of.push(row.mps.len());
-            row.mps.push((key, zp, s, cross));
+            row.mps.push(MeasurementPrediction {
+                model: key,
+                z: zp,
+                s,
+                c: cross,
+            });
         }
         row.pred = Some((xp, pp));
         Ok(Some(row))
