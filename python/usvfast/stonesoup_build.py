@@ -3,10 +3,15 @@ first read (see `usvfast.stonesoup_lazy`): `StateBuilder` is the part of the dro
 (`usvfast.stonesoup_tracker`) that does it, `Filler` the per-track callable its lazy lists
 call.
 
-A track's newest state alone (the common case of a user reading every track each scan) comes
-from one snapshot of the core per scan, with the predictions of all such tracks batched per
-time step; anything older (a track read after several scans, a new track with its tentative
-history, a deleted track) from the core's history of that track. Either way the objects are
+A track's newest state alone (the common case of a user reading every track each scan): the
+first such read in a scan builds the newest states of every alive track that lacks only that
+one, in one native call (`usvfast._core.StoneSoupKit.newest`: the core's history, the same
+Stone Soup classes and `__dict__` entries as `usvfast.stonesoup_objects` makes, checked
+against Stone Soup's constructors when the kit is made); a track the kit cannot build exactly
+(a non-linear measurement model, another GNN measure) is built in Python from one snapshot of
+the core per scan, with the predictions batched per time step. Anything older (a track read
+after several scans, a new track with its tentative history, a deleted track) comes from the
+core's history of that track, in Python. Either way the objects are
 the ones Stone Soup's tracker would have appended: Update or Prediction with the same mean,
 covariance and time; for updates their hypotheses — the prediction from the previous state
 by the tracker's (after confirmation) or the initiator's (before) transition model (with

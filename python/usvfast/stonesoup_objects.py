@@ -8,7 +8,9 @@ public constructor would set. Before the fast path is used for a class, one obje
 both ways and compared (same type, same `__dict__` keys in the same order, values of the same
 type and equal); any difference, or an error, switches that class to the public constructor
 for good. So a Stone Soup release that changes how these classes are built costs speed, never
-correctness.
+correctness. `StoneSoupObjects.kit` hands the same class specifications to the native factory
+(`usvfast._core.StoneSoupKit`), checked the same way, which builds a scan's newest states in
+one call.
 """
 
 from __future__ import annotations

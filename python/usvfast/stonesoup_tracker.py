@@ -435,7 +435,9 @@ class MultiTargetMixtureTracker(_DropInTracker):
     subclasses; copies and pickles are plain lists) that build the missing states on any read
     — `len(track)`, `track.state`, indexing, iterating, `track.metadata`, `Track.append` — so
     what a user sees is what Stone Soup's tracker holds at that scan; the cost of the states
-    moves from the scan to the first read. Raises UnsupportedComponentError for components
+    moves from the scan to the first read. The first read of a scan's newest state builds that
+    state for every alive track lacking only it, in one native call (a user reading one track
+    a scan pays for all of them, ~µs each). Raises UnsupportedComponentError for components
     usvfast cannot reproduce exactly, ValueError for detections off the scan time or of
     another dimension.
 
