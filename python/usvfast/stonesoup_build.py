@@ -62,6 +62,7 @@ class StateBuilder:
     _batch_scan: int  # the scan `_newest_batch` last ran at
     _kit: Any  # see `_native_kit` (None: not made yet, False: unavailable)
     _track_cls: Any  # stonesoup.types.track.Track
+    _scan_seconds: tuple[float, float]  # the last two scans' times, seconds since the first
     _phases: dict  # see `_phase`
     _hr: dict  # see `_linear_model`
     initiator: Any
@@ -289,13 +290,17 @@ class StateBuilder:
         scan = self._scan - 1
         if self._raw is None or scan < 1:
             return
-        fillers = [f for f in self._fillers.values() if f.prev is not None and f.next_scan == scan]
-        kit = self._native_kit() if fillers else None
+        kit = self._kit
         if kit is None:
+            kit = self._native_kit()
+        if not kit:
+            return
+        fillers = [f for f in self._fillers.values() if f.prev is not None and f.next_scan == scan]
+        if not fillers:
             return
         time = self._scan_time[scan]
-        t_now = (time - self._t0).total_seconds()
-        dt = t_now - (self._scan_time[scan - 1] - self._t0).total_seconds()
+        t_prev, t_now = self._scan_seconds  # of the scans `scan` - 1 and `scan`
+        dt = t_now - t_prev
         priors = [list.__getitem__(f.track.__dict__["_property_states"], -1) for f in fillers]
         md, states = kit.newest(
             self._raw,

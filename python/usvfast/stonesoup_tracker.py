@@ -139,6 +139,7 @@ class _DropInTracker(StateBuilder):
         self._newest_models: list = []  # see `StateBuilder._newest_batch`
         self._newest_z = np.empty((0, 2))
         self._batch_scan = -1
+        self._scan_seconds = (0.0, 0.0)
         self._kit: Any = None  # see `StateBuilder._native_kit`
         from stonesoup.types.track import Track
 
@@ -312,6 +313,7 @@ class _DropInTracker(StateBuilder):
         else:
             self._replay.append((t, z, sids))
         self._scan_time.append(time)
+        self._scan_seconds = (self._scan_seconds[1], t)
         self._scan_dets.append(dets)
         self._scan += 1
         if alive is not None:

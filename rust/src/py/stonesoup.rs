@@ -318,9 +318,8 @@ impl StoneSoupKit {
     /// prediction keeps its own prior as a weak reference.
     fn predicted_from(&self, py: Python<'_>, prior: &Bound<'_, PyAny>) -> PyResult<()> {
         let hyp = if prior.get_type().is(self.b[UPD].cls.bind(py)) {
-            prior
-                .getattr(intern!(py, "__dict__"))?
-                .get_item(intern!(py, "_property_hypothesis"))?
+            // Its `__dict__` entry, read without materialising the dict.
+            prior.getattr(intern!(py, "_property_hypothesis"))?
         } else if prior.get_type().is(self.b[PRED].cls.bind(py)) {
             return Ok(()); // a GaussianStatePrediction has no hypothesis
         } else {
