@@ -234,6 +234,35 @@ class TrackerCore:
     @property
     def last_time(self) -> float | None: ...
 
+def confirmed_ids(core: TrackerCore) -> list[int]: ...
+def tentative_first_scan(core: TrackerCore) -> int | None: ...
+
+class StoneSoupKit:
+    def __init__(
+        self,
+        builders: list[tuple[Any, Any, tuple[str, ...], dict[str, Any] | None]],
+        arrays: tuple[Any, Any, Any],
+        linear_model: Any,
+        measure: int,
+    ) -> None: ...
+    def make(self, index: int, values: list[Any]) -> Any: ...
+    def newest(
+        self,
+        core: TrackerCore,
+        scan: int,
+        ids: list[int],
+        priors: list[Any],
+        dt: float,
+        transition: tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]],
+        detections: list[Any],
+        models: list[Any],
+        z: npt.NDArray[np.float64],
+        timestamp: Any,
+        transition_model: Any,
+        mixture: bool,
+        hypotheses: bool,
+    ) -> tuple[bool, list[Any]]: ...
+
 def linear_sum_assignment(cost: npt.NDArray[np.float64]) -> npt.NDArray[np.int64]: ...
 def jpda_marginals(
     likelihoods: npt.NDArray[np.float64], method: str = "ehm", k_best: int = 1000

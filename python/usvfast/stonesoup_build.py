@@ -3,10 +3,15 @@ first read (see `usvfast.stonesoup_lazy`): `StateBuilder` is the part of the dro
 (`usvfast.stonesoup_tracker`) that does it, `Filler` the per-track callable its lazy lists
 call.
 
-A track's newest state alone (the common case of a user reading every track each scan) comes
-from one snapshot of the core per scan, with the predictions of all such tracks batched per
-time step; anything older (a track read after several scans, a new track with its tentative
-history, a deleted track) from the core's history of that track. Either way the objects are
+A track's newest state alone (the common case of a user reading every track each scan): the
+first such read in a scan builds the newest states of every alive track that lacks only that
+one, in one native call (`usvfast._core.StoneSoupKit.newest`: the core's history, the same
+Stone Soup classes and `__dict__` entries as `usvfast.stonesoup_objects` makes, checked
+against Stone Soup's constructors when the kit is made); a track the kit cannot build exactly
+(a non-linear measurement model, another GNN measure) is built in Python from one snapshot of
+the core per scan, with the predictions batched per time step. Anything older (a track read
+after several scans, a new track with its tentative history, a deleted track) comes from the
+core's history of that track, in Python. Either way the objects are
 the ones Stone Soup's tracker would have appended: Update or Prediction with the same mean,
 covariance and time; for updates their hypotheses — the prediction from the previous state
 by the tracker's (after confirmation) or the initiator's (before) transition model (with
@@ -52,6 +57,12 @@ class StateBuilder:
     _scan_md: dict
     _history_start: bool
     _newest_cache: dict | None
+    _newest_models: list  # the newest scan's detections' measurement models
+    _newest_z: np.ndarray  # and their measurements (k, m)
+    _batch_scan: int  # the scan `_newest_batch` last ran at
+    _kit: Any  # see `_native_kit` (None: not made yet, False: unavailable)
+    _track_cls: Any  # stonesoup.types.track.Track
+    _scan_seconds: tuple[float, float]  # the last two scans' times, seconds since the first
     _phases: dict  # see `_phase`
     _hr: dict  # see `_linear_model`
     initiator: Any
@@ -73,7 +84,7 @@ class StateBuilder:
         """Whether a detection of `scan` carries metadata (Track.append then merges it)."""
         hit = self._scan_md.get(scan)
         if hit is None:
-            hit = any(d.metadata for d in self._dets_of(scan) if d.metadata is not None)
+            hit = any(d.metadata for d in self._dets_of(scan))  # None and {} alike: none
             self._scan_md[scan] = hit
             if len(self._scan_md) > _MD_CACHE:
                 self._scan_md.clear()
@@ -179,6 +190,7 @@ class StateBuilder:
         groups: dict[tuple[bool, float], list[int]] = {}
         # Entry 0's prior is `f.prev` (a new track's entry 0 has none and is skipped).
         t_p, x_p, p_p = f.prev if f.prev is not None else (0.0, xs[0], ps[0])
+        x_p = np.asarray(x_p, dtype=np.float64).reshape(-1)  # also a StateVector (n, 1)
         for j, upd in enumerate(upds):
             if not upd or (j == 0 and f.prev is None):
                 continue
@@ -218,7 +230,7 @@ class StateBuilder:
                     by_dt.setdefault(t - f.prev[0], []).append((r, f.prev))
             for dt, group in by_dt.items():
                 fm, q = self._transition(False, dt)
-                xp = np.array([g[1][1] for g in group]) @ fm.T
+                xp = np.array([np.asarray(g[1][1]).reshape(-1) for g in group]) @ fm.T
                 pp = fm @ np.array([g[1][2] for g in group]) @ fm.T + q
                 psv, pcm = self._objects.rows(xp, pp)
                 rows = [r for r, _ in group]
@@ -248,7 +260,90 @@ class StateBuilder:
         return out
 
     def _build_newest(self, f: Filler) -> None:
-        """Append the newest scan's state of alive track `f` (see `_build`)."""
+        """Append the newest scan's state of alive track `f` (see `_build`): the first time in
+        a scan, together with those of every alive track missing only that state, in one
+        native call (`_newest_batch`); in Python when that could not build it."""
+        if self._batch_scan != self._scan:
+            self._batch_scan = self._scan
+            self._newest_batch()
+            if f.next_scan == self._scan:
+                return
+        self._build_newest_py(f)
+
+    def _native_kit(self) -> Any:
+        """The tracker's `usvfast._core.StoneSoupKit` (see `StoneSoupObjects.kit`), or None."""
+        kit = self._kit
+        if kit is None:
+            from stonesoup.measures import Mahalanobis, SquaredMahalanobis
+
+            _, updater, measure = self._phase(False)
+            kinds = {Mahalanobis: 1, SquaredMahalanobis: 2}
+            kind = kinds.get(type(measure), 0) if getattr(measure, "mapping", 0) is None else 0
+            kit = self._objects.kit(lambda model: self._linear_model(model, updater), kind)
+            self._kit = kit if kit is not None else False
+        return kit or None
+
+    def _newest_batch(self) -> None:
+        """Append the newest scan's state to every alive track that lacks only that one, built
+        by the native kit in one call (tracks it cannot build stay armed for
+        `_build_newest_py`); their lists are disarmed."""
+        scan = self._scan - 1
+        if self._raw is None or scan < 1:
+            return
+        kit = self._kit
+        if kit is None:
+            kit = self._native_kit()
+        if not kit:
+            return
+        fillers = [f for f in self._fillers.values() if f.prev is not None and f.next_scan == scan]
+        if not fillers:
+            return
+        time = self._scan_time[scan]
+        t_prev, t_now = self._scan_seconds  # of the scans `scan` - 1 and `scan`
+        dt = t_now - t_prev
+        priors = [list.__getitem__(f.track.__dict__["_property_states"], -1) for f in fillers]
+        md, states = kit.newest(
+            self._raw,
+            scan,
+            [f.tid for f in fillers],
+            priors,
+            dt,
+            self._transition(False, dt),
+            self._dets_of(scan),
+            self._newest_models,
+            self._newest_z,
+            time,
+            self._phase(False)[0],
+            self._mixture,
+            self.hypotheses,
+        )
+        self._scan_md[scan] = md  # as `_has_metadata`
+        if len(self._scan_md) > _MD_CACHE:
+            self._scan_md.clear()
+            self._scan_md[scan] = md
+        Track = self._track_cls
+        # `append_plain` written out on the lists' own methods (they are disarmed first: an
+        # armed list would fill itself).
+        plain = self._objects._fast_append
+        append, get, size = list.append, list.__getitem__, list.__len__
+        for f, state in zip(fillers, states, strict=True):
+            if state is None:
+                continue
+            d = f.track.__dict__
+            sts, mds = d["_property_states"], d["metadatas"]
+            sts._fill = mds._fill = None
+            sd = state.__dict__
+            if (md and "_property_hypothesis" in sd) or not plain:
+                Track.append(f.track, state)
+            else:
+                append(mds, (get(mds, -1) if size(mds) else d["_property_init_metadata"]).copy())
+                append(sts, state)
+            f.prev = (t_now, sd["_property_state_vector"], sd["_property_covar"])
+            f.have += 1
+            f.next_scan = scan + 1
+
+    def _build_newest_py(self, f: Filler) -> None:
+        """`_build_newest` in Python, from the newest scan's snapshot (`_newest`)."""
         from stonesoup.types.track import Track
 
         nw = self._newest()

@@ -8,7 +8,9 @@ public constructor would set. Before the fast path is used for a class, one obje
 both ways and compared (same type, same `__dict__` keys in the same order, values of the same
 type and equal); any difference, or an error, switches that class to the public constructor
 for good. So a Stone Soup release that changes how these classes are built costs speed, never
-correctness.
+correctness. `StoneSoupObjects.kit` hands the same class specifications to the native factory
+(`usvfast._core.StoneSoupKit`), checked the same way, which builds a scan's newest states in
+one call.
 """
 
 from __future__ import annotations
@@ -49,6 +51,7 @@ class _Builder:
         # Properties in the class's order: a copy of it per object keeps that order.
         self.template = {f"_property_{n}": constants.get(n) for n in names}
         self.plain = not constants and self.keys == tuple(self.template)
+        self.sample = sample
         self.fast = ok and self._check(sample)
 
     def _fast(self, values: tuple) -> Any:
@@ -64,14 +67,25 @@ class _Builder:
 
     def _check(self, sample: tuple) -> bool:
         try:
-            slow = self.cls(**self.constants, **dict(zip(self.args, sample, strict=True)))
-            fast = self._fast(sample)
-            a, b = vars(slow), vars(fast)
-            if list(a) != list(b):
-                return False
-            return all(_same(a[k], b[k]) for k in a)
+            return self.matches(self._fast(sample), sample)
         except Exception:  # any surprise: the public constructor
             return False
+
+    def matches(self, obj: Any, sample: tuple) -> bool:
+        """Whether `obj` is what the public constructor makes of `sample`: same type, same
+        `__dict__` keys in the same order, values of the same type and equal."""
+        slow = self.cls(**self.constants, **dict(zip(self.args, sample, strict=True)))
+        if type(obj) is not type(slow):
+            return False
+        a, b = vars(slow), vars(obj)
+        if list(a) != list(b):
+            return False
+        return all(_same(a[k], b[k]) for k in a)
+
+    def spec(self) -> tuple:
+        """(cls.__new__, cls, `__dict__` keys of the arguments, template or None): how
+        `usvfast._core.StoneSoupKit` builds the class as `_fast` does."""
+        return (self.cls.__new__, self.cls, self.keys, None if self.plain else self.template)
 
     def make(self, *values: Any) -> Any:
         """An object with the properties `args` = values (and the constants)."""
@@ -201,23 +215,50 @@ class StoneSoupObjects:
         mds.append((mds[-1] if mds else d["_property_init_metadata"]).copy())
         d["_property_states"].append(state)
 
+    def _builders(self) -> tuple[_Builder, ...]:
+        # The order `usvfast._core.StoneSoupKit` expects.
+        return (
+            self._pred,
+            self._pred_of,
+            self._mpred,
+            self._upd,
+            self._missed,
+            self._single,
+            self._prob,
+            self._dist,
+            self._multi,
+        )
+
     @property
     def all_fast(self) -> bool:
         """True when every class uses the fast path (the checks passed)."""
-        return all(
-            b.fast
-            for b in (
-                self._pred,
-                self._pred_of,
-                self._mpred,
-                self._upd,
-                self._missed,
-                self._single,
-                self._prob,
-                self._dist,
-                self._multi,
-            )
-        )
+        return all(b.fast for b in self._builders())
+
+    def kit(self, linear_model: Any, measure: int) -> Any:
+        """The native factory `usvfast._core.StoneSoupKit` on these classes (it builds a scan's
+        newest states in one call, as the fast paths here build them), or None when a class is
+        not on its fast path or an object the kit makes differs from the public constructor's
+        on the samples (same checks as the fast paths). `linear_model(model)` gives (H, Hᵀ, R)
+        or None for a detection's measurement model; `measure` is 1 (Mahalanobis), 2 (squared
+        Mahalanobis) or 0 (another measure: GNN updates fall back to Python)."""
+        if not self.all_fast:
+            return None
+        try:
+            from usvfast._core import StoneSoupKit
+
+            builders = self._builders()
+            p = self._p
+            specs = [b.spec() for b in builders] + [(p.__new__, p, ("_log_value",), None)]
+            kit = StoneSoupKit(specs, (self._sv, self._cm, self._mat), linear_model, measure)
+            for i, b in enumerate(builders):
+                if not b.matches(kit.make(i, list(b.sample)), b.sample):
+                    return None
+            got, ref = kit.make(len(builders), [-0.5]), p(-0.5, log_value=True)
+            if type(got) is not type(ref) or vars(got) != vars(ref):
+                return None
+        except Exception:  # any surprise (or an older core): the Python builders
+            return None
+        return kit
 
     def vector(self, x: np.ndarray) -> Any:
         """A StateVector (n, 1) on `x` (a view when x is float64: pass arrays nobody else

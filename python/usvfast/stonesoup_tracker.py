@@ -136,6 +136,19 @@ class _DropInTracker(StateBuilder):
         self._scan_md: dict[int, bool] = {}  # scan -> a detection of it carries metadata
         self._history_start = True  # the core's history(track_id, start) is available
         self._newest_cache: dict | None = None  # see `_newest`
+        self._newest_models: list = []  # see `StateBuilder._newest_batch`
+        self._newest_z = np.empty((0, 2))
+        self._batch_scan = -1
+        self._scan_seconds = (0.0, 0.0)
+        self._kit: Any = None  # see `StateBuilder._native_kit`
+        from stonesoup.types.track import Track
+
+        self._track_cls = Track
+        from usvfast import _core
+
+        # Alive confirmed ids as a list (None: an older core; `track_ids` then).
+        self._confirmed_ids = getattr(_core, "confirmed_ids", None)
+        self._tentative_first = getattr(_core, "tentative_first_scan", None)
         self._phases: dict = {}  # see `StateBuilder._phase`
         self._hr: dict = {}  # see `StateBuilder._linear_model`
 
@@ -254,6 +267,7 @@ class _DropInTracker(StateBuilder):
         dets = list(detections)
         known = self._sensor_of_model
         found = []
+        models = []
         for d in dets:
             if d.timestamp != time:
                 raise ValueError(
@@ -261,6 +275,7 @@ class _DropInTracker(StateBuilder):
                     "needs every detection of a scan to carry the scan time"
                 )
             model = d.measurement_model
+            models.append(model)
             hit = known.get(id(model))
             found.append(hit if hit is not None else self._sensor_index(model))
         sids = np.fromiter((f[0] for f in found), dtype=np.int64, count=len(dets))
@@ -275,6 +290,7 @@ class _DropInTracker(StateBuilder):
                 [(0.0, 0.0) if o is None else o for _, _, o in found], dtype=np.float64
             ).reshape(len(dets), 2)
         z = self._measurements(dets, m)
+        self._newest_models, self._newest_z = models, z
         if self._t0 is None:
             self._t0 = time
         t = (time - self._t0).total_seconds()
@@ -290,12 +306,14 @@ class _DropInTracker(StateBuilder):
         if self._raw is not None:
             # The core's own validation applies (NaN, sensor ids, covariances).
             self._raw.step(t, z, sids, covs, origins)
-            alive = self._raw.track_ids()[0].tolist()
+            ids = self._confirmed_ids
+            alive = ids(self._raw) if ids is not None else self._raw.track_ids()[0].tolist()
         elif self._core is not None:
             alive = self._core.step(t, z, sids, covs, origins).ids.tolist()
         else:
             self._replay.append((t, z, sids))
         self._scan_time.append(time)
+        self._scan_seconds = (self._scan_seconds[1], t)
         self._scan_dets.append(dets)
         self._scan += 1
         if alive is not None:
@@ -341,11 +359,15 @@ class _DropInTracker(StateBuilder):
         # tentative tracks (a track confirmed later brings its whole tentative history). A
         # track confirmed since the last look was tentative then or started later: its first
         # scan is at least the boundary of that look (`_freed`).
-        if self._raw is not None:
-            first = self._raw.snapshot(tentative=True)["first_scan"]
+        if self._raw is not None and self._tentative_first is not None:
+            first = self._tentative_first(self._raw)
+            oldest = min(self._scan if first is None else first, self._scan - 1)
         else:
-            first = self._core.tentative_tracks.first_scan
-        oldest = min(int(first.min()) if len(first) else self._scan, self._scan - 1)
+            if self._raw is not None:
+                firsts = self._raw.snapshot(tentative=True)["first_scan"]
+            else:
+                firsts = self._core.tentative_tracks.first_scan
+            oldest = min(int(firsts.min()) if len(firsts) else self._scan, self._scan - 1)
         pending = self._pending
         stale = [f for f in pending.values() if f.next_scan < self._scan - _LAZY_HORIZON]
         for f in stale:  # unread for long: built now, so that memory stays bounded
@@ -365,7 +387,7 @@ class _DropInTracker(StateBuilder):
         from stonesoup.types.track import Track
 
         tracks = self._tracks
-        if len(alive) != len(tracks) or any(tid not in tracks for tid in alive):
+        if len(alive) != len(tracks) or not all(map(tracks.__contains__, alive)):
             alive_set = set(alive)
             for tid in [k for k in tracks if k not in alive_set]:
                 del tracks[tid]
@@ -415,7 +437,9 @@ class MultiTargetMixtureTracker(_DropInTracker):
     subclasses; copies and pickles are plain lists) that build the missing states on any read
     — `len(track)`, `track.state`, indexing, iterating, `track.metadata`, `Track.append` — so
     what a user sees is what Stone Soup's tracker holds at that scan; the cost of the states
-    moves from the scan to the first read. Raises UnsupportedComponentError for components
+    moves from the scan to the first read. The first read of a scan's newest state builds that
+    state for every alive track lacking only it, in one native call (a user reading one track
+    a scan pays for all of them, ~µs each). Raises UnsupportedComponentError for components
     usvfast cannot reproduce exactly, ValueError for detections off the scan time or of
     another dimension.
 

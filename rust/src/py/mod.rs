@@ -11,6 +11,7 @@ mod geodesy;
 mod kalman;
 mod lidar;
 mod particle;
+mod stonesoup;
 mod tracker;
 mod tracker_config;
 
@@ -43,5 +44,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     cascade::register(m)?;
     tracker::register(m)?;
     particle::register(m)?;
+    stonesoup::register(m)?;
     Ok(())
 }

@@ -141,7 +141,7 @@ impl SignalCheck {
 /// The multi-target tracker core; build it through `usvfast.tracking.Tracker`.
 #[pyclass(module = "usvfast._core")]
 pub struct TrackerCore {
-    inner: Tracker,
+    pub(crate) inner: Tracker,
 }
 
 #[pymethods]

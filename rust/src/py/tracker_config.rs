@@ -101,6 +101,17 @@ fn real_array<'py>(
     name: &str,
     ndim: Option<usize>,
 ) -> PyResult<PyReadonlyArrayDyn<'py, f64>> {
+    // A finite C-contiguous float64 array of the right rank is what the check returns (the
+    // same array): read it here. Anything else (and every error) goes through the check.
+    if let Ok(a) = obj.cast::<numpy::PyArrayDyn<f64>>() {
+        if a.is_c_contiguous() && ndim.is_none_or(|d| a.ndim() == d) {
+            if let Ok(ro) = numpy::PyArrayMethods::try_readonly(a) {
+                if ro.as_slice().is_ok_and(|v| v.iter().all(|x| x.is_finite())) {
+                    return Ok(ro);
+                }
+            }
+        }
+    }
     let check = obj
         .py()
         .import("usvfast._validate")?

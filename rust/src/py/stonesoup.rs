@@ -1,0 +1,718 @@
+//! Stone Soup objects for the drop-in trackers (`usvfast.stonesoup`), built in one call per
+//! scan: `StoneSoupKit.newest` appends nothing itself; it returns, for each confirmed track
+//! asked for, the Stone Soup state its newest history entry becomes — a `GaussianStateUpdate`
+//! with its association hypothesis (JPDA `MultipleHypothesis` of `SingleProbabilityHypothesis`
+//! with `Probability` values, or GNN `SingleDistanceHypothesis`), the predictor's prediction
+//! from the track's previous state, the measurement predictions (H x, H P Hᵀ + R, P Hᵀ) — or a
+//! `GaussianStatePrediction` for a missed scan.
+//!
+//! Objects are made as `usvfast.stonesoup_objects` makes them (its "fast path"): `cls.__new__`
+//! and a `__dict__` of `_property_<name>` entries in the class's order, from the builder
+//! specifications that module checked against Stone Soup's own constructors. Arrays are views
+//! (rows of one array per scan) of Stone Soup's `StateVector`, `CovarianceMatrix` and `Matrix`.
+//! A track this cannot build exactly (a non-linear measurement model, a measure other than
+//! (squared) Mahalanobis on 2-D measurements, a history that is not one entry per scan) comes
+//! back as None; the Python builder makes it.
+
+use super::tracker::TrackerCore;
+use nalgebra::DMatrix;
+use numpy::npyffi::{npy_intp, PY_ARRAY_API};
+use numpy::{
+    Element, PyArray2, PyArrayDescrMethods, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods,
+};
+use pyo3::exceptions::PyValueError;
+use pyo3::intern;
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList, PyString, PyTuple, PyType};
+use std::collections::HashMap;
+
+/// One Stone Soup class: `cls.__new__(cls)`, then its `__dict__` entries set one by one in
+/// the class's order (`template`'s keys, or `keys` without a template) to the values given
+/// (`keys`) or the template's constants — as `usvfast.stonesoup_objects` fills `__dict__`,
+/// but through the instance's own attribute storage (CPython then shares the class's key
+/// table, as for the objects Stone Soup's constructors make, and makes no separate dict).
+struct Builder {
+    new: Py<PyAny>,
+    cls: Py<PyAny>,
+    n_args: usize,
+    /// `__dict__` key and where its value comes from: argument i or a constant.
+    order: Vec<(Py<PyString>, Source)>,
+    /// The class's `tp_new` slot when `new` is `object.__new__` (what `object.__new__(cls)`
+    /// runs, without the call through Python).
+    tp_new: Option<pyo3::ffi::newfunc>,
+}
+
+enum Source {
+    Arg(usize),
+    Const(Py<PyAny>),
+}
+
+impl Builder {
+    fn from_spec(spec: &Bound<'_, PyAny>) -> PyResult<Self> {
+        type Spec<'py> = (
+            Bound<'py, PyAny>,
+            Bound<'py, PyAny>,
+            Vec<Bound<'py, PyString>>,
+            Option<Bound<'py, PyDict>>,
+        );
+        let (new, cls, keys, template): Spec<'_> = spec.extract()?;
+        let py = spec.py();
+        let object_new = py.get_type::<pyo3::types::PyAny>().getattr("__new__")?;
+        let tp_new = match cls.cast::<PyType>() {
+            Ok(t) if new.is(&object_new) => {
+                // SAFETY: a type object; the slot is object_new or inherited from a base.
+                let slot =
+                    unsafe { pyo3::ffi::PyType_GetSlot(t.as_type_ptr(), pyo3::ffi::Py_tp_new) };
+                if slot.is_null() {
+                    None
+                } else {
+                    // SAFETY: the Py_tp_new slot holds a newfunc.
+                    Some(unsafe {
+                        std::mem::transmute::<*mut std::ffi::c_void, pyo3::ffi::newfunc>(slot)
+                    })
+                }
+            }
+            _ => None,
+        };
+        let arg_of = |k: &Bound<'_, PyAny>| -> PyResult<Option<usize>> {
+            for (i, a) in keys.iter().enumerate() {
+                if a.as_any().eq(k)? {
+                    return Ok(Some(i));
+                }
+            }
+            Ok(None)
+        };
+        let mut order = Vec::new();
+        match &template {
+            Some(t) => {
+                for (k, v) in t.iter() {
+                    let src = match arg_of(&k)? {
+                        Some(i) => Source::Arg(i),
+                        None => Source::Const(v.unbind()),
+                    };
+                    order.push((k.cast_into::<PyString>()?.unbind(), src));
+                }
+                if order
+                    .iter()
+                    .filter(|(_, s)| matches!(s, Source::Arg(_)))
+                    .count()
+                    != keys.len()
+                {
+                    return Err(PyValueError::new_err(
+                        "builders: every key must be in the template",
+                    ));
+                }
+            }
+            None => {
+                for (i, k) in keys.iter().enumerate() {
+                    order.push((k.clone().unbind(), Source::Arg(i)));
+                }
+            }
+        }
+        Ok(Self {
+            tp_new,
+            new: new.unbind(),
+            cls: cls.unbind(),
+            n_args: keys.len(),
+            order,
+        })
+    }
+
+    fn make<'py>(
+        &self,
+        py: Python<'py>,
+        values: &[&Bound<'py, PyAny>],
+    ) -> PyResult<Bound<'py, PyAny>> {
+        if values.len() != self.n_args {
+            return Err(PyValueError::new_err(format!(
+                "values: expected {} values, got {}",
+                self.n_args,
+                values.len()
+            )));
+        }
+        let cls = self.cls.bind(py);
+        let obj = match self.tp_new {
+            // SAFETY: `cls` is a type whose tp_new is `f`; empty arguments as `cls.__new__(cls)`.
+            Some(f) => unsafe {
+                let args = PyTuple::empty(py);
+                let ptr = f(cls.as_ptr().cast(), args.as_ptr(), std::ptr::null_mut());
+                Bound::from_owned_ptr_or_err(py, ptr)?
+            },
+            None => self.new.bind(py).call1((cls,))?,
+        };
+        for (k, src) in &self.order {
+            let v = match src {
+                Source::Arg(i) => values[*i].as_ptr(),
+                Source::Const(c) => c.as_ptr(),
+            };
+            // SAFETY: valid object, key and value; the generic setter stores into the
+            // instance's attribute storage (these classes define no `__setattr__`, and no
+            // descriptor is named `_property_<name>`).
+            let rc = unsafe { pyo3::ffi::PyObject_GenericSetAttr(obj.as_ptr(), k.as_ptr(), v) };
+            if rc != 0 {
+                return Err(PyErr::fetch(py));
+            }
+        }
+        Ok(obj)
+    }
+}
+
+// Builder order (`usvfast.stonesoup_objects.StoneSoupObjects.kit_specs`).
+const PRED: usize = 0; // GaussianStatePrediction(state_vector, covar, timestamp)
+const PRED_OF: usize = 1; // ... (state_vector, covar, timestamp, transition_model, prior)
+const MPRED: usize = 2; // GaussianMeasurementPrediction(state_vector, covar, timestamp, cross_covar)
+const UPD: usize = 3; // GaussianStateUpdate(state_vector, covar, hypothesis, timestamp)
+const MISSED: usize = 4; // MissedDetection(timestamp, metadata)
+const SINGLE: usize = 5; // SingleHypothesis(prediction, measurement)
+const PROB: usize = 6; // SingleProbabilityHypothesis(prediction, measurement, probability, mp)
+const DIST: usize = 7; // SingleDistanceHypothesis(prediction, measurement, distance, mp)
+const MULTI: usize = 8; // MultipleHypothesis(single_hypotheses)
+const PROBABILITY: usize = 9; // Probability: `_log_value`
+const N_BUILDERS: usize = 10;
+
+/// A linear measurement model's H (m, n) and R (m, m), None for any other model.
+type Linear = Option<(DMatrix<f64>, DMatrix<f64>)>;
+
+/// At most this many measurement models remembered (one per detection for a moving radar).
+const MODEL_CACHE: usize = 4096;
+
+/// The Stone Soup object factory of one drop-in tracker (see the module docs).
+#[pyclass(module = "usvfast._core")]
+pub struct StoneSoupKit {
+    b: Vec<Builder>,
+    /// `StateVector`, `CovarianceMatrix`, `Matrix`.
+    arrays: [Py<PyAny>; 3],
+    float64: Py<PyAny>,
+    weakref: Py<PyAny>,
+    /// `linear_model(model) -> (H, Hᵀ, R) | None` of the tracker's updater.
+    linear_model: Py<PyAny>,
+    /// The tracker's GNN measure: 1 Mahalanobis, 2 squared Mahalanobis, 0 other.
+    measure: u8,
+    models: HashMap<usize, (Py<PyAny>, Linear)>,
+}
+
+/// A measurement prediction of one model (by pointer): z = H x (m), S = H P Hᵀ + R (m, m),
+/// C = P Hᵀ (n, m), row-major.
+struct MeasurementPrediction {
+    model: usize,
+    z: Vec<f64>,
+    s: Vec<f64>,
+    c: Vec<f64>,
+}
+
+/// What one track's newest state needs, gathered before any object is made.
+struct Row {
+    /// History entry (row-major state and covariance) of the newest state.
+    last: usize,
+    update: bool,
+    /// Predicted mean and covariance (row-major), when a prediction object is made.
+    pred: Option<(Vec<f64>, Vec<f64>)>,
+    /// Detections (rows of the scan) with their probabilities, the missed probability, the
+    /// chosen detection.
+    assoc: Vec<(usize, f64)>,
+    missed: f64,
+    det: i64,
+    /// Measurement predictions of the distinct models of the gated detections, and per gated
+    /// detection its index there.
+    mps: Vec<MeasurementPrediction>,
+    mp_of: Vec<usize>,
+}
+
+fn mat_vec(a: &[f64], rows: usize, cols: usize, x: &[f64]) -> Vec<f64> {
+    (0..rows)
+        .map(|i| (0..cols).map(|j| a[i * cols + j] * x[j]).sum())
+        .collect()
+}
+
+/// a (r, k) · b (k, c), row-major.
+fn mat_mul(a: &[f64], b: &[f64], r: usize, k: usize, c: usize) -> Vec<f64> {
+    let mut out = vec![0.0; r * c];
+    for i in 0..r {
+        for j in 0..c {
+            out[i * c + j] = (0..k).map(|l| a[i * k + l] * b[l * c + j]).sum();
+        }
+    }
+    out
+}
+
+fn transpose(a: &[f64], r: usize, c: usize) -> Vec<f64> {
+    let mut out = vec![0.0; r * c];
+    for i in 0..r {
+        for j in 0..c {
+            out[j * r + i] = a[i * c + j];
+        }
+    }
+    out
+}
+
+fn row_major(m: &DMatrix<f64>) -> Vec<f64> {
+    m.transpose().as_slice().to_vec()
+}
+
+impl StoneSoupKit {
+    /// H and R of a detection's measurement model (cached by identity).
+    fn linear<'py>(&mut self, model: &Bound<'py, PyAny>) -> PyResult<Linear> {
+        let key = model.as_ptr() as usize;
+        if let Some((_, hr)) = self.models.get(&key) {
+            return Ok(hr.clone());
+        }
+        let got = self.linear_model.bind(model.py()).call1((model,))?;
+        let hr = if got.is_none() {
+            None
+        } else {
+            let (h, _ht, r): (
+                PyReadonlyArray2<'py, f64>,
+                Bound<'py, PyAny>,
+                PyReadonlyArray2<'py, f64>,
+            ) = got.extract()?;
+            let (hs, rs) = (h.shape(), r.shape());
+            let h = DMatrix::from_row_slice(hs[0], hs[1], super::slice("H", &h)?);
+            let r = DMatrix::from_row_slice(rs[0], rs[1], super::slice("R", &r)?);
+            Some((h, r))
+        };
+        if self.models.len() >= MODEL_CACHE {
+            self.models.clear();
+        }
+        self.models
+            .insert(key, (model.clone().unbind(), hr.clone()));
+        Ok(hr)
+    }
+
+    /// A new C-contiguous float64 array `(rows, cols)` of class `arrays[cls]` (an ndarray
+    /// subclass: numpy makes it as it makes that class's views) holding `data` (row-major).
+    fn array<'py>(
+        &self,
+        py: Python<'py>,
+        cls: usize,
+        rows: usize,
+        cols: usize,
+        data: &[f64],
+    ) -> PyResult<Bound<'py, PyAny>> {
+        debug_assert_eq!(data.len(), rows * cols);
+        let mut dims = [rows as npy_intp, cols as npy_intp];
+        let sub = self.arrays[cls].bind(py).cast::<PyType>()?;
+        let obj = unsafe {
+            let ptr = PY_ARRAY_API.PyArray_NewFromDescr(
+                py,
+                sub.as_type_ptr(),
+                f64::get_dtype(py).into_dtype_ptr(),
+                2,
+                dims.as_mut_ptr(),
+                std::ptr::null_mut(),
+                std::ptr::null_mut(),
+                0,
+                std::ptr::null_mut(),
+            );
+            Bound::from_owned_ptr_or_err(py, ptr)?
+        };
+        let a = obj.cast::<PyArray2<f64>>()?;
+        if a.len() != data.len() || !a.is_c_contiguous() {
+            return Err(PyValueError::new_err("usvfast: unexpected array layout"));
+        }
+        // SAFETY: a fresh C-contiguous array of data.len() float64 that nothing else sees yet.
+        unsafe { std::ptr::copy_nonoverlapping(data.as_ptr(), a.data(), data.len()) };
+        Ok(obj)
+    }
+
+    /// Stone Soup's `Prediction` constructor's change to its prior: the prior's hypothesis's
+    /// prediction keeps its own prior as a weak reference.
+    fn predicted_from(&self, py: Python<'_>, prior: &Bound<'_, PyAny>) -> PyResult<()> {
+        let hyp = if prior.get_type().is(self.b[UPD].cls.bind(py)) {
+            // Its `__dict__` entry, read without materialising the dict.
+            prior.getattr(intern!(py, "_property_hypothesis"))?
+        } else if prior.get_type().is(self.b[PRED].cls.bind(py)) {
+            return Ok(()); // a GaussianStatePrediction has no hypothesis
+        } else {
+            match prior.getattr(intern!(py, "hypothesis")) {
+                Ok(h) => h,
+                Err(e) if e.is_instance_of::<pyo3::exceptions::PyAttributeError>(py) => {
+                    return Ok(())
+                }
+                Err(e) => return Err(e),
+            }
+        };
+        if hyp.is_none() || hyp.get_type().is(self.b[MULTI].cls.bind(py)) {
+            return Ok(()); // a MultipleHypothesis has no prediction
+        }
+        let older = match hyp.getattr(intern!(py, "prediction")) {
+            Ok(o) => o,
+            Err(e) if e.is_instance_of::<pyo3::exceptions::PyAttributeError>(py) => return Ok(()),
+            Err(e) => return Err(e),
+        };
+        if older.is_none() {
+            return Ok(());
+        }
+        let d = older.getattr(intern!(py, "__dict__"))?;
+        let d = d.cast::<PyDict>()?;
+        if let Some(back) = d.get_item(intern!(py, "_property_prior"))? {
+            let weak = self.weakref.bind(py);
+            if !back.is_none() && !back.is_instance(weak)? {
+                d.set_item(intern!(py, "_property_prior"), weak.call1((back,))?)?;
+            }
+        }
+        Ok(())
+    }
+
+    fn probability<'py>(&self, py: Python<'py>, p: f64) -> PyResult<Bound<'py, PyAny>> {
+        let b = &self.b[PROBABILITY];
+        if p > 0.0 {
+            let v = p.ln().into_pyobject(py)?.into_any();
+            return b.make(py, &[&v]);
+        }
+        b.cls.bind(py).call1((p,))
+    }
+}
+
+#[pymethods]
+impl StoneSoupKit {
+    /// A kit from the builder specifications `(cls.__new__, cls, keys, template or None)` of
+    /// `usvfast.stonesoup_objects` (order: see there), the array classes `(StateVector,
+    /// CovarianceMatrix, Matrix)`, the tracker's `linear_model(model) -> (H, Hᵀ, R) | None`
+    /// and its measure (1 Mahalanobis, 2 squared Mahalanobis, 0 other).
+    #[new]
+    fn new(
+        builders: Vec<Bound<'_, PyAny>>,
+        arrays: (Bound<'_, PyAny>, Bound<'_, PyAny>, Bound<'_, PyAny>),
+        linear_model: Bound<'_, PyAny>,
+        measure: u8,
+    ) -> PyResult<Self> {
+        if builders.len() != N_BUILDERS {
+            return Err(PyValueError::new_err(format!(
+                "builders: expected {N_BUILDERS} specifications, got {}",
+                builders.len()
+            )));
+        }
+        let py = linear_model.py();
+        let np = py.import("numpy")?;
+        Ok(Self {
+            b: builders
+                .iter()
+                .map(Builder::from_spec)
+                .collect::<PyResult<_>>()?,
+            arrays: [arrays.0.unbind(), arrays.1.unbind(), arrays.2.unbind()],
+            float64: np.getattr("float64")?.unbind(),
+            weakref: py.import("weakref")?.getattr("ref")?.unbind(),
+            linear_model: linear_model.unbind(),
+            measure,
+            models: HashMap::new(),
+        })
+    }
+
+    /// One object of builder `index` with `values` (to check the kit against Stone Soup's
+    /// constructors).
+    fn make<'py>(
+        &self,
+        py: Python<'py>,
+        index: usize,
+        values: Vec<Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let b = self.b.get(index).ok_or_else(|| {
+            PyValueError::new_err(format!("index: expected < {N_BUILDERS}, got {index}"))
+        })?;
+        let refs: Vec<&Bound<'py, PyAny>> = values.iter().collect();
+        b.make(py, &refs)
+    }
+
+    /// The newest states of confirmed tracks `ids` of `core` at scan `scan` (their previous
+    /// states `priors`, built at scan − 1, `dt` seconds earlier): (whether a detection of the
+    /// scan carries metadata, a list with, per track, its Stone Soup state or None where this
+    /// cannot build it exactly (see the module docs)).
+    /// `transition` (F, Q) over dt; `detections` the scan's Detection objects, `models` their
+    /// measurement models, `z` (k, m) their measurements; `timestamp` the scan's datetime,
+    /// `transition_model` the predictor's; `mixture`: JPDA hypotheses (else GNN);
+    /// `hypotheses` False: updates carry `SingleHypothesis(None, MissedDetection)`.
+    #[allow(clippy::too_many_arguments)]
+    #[pyo3(signature = (
+        core, scan, ids, priors, dt, transition, detections, models, z, timestamp,
+        transition_model, mixture, hypotheses
+    ))]
+    fn newest<'py>(
+        &mut self,
+        py: Python<'py>,
+        core: PyRef<'py, TrackerCore>,
+        scan: i64,
+        ids: Vec<u64>,
+        priors: Vec<Bound<'py, PyAny>>,
+        dt: f64,
+        transition: (PyReadonlyArray2<'py, f64>, PyReadonlyArray2<'py, f64>),
+        detections: Bound<'py, PyList>,
+        models: Bound<'py, PyList>,
+        z: PyReadonlyArray2<'py, f64>,
+        timestamp: Bound<'py, PyAny>,
+        transition_model: Bound<'py, PyAny>,
+        mixture: bool,
+        hypotheses: bool,
+    ) -> PyResult<(bool, Bound<'py, PyList>)> {
+        let inner = &core.inner;
+        let n = inner.config().motion_model.ndim();
+        let (fm, q) = (&transition.0, &transition.1);
+        if fm.shape() != [n, n] || q.shape() != [n, n] {
+            return Err(PyValueError::new_err(format!(
+                "transition: expected two ({n}, {n}) matrices"
+            )));
+        }
+        if ids.len() != priors.len() {
+            return Err(PyValueError::new_err("priors: one per track id"));
+        }
+        let k_det = detections.len();
+        if models.len() != k_det || z.shape()[0] != k_det {
+            return Err(PyValueError::new_err(
+                "models, z: one per detection of the scan",
+            ));
+        }
+        let (fm, q) = (super::slice("F", fm)?, super::slice("Q", q)?);
+        let zm = z.shape()[1];
+        let zs = super::slice("z", &z)?;
+        let ft = transpose(fm, n, n);
+        let by_id: HashMap<u64, usize> = inner
+            .tracks
+            .iter()
+            .enumerate()
+            .map(|(i, t)| (t.id, i))
+            .collect();
+
+        // Gather every number first (no object is made for a track that falls back).
+        let mut rows: Vec<Option<Row>> = Vec::with_capacity(ids.len());
+        for id in &ids {
+            rows.push(self.gather(
+                &models,
+                by_id.get(id).map(|&i| &inner.tracks[i]),
+                scan,
+                dt,
+                n,
+                fm,
+                &ft,
+                q,
+                mixture,
+                hypotheses,
+                zm,
+            )?);
+        }
+
+        let arr = |cls: usize, rows: usize, cols: usize, data: &[f64]| {
+            self.array(py, cls, rows, cols, data)
+        };
+        let none = py.None().into_bound(py);
+        // Whether a detection carries metadata (Stone Soup's `Track.append` then merges it).
+        let mut has_metadata = false;
+        for d in detections.iter() {
+            if d.getattr(intern!(py, "metadata"))?.is_truthy()? {
+                has_metadata = true;
+                break;
+            }
+        }
+        let out = PyList::empty(py);
+        let empty_md = || PyDict::new(py).into_any();
+        for ((row, prior), id) in rows.iter().zip(&priors).zip(&ids) {
+            let Some(r) = row else {
+                out.append(&none)?;
+                continue;
+            };
+            let h = &inner.tracks[by_id[id]].history;
+            let sv = arr(0, n, 1, &h.states[r.last * n..(r.last + 1) * n])?;
+            let cm = arr(
+                1,
+                n,
+                n,
+                &h.covariances[r.last * n * n..(r.last + 1) * n * n],
+            )?;
+            if !r.update {
+                self.predicted_from(py, prior)?;
+                let st = if mixture {
+                    self.b[PRED].make(py, &[&sv, &cm, &timestamp])?
+                } else {
+                    self.b[PRED_OF].make(py, &[&sv, &cm, &timestamp, &transition_model, prior])?
+                };
+                out.append(st)?;
+                continue;
+            }
+            let mut hyp: Option<Bound<'py, PyAny>> = None;
+            if let (true, Some((xp, pp))) = (hypotheses, &r.pred) {
+                let (a, b) = (arr(0, n, 1, xp)?, arr(1, n, n, pp)?);
+                self.predicted_from(py, prior)?;
+                let pred =
+                    self.b[PRED_OF].make(py, &[&a, &b, &timestamp, &transition_model, prior])?;
+                let mut mp_objs = Vec::with_capacity(r.mps.len());
+                for MeasurementPrediction {
+                    z: zp,
+                    s: sp,
+                    c: cp,
+                    ..
+                } in &r.mps
+                {
+                    let (a, b, c) = (arr(0, zm, 1, zp)?, arr(1, zm, zm, sp)?, arr(2, n, zm, cp)?);
+                    mp_objs.push(self.b[MPRED].make(py, &[&a, &b, &timestamp, &c])?);
+                }
+                if mixture && r.missed.is_finite() {
+                    let miss = self.b[MISSED].make(py, &[&timestamp, &empty_md()])?;
+                    let pm = self.probability(py, r.missed)?;
+                    let hyps = PyList::empty(py);
+                    hyps.append(self.b[PROB].make(py, &[&pred, &miss, &pm, &none])?)?;
+                    for (j, &(d, p)) in r.assoc.iter().enumerate() {
+                        let det = detections.get_item(d)?;
+                        let pj = self.probability(py, p)?;
+                        let mp = &mp_objs[r.mp_of[j]];
+                        hyps.append(self.b[PROB].make(py, &[&pred, &det, &pj, mp])?)?;
+                    }
+                    hyp = Some(self.b[MULTI].make(py, &[&hyps.into_any()])?);
+                } else if r.det >= 0 {
+                    let d = r.det as usize;
+                    let det = detections.get_item(d)?;
+                    let MeasurementPrediction { z: zp, s, .. } = &r.mps[0];
+                    let v0 = zs[d * zm] - zp[0];
+                    let v1 = zs[d * zm + 1] - zp[1];
+                    let (a, b, c, e) = (s[0], s[1], s[2], s[3]);
+                    let d2 = (e * v0 * v0 - (b + c) * v0 * v1 + a * v1 * v1) / (a * e - b * c);
+                    let dist = if self.measure == 1 { d2.sqrt() } else { d2 };
+                    let dist = self.float64.bind(py).call1((dist,))?;
+                    hyp = Some(self.b[DIST].make(py, &[&pred, &det, &dist, &mp_objs[0]])?);
+                }
+            }
+            let hyp = match hyp {
+                Some(h) => h,
+                None => {
+                    let miss = self.b[MISSED].make(py, &[&timestamp, &empty_md()])?;
+                    self.b[SINGLE].make(py, &[&none, &miss])?
+                }
+            };
+            out.append(self.b[UPD].make(py, &[&sv, &cm, &hyp, &timestamp])?)?;
+        }
+        Ok((has_metadata, out))
+    }
+}
+
+impl StoneSoupKit {
+    /// The numbers of one track's newest state, or None when it falls back (see `newest`).
+    #[allow(clippy::too_many_arguments)]
+    fn gather(
+        &mut self,
+        models: &Bound<'_, PyList>,
+        track: Option<&crate::tracking::track::Track>,
+        scan: i64,
+        dt: f64,
+        n: usize,
+        fm: &[f64],
+        ft: &[f64],
+        q: &[f64],
+        mixture: bool,
+        hypotheses: bool,
+        zm: usize,
+    ) -> PyResult<Option<Row>> {
+        let Some(tr) = track else { return Ok(None) };
+        let h = &tr.history;
+        let len = h.times.len();
+        if len < 2
+            || h.scan[len - 1] != scan
+            || h.scan[len - 2] != scan - 1
+            || h.times[len - 1] - h.times[len - 2] != dt
+            || h.assoc_offsets.len() != len + 1
+        {
+            return Ok(None);
+        }
+        let (last, prev) = (len - 1, len - 2);
+        let update = h.is_update[last];
+        let (a, b) = (h.assoc_offsets[last], h.assoc_offsets[last + 1]);
+        let mut row = Row {
+            last,
+            update,
+            pred: None,
+            assoc: h.assoc_detection[a..b]
+                .iter()
+                .zip(&h.assoc_probability[a..b])
+                .map(|(&d, &p)| (d as usize, p))
+                .collect(),
+            missed: h.missed_probability[last],
+            det: h.detection[last],
+            mps: Vec::new(),
+            mp_of: Vec::new(),
+        };
+        if !update || !hypotheses {
+            return Ok(Some(row));
+        }
+        if h.assoc_detection[a..b]
+            .iter()
+            .any(|&d| d < 0 || d as usize >= models.len())
+            || h.detection[last] >= models.len() as i64
+        {
+            return Ok(None);
+        }
+        let x0 = &h.states[prev * n..(prev + 1) * n];
+        let p0 = &h.covariances[prev * n * n..(prev + 1) * n * n];
+        let xp = mat_vec(fm, n, n, x0);
+        let fp = mat_mul(fm, p0, n, n, n);
+        let mut pp = mat_mul(&fp, ft, n, n, n);
+        for (v, qv) in pp.iter_mut().zip(q) {
+            *v += qv;
+        }
+        let jpda = mixture && row.missed.is_finite();
+        let wanted: Vec<usize> = if jpda {
+            row.assoc.iter().map(|&(d, _)| d).collect()
+        } else if row.det >= 0 {
+            if self.measure == 0 || zm != 2 {
+                return Ok(None);
+            }
+            vec![row.det as usize]
+        } else {
+            Vec::new()
+        };
+        for d in wanted {
+            let model = models.get_item(d)?;
+            let key = model.as_ptr() as usize;
+            if let Some(i) = row.mps.iter().position(|m| m.model == key) {
+                row.mp_of.push(i);
+                continue;
+            }
+            let Some((hm, r)) = self.linear(&model)? else {
+                return Ok(None);
+            };
+            if hm.nrows() != zm || hm.ncols() != n || r.nrows() != zm || r.ncols() != zm {
+                return Ok(None);
+            }
+            let hv = row_major(&hm);
+            let ht = transpose(&hv, zm, n);
+            let zp = mat_vec(&hv, zm, n, &xp);
+            let cross = mat_mul(&pp, &ht, n, n, zm);
+            let mut s = mat_mul(&hv, &cross, zm, n, zm);
+            for (v, rv) in s.iter_mut().zip(row_major(&r)) {
+                *v += rv;
+            }
+            row.mp_of.push(row.mps.len());
+            row.mps.push(MeasurementPrediction {
+                model: key,
+                z: zp,
+                s,
+                c: cross,
+            });
+        }
+        row.pred = Some((xp, pp));
+        Ok(Some(row))
+    }
+}
+
+/// Ids of the alive confirmed tracks of `core`, in the core's order, as a list (what the
+/// drop-in reads every scan; `TrackerCore.track_ids` also lists the deleted ones).
+#[pyfunction]
+fn confirmed_ids<'py>(
+    py: Python<'py>,
+    core: PyRef<'py, TrackerCore>,
+) -> PyResult<Bound<'py, PyList>> {
+    PyList::new(py, core.inner.tracks.iter().map(|t| t.id))
+}
+
+/// The oldest first scan of `core`'s tentative tracks (their histories refer to the detections
+/// of that scan on), None without tentative tracks.
+#[pyfunction]
+fn tentative_first_scan(core: PyRef<'_, TrackerCore>) -> Option<i64> {
+    core.inner
+        .tentative
+        .iter()
+        .filter_map(|t| t.history.scan.first().copied())
+        .min()
+}
+
+pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<StoneSoupKit>()?;
+    m.add_function(wrap_pyfunction!(confirmed_ids, m)?)?;
+    m.add_function(wrap_pyfunction!(tentative_first_scan, m)?)?;
+    Ok(())
+}
