@@ -83,6 +83,7 @@ _LIDAR = {
     "range_std": ("float", 0.1),
     "cross_range_std": ("float", 0.065),
     "min_cluster_points": ("int", 15),
+    "core_radius": ("float", None),
     "min_position_std": ("float", 0.1),
     "vessels": ("bool", False),
     "vessel_beam": ("float", 2.2),
