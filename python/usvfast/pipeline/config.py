@@ -82,6 +82,7 @@ _LIDAR = {
     "surface_offset": ("float", 0.0),
     "range_std": ("float", 0.1),
     "cross_range_std": ("float", 0.065),
+    "reference_points": ("int", 0),
     "min_cluster_points": ("int", 15),
     "core_radius": ("float", None),
     "min_position_std": ("float", 0.1),
