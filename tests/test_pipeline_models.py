@@ -65,7 +65,7 @@ def test_lidar_model_covariance_grows_for_clusters_of_few_points():
         np.testing.assert_allclose(
             d.covariance, np.diag([0.05**2, 0.03**2]) * scale, rtol=1e-12, atol=1e-15
         )
-    with pytest.raises(ValueError, match="lidar.reference_points"):
+    with pytest.raises(ValueError, match=r"lidar\.reference_points"):
         LidarChain({**settings, "reference_points": -1}, Mount(), StageTimer())
 
 
