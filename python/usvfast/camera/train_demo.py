@@ -59,8 +59,8 @@ class TrainConfig:
     min_box_px: float = 3.0
     conf_threshold: float = 0.3
     trash_weight: float = 1.0
-    vessel_weight: float = 1.0
-    threads: int = 2
+    vessel_weight: float = 3.0
+    threads: int = 1
     train_seeds: tuple[int, ...] = TRAIN_SEEDS
     heldout_seeds: tuple[int, ...] = HELDOUT_SEEDS
     classes: tuple[str, ...] = field(default_factory=tuple)

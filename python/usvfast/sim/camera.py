@@ -27,7 +27,16 @@ from usvfast.camera.calibration import CameraModel
 from usvfast.camera.georef import mount_rotation
 from usvfast.frames import rotation_matrix
 from usvfast.lidar.simulator import Box, Wall
-from usvfast.sim.scene import TRUTH_KINDS, Body, World, make_world, place_body
+from usvfast.sim.scene import TRUTH_KINDS, Body, Mover, World, make_world, place_body
+from usvfast.sim.wake import (
+    FOAM,
+    MIN_SPEED,
+    foam,
+    mover_speed,
+    splash_boxes,
+    texture,
+    wake_extent,
+)
 
 #: Camera mount: the thesis's Otter (eq. 4.2) has the camera 0.04 m aft of the body origin and
 #: 0.27 m above it, looking along the bow; the simulated USV carries it on a mast 0.9 m above
@@ -43,6 +52,7 @@ _SKY_HORIZON = np.array([225.0, 205.0, 190.0], dtype=np.float32)
 _WATER = np.array([62.0, 70.0, 38.0], dtype=np.float32)
 _HAZE = np.array([200.0, 190.0, 180.0], dtype=np.float32)
 _HILLS = np.array([90.0, 110.0, 95.0], dtype=np.float32)
+_FOAM_RGB = (236, 240, 238)  # BGR of the white water above the surface
 _WALL_PIECE = 10.0  # long walls are cut into pieces of at most this length, m
 _CORNERS = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
 _EDGES = np.array(
@@ -177,7 +187,8 @@ class HarbourRenderer:
 
     camera : the CameraModel (default `default_camera()`); lever_arm, ypr_deg,
     waterline_height : the mount (see module doc). blur_sigma : optical blur, px; noise :
-    sensor noise standard deviation, grey levels.
+    sensor noise standard deviation, grey levels. wakes : draw the bow wave and the foam
+    wake of every vessel under way on the water (`usvfast.sim.wake`).
     """
 
     def __init__(
@@ -190,6 +201,7 @@ class HarbourRenderer:
         waterline_height: float = WATERLINE_HEIGHT,
         blur_sigma: float = 0.7,
         noise: float = 2.0,
+        wakes: bool = True,
     ) -> None:
         self.world = world
         self.camera = camera or default_camera()
@@ -198,6 +210,7 @@ class HarbourRenderer:
         self.waterline_height = float(waterline_height)
         self.blur_sigma = float(blur_sigma)
         self.noise = float(noise)
+        self.wakes = bool(wakes)
         self.width, self.height = self.camera.image_size
         self._rays = pixel_rays(self.camera)
         # truth objects get ids 0..k-1 in the id buffer, structure -1
@@ -359,6 +372,8 @@ class HarbourRenderer:
             # courses of stone / windows: darker bands with height
             band = (np.floor(z * (2.0 if body.kind == "wall" else 0.35)) % 2).astype(np.float32)
             col *= (1.0 - 0.08 * band)[:, None]
+        if body.kind == "foam":
+            return np.minimum(col * np.float32(1.15), np.float32(250.0))
         wet = np.exp(-np.maximum(z, 0.0) / 0.04).astype(np.float32)  # waterline darkening
         col *= (1.0 - 0.35 * wet)[:, None]
         haze = (1.0 - np.exp(-dist / 600.0)).astype(np.float32)
@@ -386,6 +401,7 @@ class HarbourRenderer:
         down = d[:, 2] > 1e-4
         depth = np.full(len(d), np.inf, dtype=np.float32)
         depth[down] = np.float32(-pose.position[2]) / d[down, 2]
+        sea_depth = depth.copy()
         ids = np.full(len(d), -1, dtype=np.int32)
         footprint: dict[int, list[np.ndarray]] = {}  # object -> pixels its bodies cover
         bodies = list(self._static)
@@ -394,6 +410,9 @@ class HarbourRenderer:
             for b in m.bodies:
                 placed = place_body(b, n, e, yaw)
                 bodies.append((placed.box, placed))
+            if self.wakes and m.kind == "vessel":
+                for box in splash_boxes(m, t):
+                    bodies.append((box, Body(box, "", "foam", _FOAM_RGB, 0.0)))
         for shape, body in bodies:
             idx = self._candidates(pose, shape)
             if idx is None:
@@ -410,6 +429,10 @@ class HarbourRenderer:
             depth[sel] = dist[near]
             ids[sel] = k
             colour[sel] = self._shade(body, normal[near], z[near], dist[near])
+        if self.wakes:
+            for m in self.world.movers:
+                if m.kind == "vessel":
+                    self._paint_wake(pose, d, depth, sea_depth, colour, m, t)
         img = colour.reshape(self.height, self.width, 3)
         if self.blur_sigma > 0:
             img = cv2.GaussianBlur(img, (0, 0), self.blur_sigma)
@@ -419,6 +442,45 @@ class HarbourRenderer:
         image = np.clip(img + 0.5, 0, 255).astype(np.uint8)
         unoccluded = {k: np.unique(np.concatenate(v)).size for k, v in footprint.items()}
         return image, self._boxes(ids, unoccluded, min_pixels)
+
+    def _paint_wake(
+        self,
+        pose: CameraPose,
+        d: np.ndarray,
+        depth: np.ndarray,
+        sea_depth: np.ndarray,
+        colour: np.ndarray,
+        mover: Mover,
+        t: float,
+    ) -> None:
+        """Blend the foam of `mover` (`usvfast.sim.wake.foam`) into `colour` on the pixels
+        that still show the sea (their depth is the sea's: nothing in front of the water)."""
+        speed = mover_speed(mover, t)
+        if speed < MIN_SPEED:
+            return
+        length, beam, _ = mover.size
+        n, e, yaw = (float(v) for v in mover.motion.pose(np.asarray(t)))
+        c, s = np.cos(yaw), np.sin(yaw)
+        fwd, aft, half = wake_extent(length, beam, speed)
+        mid = (fwd + aft) / 2
+        region = Box((n + c * mid, e + s * mid), fwd - aft, 2 * half, yaw, 0.0, 0.02)
+        idx = self._candidates(pose, region)
+        if idx is None:
+            return
+        idx = idx[np.isfinite(sea_depth[idx]) & (depth[idx] == sea_depth[idx])]
+        if idx.size == 0:
+            return
+        p = pose.position[:2].astype(np.float32) + depth[idx, None] * d[idx, :2]
+        rn, re = p[:, 0] - np.float32(n), p[:, 1] - np.float32(e)
+        x = np.float32(c) * rn + np.float32(s) * re
+        y = np.float32(-s) * rn + np.float32(c) * re
+        f = foam(x, y, length=length, beam=beam, speed=speed)
+        on = f > 0
+        if not on.any():
+            return
+        f = (f[on] * texture(p[on, 0], p[on, 1], t))[:, None]
+        sel = idx[on]
+        colour[sel] = colour[sel] * (1 - f) + FOAM * f
 
     def _boxes(
         self, ids: np.ndarray, unoccluded: dict[int, int], min_pixels: int
