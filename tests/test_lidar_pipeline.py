@@ -215,14 +215,27 @@ def test_core_radius_keeps_a_small_object_and_drops_sparse_clutter():
     )
     assert len(dets) == 1
     (d,) = dets
-    # the core: scikit-learn's flat-kernel mean shift of radius 0.5 from the members' median
+    # the core: scikit-learn's flat-kernel mean shift of radius 0.5 from the densest member
     members = pts[:15]
-    ref = MeanShift(bandwidth=0.5, seeds=np.median(members, axis=0)[None]).fit(members)
+    dense = np.sum(np.hypot(*(members[:, None] - members[None]).transpose(2, 0, 1)) <= 0.5, axis=1)
+    ref = MeanShift(bandwidth=0.5, seeds=members[np.argmax(dense)][None]).fit(members)
     np.testing.assert_allclose(d.position, bottle.mean(axis=0), atol=1e-12)
     np.testing.assert_allclose(ref.cluster_centers_[0], d.position, atol=1e-3)
     assert d.n_points == 10
     assert (labels[10:] == -1).all() and (labels[:10] >= 0).all()
     assert np.linalg.norm(d_wide.position - [4.0, 1.0]) > np.linalg.norm(d.position - [4.0, 1.0])
+    # two floats 1.2 m apart: one mean-shift cluster (its mean between them), two cores
+    shift = np.array([1.2, 0.0])
+    pair = np.vstack([bottle, bottle + shift])
+    (merged,), _, _ = cluster_detections(pair, time=0.0, min_cluster_points=8, backend="sklearn")
+    assert merged.n_points == 20
+    cores, _, _ = cluster_detections(
+        pair, time=0.0, min_cluster_points=8, core_radius=0.5, backend="sklearn"
+    )
+    got = sorted(tuple(d.position) for d in cores)
+    want = sorted(tuple(c) for c in (bottle.mean(axis=0), bottle.mean(axis=0) + shift))
+    np.testing.assert_allclose(got, want, atol=1e-12)
+    assert [d.n_points for d in cores] == [10, 10]
     with pytest.raises(ValueError, match="core_radius"):
         cluster_detections(pts, time=0.0, core_radius=0.0)
     with pytest.raises(ValueError, match="core_radius"):

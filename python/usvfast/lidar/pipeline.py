@@ -49,7 +49,7 @@ class LidarConfig:
     min_cluster_points : clusters with fewer points are dropped.
     core_radius : None (the thesis): a detection is the mean of all its cluster's members.
         A number (m): only the members within this distance of the cluster's core count —
-        the core found from the members' median by a mean shift of this flat radius — so
+        the core found from its densest member by a mean shift of this flat radius — so
         sparse surface clutter gathered by the wide `bandwidth` neither moves a small
         object's detection nor makes up the point count of a clutter cluster.
     min_position_std : floor of the detection's standard deviation along any axis, m.
@@ -315,10 +315,11 @@ def cluster_detections(
     Clusters with fewer than `min_cluster_points` members, and orphans (label −1 with
     `cluster_all=False`), produce nothing. A detection's position is the mean of its
     members; its covariance is their sample covariance with every eigenvalue raised to at
-    least `min_position_std`². With `core_radius` (m) a cluster keeps only its core: the
-    members within core_radius of the point a flat-kernel mean shift of that radius reaches
-    from the members' coordinate-wise median (`_core_members`); the count, mean and
-    covariance are the core's.
+    least `min_position_std`². With `core_radius` (m) a cluster keeps only its cores: the
+    members within core_radius of where a flat-kernel mean shift of that radius settles from
+    the member with the most others within core_radius (`_core_members`), then the same
+    among the members left while a core has min_cluster_points (`_cores`: two floats in one
+    cluster give two detections); the count, mean and covariance are each core's.
 
     Returns (detections, labels (n,) int with −1 for points in no kept cluster, centres
     (c, 2) of all mean-shift clusters). Labels of kept clusters index `centres`.
@@ -343,37 +344,64 @@ def cluster_detections(
     detections = []
     floor = min_position_std**2
     for k in range(np.asarray(centres).shape[0]):
-        members = labels == k
-        if core_radius is not None and members.any():
-            outer = members.copy()
-            members[outer] = _core_members(pts[outer], core_radius)
-            labels[outer & ~members] = -1
-        count = int(members.sum())
-        if count < min_cluster_points:
-            labels[members] = -1
-            continue
-        m = pts[members]
-        cov = np.cov(m, rowvar=False)
-        w, v = np.linalg.eigh((cov + cov.T) / 2)
-        cov = (v * np.maximum(w, floor)) @ v.T
-        detections.append(LidarDetection(float(time), m.mean(axis=0), cov, count, sensor_id))
+        cluster = labels == k
+        groups = [cluster]
+        if core_radius is not None and cluster.any():
+            groups = _cores(pts, cluster, core_radius, min_cluster_points)
+            labels[cluster] = -1
+            for g in groups:
+                labels[g] = k
+        for members in groups:
+            count = int(members.sum())
+            if count < min_cluster_points:
+                labels[members] = -1
+                continue
+            m = pts[members]
+            cov = np.cov(m, rowvar=False)
+            w, v = np.linalg.eigh((cov + cov.T) / 2)
+            cov = (v * np.maximum(w, floor)) @ v.T
+            detections.append(LidarDetection(float(time), m.mean(axis=0), cov, count, sensor_id))
     return detections, labels, np.asarray(centres, dtype=np.float64).reshape(-1, 2)
 
 
-def _core_members(points: np.ndarray, radius: float, iterations: int = 10) -> np.ndarray:
-    """(n,) mask of the points (n, 2) within `radius` of their core: start at the
-    coordinate-wise median, move to the mean of the points within `radius` until it stops
-    (at most `iterations` steps; a flat-kernel mean shift, Comaniciu & Meer 2002)."""
-    centre = np.median(points, axis=0)
-    inside = np.zeros(len(points), dtype=bool)
-    for _ in range(iterations):
-        inside = np.sum((points - centre) ** 2, axis=1) <= radius * radius
-        if not inside.any():
+def _cores(
+    points: np.ndarray, cluster: np.ndarray, radius: float, min_points: int
+) -> list[np.ndarray]:
+    """Masks (over all points) of the cores of one mean-shift cluster (`cluster`, a mask):
+    the first core of its members (`_core_members`), then the core of the members left, and
+    so on while a core holds at least `min_points` (two floats within one bandwidth give two
+    cores). Always at least one mask (possibly too small to keep)."""
+    left = cluster.copy()
+    out: list[np.ndarray] = []
+    while left.any():
+        core = np.zeros_like(left)
+        core[left] = _core_members(points[left], radius)
+        if out and int(core.sum()) < min_points:
             break
+        out.append(core)
+        left &= ~core
+        if int(core.sum()) < min_points:
+            break
+    return out
+
+
+def _core_members(points: np.ndarray, radius: float, iterations: int = 10) -> np.ndarray:
+    """(n,) mask of the points (n, 2) within `radius` of their core: start at the point with
+    the most others within `radius` (the first such), move to the mean of the points within
+    `radius` until it stops (at most `iterations` steps; a flat-kernel mean shift, Comaniciu &
+    Meer 2002)."""
+    r2 = radius * radius
+    d2 = np.sum((points[:, None, :] - points[None, :, :]) ** 2, axis=2)
+    centre = points[int(np.argmax(np.sum(d2 <= r2, axis=1)))]
+    inside = np.sum((points - centre) ** 2, axis=1) <= r2
+    for _ in range(iterations):
         new = points[inside].mean(axis=0)
         if np.allclose(new, centre, rtol=0.0, atol=1e-6):
             break
         centre = new
+        inside = np.sum((points - centre) ** 2, axis=1) <= r2
+        if not inside.any():
+            break
     return inside
 
 
