@@ -315,11 +315,11 @@ def cluster_detections(
     Clusters with fewer than `min_cluster_points` members, and orphans (label −1 with
     `cluster_all=False`), produce nothing. A detection's position is the mean of its
     members; its covariance is their sample covariance with every eigenvalue raised to at
-    least `min_position_std`². With `core_radius` (m) a cluster keeps only its cores: the
+    least `min_position_std`². With `core_radius` (m) a cluster keeps only its core: the
     members within core_radius of where a flat-kernel mean shift of that radius settles from
-    the member with the most others within core_radius (`_core_members`), then the same
-    among the members left while a core has min_cluster_points (`_cores`: two floats in one
-    cluster give two detections); the count, mean and covariance are each core's.
+    the member with the most others within core_radius (`_core_members`); the count, mean
+    and covariance are the core's (two floats in one cluster: the denser one's, where the
+    thesis's mean lies between them; a hull: one detection, as before).
 
     Returns (detections, labels (n,) int with −1 for points in no kept cluster, centres
     (c, 2) of all mean-shift clusters). Labels of kept clusters index `centres`.
@@ -344,45 +344,21 @@ def cluster_detections(
     detections = []
     floor = min_position_std**2
     for k in range(np.asarray(centres).shape[0]):
-        cluster = labels == k
-        groups = [cluster]
-        if core_radius is not None and cluster.any():
-            groups = _cores(pts, cluster, core_radius, min_cluster_points)
-            labels[cluster] = -1
-            for g in groups:
-                labels[g] = k
-        for members in groups:
-            count = int(members.sum())
-            if count < min_cluster_points:
-                labels[members] = -1
-                continue
-            m = pts[members]
-            cov = np.cov(m, rowvar=False)
-            w, v = np.linalg.eigh((cov + cov.T) / 2)
-            cov = (v * np.maximum(w, floor)) @ v.T
-            detections.append(LidarDetection(float(time), m.mean(axis=0), cov, count, sensor_id))
+        members = labels == k
+        if core_radius is not None and members.any():
+            outer = members.copy()
+            members[outer] = _core_members(pts[outer], core_radius)
+            labels[outer & ~members] = -1
+        count = int(members.sum())
+        if count < min_cluster_points:
+            labels[members] = -1
+            continue
+        m = pts[members]
+        cov = np.cov(m, rowvar=False)
+        w, v = np.linalg.eigh((cov + cov.T) / 2)
+        cov = (v * np.maximum(w, floor)) @ v.T
+        detections.append(LidarDetection(float(time), m.mean(axis=0), cov, count, sensor_id))
     return detections, labels, np.asarray(centres, dtype=np.float64).reshape(-1, 2)
-
-
-def _cores(
-    points: np.ndarray, cluster: np.ndarray, radius: float, min_points: int
-) -> list[np.ndarray]:
-    """Masks (over all points) of the cores of one mean-shift cluster (`cluster`, a mask):
-    the first core of its members (`_core_members`), then the core of the members left, and
-    so on while a core holds at least `min_points` (two floats within one bandwidth give two
-    cores). Always at least one mask (possibly too small to keep)."""
-    left = cluster.copy()
-    out: list[np.ndarray] = []
-    while left.any():
-        core = np.zeros_like(left)
-        core[left] = _core_members(points[left], radius)
-        if out and int(core.sum()) < min_points:
-            break
-        out.append(core)
-        left &= ~core
-        if int(core.sum()) < min_points:
-            break
-    return out
 
 
 def _core_members(points: np.ndarray, radius: float, iterations: int = 10) -> np.ndarray:
