@@ -215,17 +215,16 @@ def test_core_radius_keeps_a_small_object_and_drops_sparse_clutter():
     )
     assert len(dets) == 1
     (d,) = dets
-    # the core: scikit-learn's flat-kernel mean shift of radius 0.5 from the densest member
+    # the core: scikit-learn's flat-kernel mean shift of radius 0.5 from the members' median
     members = pts[:15]
-    dense = np.sum(np.hypot(*(members[:, None] - members[None]).transpose(2, 0, 1)) <= 0.5, axis=1)
-    ref = MeanShift(bandwidth=0.5, seeds=members[np.argmax(dense)][None]).fit(members)
+    ref = MeanShift(bandwidth=0.5, seeds=np.median(members, axis=0)[None]).fit(members)
     np.testing.assert_allclose(d.position, bottle.mean(axis=0), atol=1e-12)
     np.testing.assert_allclose(ref.cluster_centers_[0], d.position, atol=1e-3)
     assert d.n_points == 10
     assert (labels[10:] == -1).all() and (labels[:10] >= 0).all()
     assert np.linalg.norm(d_wide.position - [4.0, 1.0]) > np.linalg.norm(d.position - [4.0, 1.0])
-    # two floats 1.2 m apart, the second denser: one mean-shift cluster (its mean between
-    # them); the core is the denser float
+    # two floats 1.2 m apart, the second with more points: one mean-shift cluster (its mean
+    # between them); the median lies in neither, the core is the float nearest it
     shift = np.array([1.2, 0.0])
     dense = np.array([4.0, 1.0]) + shift + rng.normal(0, 0.02, (12, 2))
     pair = np.vstack([bottle, dense])

@@ -49,7 +49,7 @@ class LidarConfig:
     min_cluster_points : clusters with fewer points are dropped.
     core_radius : None (the thesis): a detection is the mean of all its cluster's members.
         A number (m): only the members within this distance of the cluster's core count —
-        the core found from its densest member by a mean shift of this flat radius — so
+        the core found from the members' median by a mean shift of this flat radius — so
         sparse surface clutter gathered by the wide `bandwidth` neither moves a small
         object's detection nor makes up the point count of a clutter cluster.
     min_position_std : floor of the detection's standard deviation along any axis, m.
@@ -317,9 +317,8 @@ def cluster_detections(
     members; its covariance is their sample covariance with every eigenvalue raised to at
     least `min_position_std`². With `core_radius` (m) a cluster keeps only its core: the
     members within core_radius of where a flat-kernel mean shift of that radius settles from
-    the member with the most others within core_radius (`_core_members`); the count, mean
-    and covariance are the core's (two floats in one cluster: the denser one's, where the
-    thesis's mean lies between them; a hull: one detection, as before).
+    the members' median (`_core_members`); the count, mean and covariance are the core's (two
+    floats in one cluster: one of them, where the thesis's mean lies between them).
 
     Returns (detections, labels (n,) int with −1 for points in no kept cluster, centres
     (c, 2) of all mean-shift clusters). Labels of kept clusters index `centres`.
@@ -362,13 +361,15 @@ def cluster_detections(
 
 
 def _core_members(points: np.ndarray, radius: float, iterations: int = 10) -> np.ndarray:
-    """(n,) mask of the points (n, 2) within `radius` of their core: start at the point with
-    the most others within `radius` (the first such), move to the mean of the points within
-    `radius` until it stops (at most `iterations` steps; a flat-kernel mean shift, Comaniciu &
-    Meer 2002)."""
+    """(n,) mask of the points (n, 2) within `radius` of their core: start at the
+    coordinate-wise median (or, with no point within `radius` of it, at the point nearest
+    it), move to the mean of the points within `radius` until it stops (at most `iterations`
+    steps; a flat-kernel mean shift, Comaniciu & Meer 2002)."""
     r2 = radius * radius
-    d2 = np.sum((points[:, None, :] - points[None, :, :]) ** 2, axis=2)
-    centre = points[int(np.argmax(np.sum(d2 <= r2, axis=1)))]
+    centre = np.median(points, axis=0)
+    d2 = np.sum((points - centre) ** 2, axis=1)
+    if not (d2 <= r2).any():
+        centre = points[int(np.argmin(d2))]
     inside = np.sum((points - centre) ** 2, axis=1) <= r2
     for _ in range(iterations):
         new = points[inside].mean(axis=0)
