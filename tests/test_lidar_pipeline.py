@@ -197,6 +197,50 @@ def test_covariance_floor_on_a_line_cluster():
     assert w[1] == pytest.approx(max(np.var(pts[:, 0], ddof=1), 0.04))
 
 
+def test_core_radius_keeps_a_small_object_and_drops_sparse_clutter():
+    rng = np.random.default_rng(11)
+    bottle = np.array([4.0, 1.0]) + rng.normal(0, 0.04, (10, 2))
+    # sparse surface clutter 0.7-1.6 m around it: the wide mean shift gathers it too
+    ang = rng.uniform(0, 2 * np.pi, 5)
+    rad = rng.uniform(0.7, 1.6, 5)
+    near = np.array([4.0, 1.0]) + np.column_stack([rad * np.cos(ang), rad * np.sin(ang)])
+    clutter = np.array([-8.0, 3.0]) + rng.uniform(-1.4, 1.4, (12, 2))  # a clutter-only patch
+    pts = np.vstack([bottle, near, clutter])
+    wide, _, _ = cluster_detections(pts, time=0.0, min_cluster_points=8, backend="sklearn")
+    assert len(wide) == 2  # the thesis's clusters: the clutter patch is a detection
+    d_wide = min(wide, key=lambda d: np.linalg.norm(d.position - [4.0, 1.0]))
+    assert d_wide.n_points == 15
+    dets, labels, _ = cluster_detections(
+        pts, time=0.0, min_cluster_points=8, core_radius=0.5, backend="sklearn"
+    )
+    assert len(dets) == 1
+    (d,) = dets
+    # the core: scikit-learn's flat-kernel mean shift of radius 0.5 from the members' median
+    members = pts[:15]
+    ref = MeanShift(bandwidth=0.5, seeds=np.median(members, axis=0)[None]).fit(members)
+    np.testing.assert_allclose(d.position, bottle.mean(axis=0), atol=1e-12)
+    np.testing.assert_allclose(ref.cluster_centers_[0], d.position, atol=1e-3)
+    assert d.n_points == 10
+    assert (labels[10:] == -1).all() and (labels[:10] >= 0).all()
+    assert np.linalg.norm(d_wide.position - [4.0, 1.0]) > np.linalg.norm(d.position - [4.0, 1.0])
+    # two floats 1.2 m apart, the second with more points: one mean-shift cluster (its mean
+    # between them); the median lies in neither, the core is the float nearest it
+    shift = np.array([1.2, 0.0])
+    dense = np.array([4.0, 1.0]) + shift + rng.normal(0, 0.02, (12, 2))
+    pair = np.vstack([bottle, dense])
+    (merged,), _, _ = cluster_detections(pair, time=0.0, min_cluster_points=8, backend="sklearn")
+    assert merged.n_points == 22
+    (core,), _, _ = cluster_detections(
+        pair, time=0.0, min_cluster_points=8, core_radius=0.5, backend="sklearn"
+    )
+    np.testing.assert_allclose(core.position, dense.mean(axis=0), atol=1e-12)
+    assert core.n_points == 12
+    with pytest.raises(ValueError, match="core_radius"):
+        cluster_detections(pts, time=0.0, core_radius=0.0)
+    with pytest.raises(ValueError, match="core_radius"):
+        LidarConfig(core_radius=-1.0)
+
+
 # ------------------------------------------------------------------------- the detector
 def test_detector_cycles_and_intermediates():
     scene = harbour_scene(seed=2, floats=6)

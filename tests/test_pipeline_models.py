@@ -54,6 +54,21 @@ def test_lidar_measurement_model_moves_along_the_line_of_sight():
         LidarChain({**settings, "range_std": 0.0}, mount, StageTimer())
 
 
+def test_lidar_model_covariance_grows_for_clusters_of_few_points():
+    settings = {**_defaults("lidar"), "waterline_height": 0.3, "covariance": "model"}
+    settings.update(range_std=0.05, cross_range_std=0.03, reference_points=30)
+    chain = LidarChain(settings, Mount(), StageTimer())
+    pose = VesselPose(0.0, 0.0, 0.0, 0.0)  # heading north: along = north, across = east
+    dets = [LidarDetection(0.0, np.array([6.0, 0.0]), np.eye(2), n) for n in (6, 15, 30, 90)]
+    chain._measurement_model(dets, pose)
+    for d, scale in zip(dets, (5.0, 2.0, 1.0, 1.0), strict=True):
+        np.testing.assert_allclose(
+            d.covariance, np.diag([0.05**2, 0.03**2]) * scale, rtol=1e-12, atol=1e-15
+        )
+    with pytest.raises(ValueError, match=r"lidar\.reference_points"):
+        LidarChain({**settings, "reference_points": -1}, Mount(), StageTimer())
+
+
 def _camera_chain(depth: float) -> tuple[CameraChain, CameraModel]:
     k = np.array([[300.0, 0.0, 319.5], [0.0, 300.0, 179.5], [0.0, 0.0, 1.0]])
     model = CameraModel(k, np.array([-0.1, 0.02, 0.0, 0.0, 0.0]), (640, 360))

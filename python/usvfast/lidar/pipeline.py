@@ -47,6 +47,11 @@ class LidarConfig:
     buffer_frames : frames buffered in the world frame before clustering (K).
     bandwidth, bin_seeding, cluster_all, backend : mean shift parameters.
     min_cluster_points : clusters with fewer points are dropped.
+    core_radius : None (the thesis): a detection is the mean of all its cluster's members.
+        A number (m): only the members within this distance of the cluster's core count —
+        the core found from the members' median by a mean shift of this flat radius — so
+        sparse surface clutter gathered by the wide `bandwidth` neither moves a small
+        object's detection nor makes up the point count of a clutter cluster.
     min_position_std : floor of the detection's standard deviation along any axis, m.
     vessels : also find moving vessels among the points the line-of-sight filter removed
         (`usvfast.lidar.vessels.VesselFinder`): one detection per vessel near its centre,
@@ -76,6 +81,7 @@ class LidarConfig:
     cluster_all: bool = False
     backend: str = "rust"
     min_cluster_points: int = 15
+    core_radius: float | None = None
     min_position_std: float = 0.1
     vessels: bool = False
     vessel_beam: float = 2.2
@@ -104,6 +110,10 @@ class LidarConfig:
             v = getattr(self, name)
             if int(v) != v or v < 1:
                 raise ValueError(f"{name}: expected an integer >= 1, got {v}")
+        if self.core_radius is not None and not (
+            np.isfinite(self.core_radius) and self.core_radius > 0
+        ):
+            raise ValueError(f"core_radius: expected a positive number, got {self.core_radius}")
         if not self.slice_min < self.slice_max:
             raise ValueError(
                 f"slice_min/slice_max: expected slice_min < slice_max, got "
@@ -294,6 +304,7 @@ def cluster_detections(
     bandwidth: float = 2.0,
     min_cluster_points: int = 15,
     min_position_std: float = 0.1,
+    core_radius: float | None = None,
     bin_seeding: bool = False,
     cluster_all: bool = False,
     backend: str = "rust",
@@ -304,7 +315,10 @@ def cluster_detections(
     Clusters with fewer than `min_cluster_points` members, and orphans (label −1 with
     `cluster_all=False`), produce nothing. A detection's position is the mean of its
     members; its covariance is their sample covariance with every eigenvalue raised to at
-    least `min_position_std`².
+    least `min_position_std`². With `core_radius` (m) a cluster keeps only its core: the
+    members within core_radius of where a flat-kernel mean shift of that radius settles from
+    the members' median (`_core_members`); the count, mean and covariance are the core's (two
+    floats in one cluster: one of them, where the thesis's mean lies between them).
 
     Returns (detections, labels (n,) int with −1 for points in no kept cluster, centres
     (c, 2) of all mean-shift clusters). Labels of kept clusters index `centres`.
@@ -313,6 +327,8 @@ def cluster_detections(
 
     time = real("time", time)
     min_position_std = real("min_position_std", min_position_std, positive=True)
+    if core_radius is not None:
+        core_radius = real("core_radius", core_radius, positive=True)
     pts = as_float_array("points", points, ndim=2)
     if pts.shape[0] == 0:
         return [], np.zeros(0, dtype=np.int64), np.zeros((0, 2))
@@ -328,6 +344,10 @@ def cluster_detections(
     floor = min_position_std**2
     for k in range(np.asarray(centres).shape[0]):
         members = labels == k
+        if core_radius is not None and members.any():
+            outer = members.copy()
+            members[outer] = _core_members(pts[outer], core_radius)
+            labels[outer & ~members] = -1
         count = int(members.sum())
         if count < min_cluster_points:
             labels[members] = -1
@@ -338,6 +358,28 @@ def cluster_detections(
         cov = (v * np.maximum(w, floor)) @ v.T
         detections.append(LidarDetection(float(time), m.mean(axis=0), cov, count, sensor_id))
     return detections, labels, np.asarray(centres, dtype=np.float64).reshape(-1, 2)
+
+
+def _core_members(points: np.ndarray, radius: float, iterations: int = 10) -> np.ndarray:
+    """(n,) mask of the points (n, 2) within `radius` of their core: start at the
+    coordinate-wise median (or, with no point within `radius` of it, at the point nearest
+    it), move to the mean of the points within `radius` until it stops (at most `iterations`
+    steps; a flat-kernel mean shift, Comaniciu & Meer 2002)."""
+    r2 = radius * radius
+    centre = np.median(points, axis=0)
+    d2 = np.sum((points - centre) ** 2, axis=1)
+    if not (d2 <= r2).any():
+        centre = points[int(np.argmin(d2))]
+    inside = np.sum((points - centre) ** 2, axis=1) <= r2
+    for _ in range(iterations):
+        new = points[inside].mean(axis=0)
+        if np.allclose(new, centre, rtol=0.0, atol=1e-6):
+            break
+        centre = new
+        inside = np.sum((points - centre) ** 2, axis=1) <= r2
+        if not inside.any():
+            break
+    return inside
 
 
 # --------------------------------------------------------------------------------------
@@ -508,6 +550,7 @@ class LidarDetector:
             bandwidth=cfg.bandwidth,
             min_cluster_points=cfg.min_cluster_points,
             min_position_std=cfg.min_position_std,
+            core_radius=cfg.core_radius,
             bin_seeding=cfg.bin_seeding,
             cluster_all=cfg.cluster_all,
             backend=cfg.backend,

@@ -77,7 +77,7 @@ class LidarChain:
     "spread": each detection's R is its cluster's sample covariance, as LidarDetector gives
     it, or "centroid": that divided by the cluster size, the centroid's standard error; both
     floored at min_position_std², or "model": the measurement model of `_measurement_model`
-    (keys surface_offset, range_std, cross_range_std, metres)); mount: the
+    (keys surface_offset, range_std, cross_range_std, metres, and reference_points)); mount: the
     stream's mount (None: at the reference point, level); timer: a StageTimer for the
     per-stage times.
     """
@@ -108,7 +108,8 @@ class LidarChain:
         self.surface_offset = float(settings.get("surface_offset", 0.0))
         self.range_std = float(settings.get("range_std", 0.1))
         self.cross_range_std = float(settings.get("cross_range_std", 0.065))
-        for key in ("surface_offset", "range_std", "cross_range_std"):
+        self.reference_points = float(settings.get("reference_points", 0) or 0)
+        for key in ("surface_offset", "range_std", "cross_range_std", "reference_points"):
             if not getattr(self, key) >= 0:
                 raise ValueError(f"lidar.{key}: expected a number >= 0, got {getattr(self, key)}")
         if self.covariance == "model" and not (self.range_std > 0 and self.cross_range_std > 0):
@@ -178,7 +179,11 @@ class LidarChain:
         round object of radius rho the visible-surface centroid lies pi/4 rho short of the
         centre). Its covariance is diag(range_std², cross_range_std²) in the (line of sight,
         across) frame: the random error of one cycle's centroid (VLP-16 range noise, beam
-        spread and the de-skewing of the buffered rotations). Errors common to every sensor
+        spread and the de-skewing of the buffered rotations). With `reference_points` > 0
+        both standard deviations are those of a cluster of that many points and grow as
+        sqrt(reference_points / n) for a cluster of n < reference_points (a float that one
+        beam grazes: which part of its surface is hit varies more than the mean of many
+        hits). Errors common to every sensor
         (the GNSS position and heading biases) are not in it: they do not show in the
         innovations, only against the truth."""
         lx, ly = float(self.mount.lever_arm[0]), float(self.mount.lever_arm[1])
@@ -193,4 +198,7 @@ class LidarChain:
             u = los / r if r > 1e-9 else np.array([1.0, 0.0])
             basis = np.array([[u[0], -u[1]], [u[1], u[0]]])  # columns: along, across
             d.position = np.asarray(d.position, dtype=np.float64) + self.surface_offset * u
-            d.covariance = (basis * var) @ basis.T
+            scale = 1.0
+            if self.reference_points > 0 and 0 < d.n_points < self.reference_points:
+                scale = self.reference_points / d.n_points
+            d.covariance = (basis * (var * scale)) @ basis.T
