@@ -579,7 +579,7 @@ pub fn marginals(cluster: &[TrackHypotheses], method: Method) -> Result<Vec<Marg
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use rand::{Rng, SeedableRng};
 
@@ -614,7 +614,12 @@ mod tests {
     }
 
     /// Random clusters: `n` tracks, `nd` detections, each pair gated with probability `pg`.
-    fn random_cluster(rng: &mut impl Rng, n: usize, nd: usize, pg: f64) -> Vec<TrackHypotheses> {
+    pub(crate) fn random_cluster(
+        rng: &mut impl Rng,
+        n: usize,
+        nd: usize,
+        pg: f64,
+    ) -> Vec<TrackHypotheses> {
         (0..n)
             .map(|_| TrackHypotheses {
                 missed: rng.random_range(0.05..1.0),

@@ -227,20 +227,10 @@ mod tests {
     use crate::tracking::jpda::marginals_ehm;
     use rand::{Rng, SeedableRng};
 
+    /// Up to 6 tracks and 6 detections, each pair gated with probability ½.
     fn random_cluster(rng: &mut rand::rngs::StdRng) -> Vec<TrackHypotheses> {
-        let n = rng.random_range(1..7);
-        let nd = rng.random_range(0..7);
-        (0..n)
-            .map(|_| TrackHypotheses {
-                missed: rng.random_range(0.01..1.0),
-                detections: (0..nd)
-                    .filter(|_| rng.random_bool(0.5))
-                    .collect::<Vec<_>>()
-                    .into_iter()
-                    .map(|d| (d, rng.random_range(0.0..5.0)))
-                    .collect(),
-            })
-            .collect()
+        let (n, nd) = (rng.random_range(1..7), rng.random_range(0..7));
+        crate::tracking::jpda::tests::random_cluster(rng, n, nd, 0.5)
     }
 
     #[test]
