@@ -271,18 +271,26 @@ def measurement_models(scenario: Scenario) -> list:
     ]
 
 
-def stonesoup_scans(scenario: Scenario, models: list | None = None) -> list[tuple[datetime, set]]:
+def stonesoup_scans(
+    scenario: Scenario, models: list | None = None, metadata=None
+) -> list[tuple[datetime, set]]:
     """The scenario as Stone Soup detector output: [(datetime, {Detection, ...}), ...]; each
-    detection carries its sensor's measurement model (`models`, default `measurement_models`)."""
+    detection carries its sensor's measurement model (`models`, default `measurement_models`)
+    and `metadata(scan, index in the scan, sensor)` (a dict; default: none)."""
     from stonesoup.types.detection import Detection
 
     models = models or measurement_models(scenario)
     out = []
-    for t, z, s in scenario.scans():
+    for k, (t, z, s) in enumerate(scenario.scans()):
         ts = to_datetime(t)
         dets = {
-            Detection(zi.reshape(2, 1), timestamp=ts, measurement_model=models[si])
-            for zi, si in zip(z, s, strict=True)
+            Detection(
+                zi.reshape(2, 1),
+                timestamp=ts,
+                measurement_model=models[si],
+                metadata=metadata(k, i, int(si)) if metadata else {},
+            )
+            for i, (zi, si) in enumerate(zip(z, s, strict=True))
         }
         out.append((ts, dets))
     return out

@@ -336,18 +336,10 @@ def test_track_metadata_equals_stonesoups(with_metadata):
     # Stone Soup's Track.append merges the detections' metadata into the track's (most likely
     # hypothesis last); the drop-in's fast append (scans without metadata) and Track.append
     # (scans with) must leave the same `metadatas` as Stone Soup's own run.
-    from stonesoup.types.detection import Detection
+    def md(k, i, sensor):
+        return {"sensor": sensor, "plot": f"{k}-{i}"} if with_metadata and k % 3 else {}
 
-    scenario = H.two_sensors(3)
-    models = H.measurement_models(scenario)
-    scans = []
-    for k, (t, z, s) in enumerate(scenario.scans()):
-        ts = H.to_datetime(t)
-        dets = set()
-        for i, (zi, si) in enumerate(zip(z, s, strict=True)):
-            md = {"sensor": int(si), "plot": f"{k}-{i}"} if with_metadata and k % 3 else {}
-            dets.add(Detection(zi.reshape(2, 1), ts, measurement_model=models[si], metadata=md))
-        scans.append((ts, dets))
+    scans = H.stonesoup_scans(H.two_sensors(3), metadata=md)
     ref_tracker, _ = H.build_stonesoup(H.Code57(**SHORT), detector=scans)
     ours_tracker, _ = H.build_stonesoup(H.Code57(**SHORT))
 

@@ -21,19 +21,11 @@ import ssharness as H
 
 def _scans(with_metadata: bool) -> list:
     """Two sensors with clutter; every third scan's detections without metadata."""
-    from stonesoup.types.detection import Detection
 
-    scenario = H.two_sensors(3)
-    models = H.measurement_models(scenario)
-    scans = []
-    for k, (t, z, s) in enumerate(scenario.scans()):
-        ts = H.to_datetime(t)
-        dets = set()
-        for i, (zi, si) in enumerate(zip(z, s, strict=True)):
-            md = {"plot": f"{k}-{i}"} if with_metadata and k % 3 else {}
-            dets.add(Detection(zi.reshape(2, 1), ts, measurement_model=models[si], metadata=md))
-        scans.append((ts, dets))
-    return scans
+    def md(k, i, _sensor):
+        return {"plot": f"{k}-{i}"} if with_metadata and k % 3 else {}
+
+    return H.stonesoup_scans(H.two_sensors(3), metadata=md)
 
 
 @pytest.fixture

@@ -11,11 +11,11 @@
 //! specifications that module checked against Stone Soup's own constructors. Arrays are views
 //! (rows of one array per scan) of Stone Soup's `StateVector`, `CovarianceMatrix` and `Matrix`.
 //! A track this cannot build exactly (a non-linear measurement model, a measure other than
-//! (squared) Mahalanobis on 2-D measurements, a history that is not one entry per scan) comes
-//! back as None; the Python builder makes it.
+//! (squared) Mahalanobis, a history that is not one entry per scan) comes back as None; the
+//! Python builder makes it.
 
 use super::tracker::TrackerCore;
-use nalgebra::DMatrix;
+use nalgebra::{DMatrix, DVector};
 use numpy::npyffi::{npy_intp, PY_ARRAY_API};
 use numpy::{
     Element, PyArray2, PyArrayDescrMethods, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods,
@@ -192,12 +192,12 @@ pub struct StoneSoupKit {
 }
 
 /// A measurement prediction of one model (by pointer): z = H x (m), S = H P Hᵀ + R (m, m),
-/// C = P Hᵀ (n, m), row-major.
+/// C = P Hᵀ (n, m).
 struct MeasurementPrediction {
     model: usize,
-    z: Vec<f64>,
-    s: Vec<f64>,
-    c: Vec<f64>,
+    z: DVector<f64>,
+    s: DMatrix<f64>,
+    c: DMatrix<f64>,
 }
 
 /// What one track's newest state needs, gathered before any object is made.
@@ -205,46 +205,22 @@ struct Row {
     /// History entry (row-major state and covariance) of the newest state.
     last: usize,
     update: bool,
-    /// Predicted mean and covariance (row-major), when a prediction object is made.
-    pred: Option<(Vec<f64>, Vec<f64>)>,
+    /// Predicted mean and covariance, when a prediction object is made.
+    pred: Option<(DVector<f64>, DMatrix<f64>)>,
     /// Detections (rows of the scan) with their probabilities, the missed probability, the
     /// chosen detection.
     assoc: Vec<(usize, f64)>,
     missed: f64,
     det: i64,
+    /// The GNN measure between the chosen detection and its measurement prediction.
+    distance: f64,
     /// Measurement predictions of the distinct models of the gated detections, and per gated
     /// detection its index there.
     mps: Vec<MeasurementPrediction>,
     mp_of: Vec<usize>,
 }
 
-fn mat_vec(a: &[f64], rows: usize, cols: usize, x: &[f64]) -> Vec<f64> {
-    (0..rows)
-        .map(|i| (0..cols).map(|j| a[i * cols + j] * x[j]).sum())
-        .collect()
-}
-
-/// a (r, k) · b (k, c), row-major.
-fn mat_mul(a: &[f64], b: &[f64], r: usize, k: usize, c: usize) -> Vec<f64> {
-    let mut out = vec![0.0; r * c];
-    for i in 0..r {
-        for j in 0..c {
-            out[i * c + j] = (0..k).map(|l| a[i * k + l] * b[l * c + j]).sum();
-        }
-    }
-    out
-}
-
-fn transpose(a: &[f64], r: usize, c: usize) -> Vec<f64> {
-    let mut out = vec![0.0; r * c];
-    for i in 0..r {
-        for j in 0..c {
-            out[j * r + i] = a[i * c + j];
-        }
-    }
-    out
-}
-
+/// `m` as row-major values (what [`StoneSoupKit::array`] takes).
 fn row_major(m: &DMatrix<f64>) -> Vec<f64> {
     m.transpose().as_slice().to_vec()
 }
@@ -460,10 +436,10 @@ impl StoneSoupKit {
                 "models, z: one per detection of the scan",
             ));
         }
-        let (fm, q) = (super::slice("F", fm)?, super::slice("Q", q)?);
+        let fm = DMatrix::from_row_slice(n, n, super::slice("F", fm)?);
+        let q = DMatrix::from_row_slice(n, n, super::slice("Q", q)?);
         let zm = z.shape()[1];
         let zs = super::slice("z", &z)?;
-        let ft = transpose(fm, n, n);
         let by_id: HashMap<u64, usize> = inner
             .tracks
             .iter()
@@ -479,13 +455,10 @@ impl StoneSoupKit {
                 by_id.get(id).map(|&i| &inner.tracks[i]),
                 scan,
                 dt,
-                n,
-                fm,
-                &ft,
-                q,
+                (&fm, &q),
+                (zs, zm),
                 mixture,
                 hypotheses,
-                zm,
             )?);
         }
 
@@ -528,7 +501,7 @@ impl StoneSoupKit {
             }
             let mut hyp: Option<Bound<'py, PyAny>> = None;
             if let (true, Some((xp, pp))) = (hypotheses, &r.pred) {
-                let (a, b) = (arr(0, n, 1, xp)?, arr(1, n, n, pp)?);
+                let (a, b) = (arr(0, n, 1, xp.as_slice())?, arr(1, n, n, &row_major(pp))?);
                 self.predicted_from(py, prior)?;
                 let pred =
                     self.b[PRED_OF].make(py, &[&a, &b, &timestamp, &transition_model, prior])?;
@@ -540,7 +513,11 @@ impl StoneSoupKit {
                     ..
                 } in &r.mps
                 {
-                    let (a, b, c) = (arr(0, zm, 1, zp)?, arr(1, zm, zm, sp)?, arr(2, n, zm, cp)?);
+                    let (a, b, c) = (
+                        arr(0, zm, 1, zp.as_slice())?,
+                        arr(1, zm, zm, &row_major(sp))?,
+                        arr(2, n, zm, &row_major(cp))?,
+                    );
                     mp_objs.push(self.b[MPRED].make(py, &[&a, &b, &timestamp, &c])?);
                 }
                 if mixture && r.missed.is_finite() {
@@ -558,13 +535,7 @@ impl StoneSoupKit {
                 } else if r.det >= 0 {
                     let d = r.det as usize;
                     let det = detections.get_item(d)?;
-                    let MeasurementPrediction { z: zp, s, .. } = &r.mps[0];
-                    let v0 = zs[d * zm] - zp[0];
-                    let v1 = zs[d * zm + 1] - zp[1];
-                    let (a, b, c, e) = (s[0], s[1], s[2], s[3]);
-                    let d2 = (e * v0 * v0 - (b + c) * v0 * v1 + a * v1 * v1) / (a * e - b * c);
-                    let dist = if self.measure == 1 { d2.sqrt() } else { d2 };
-                    let dist = self.float64.bind(py).call1((dist,))?;
+                    let dist = self.float64.bind(py).call1((r.distance,))?;
                     hyp = Some(self.b[DIST].make(py, &[&pred, &det, &dist, &mp_objs[0]])?);
                 }
             }
@@ -590,13 +561,10 @@ impl StoneSoupKit {
         track: Option<&crate::tracking::track::Track>,
         scan: i64,
         dt: f64,
-        n: usize,
-        fm: &[f64],
-        ft: &[f64],
-        q: &[f64],
+        (fm, q): (&DMatrix<f64>, &DMatrix<f64>),
+        (zs, zm): (&[f64], usize),
         mixture: bool,
         hypotheses: bool,
-        zm: usize,
     ) -> PyResult<Option<Row>> {
         let Some(tr) = track else { return Ok(None) };
         let h = &tr.history;
@@ -623,6 +591,7 @@ impl StoneSoupKit {
                 .collect(),
             missed: h.missed_probability[last],
             det: h.detection[last],
+            distance: f64::NAN,
             mps: Vec::new(),
             mp_of: Vec::new(),
         };
@@ -636,19 +605,18 @@ impl StoneSoupKit {
         {
             return Ok(None);
         }
-        let x0 = &h.states[prev * n..(prev + 1) * n];
-        let p0 = &h.covariances[prev * n * n..(prev + 1) * n * n];
-        let xp = mat_vec(fm, n, n, x0);
-        let fp = mat_mul(fm, p0, n, n, n);
-        let mut pp = mat_mul(&fp, ft, n, n, n);
-        for (v, qv) in pp.iter_mut().zip(q) {
-            *v += qv;
-        }
+        let n = fm.nrows();
+        let x0 = DVector::from_row_slice(&h.states[prev * n..(prev + 1) * n]);
+        let p0 = DMatrix::from_row_slice(n, n, &h.covariances[prev * n * n..(prev + 1) * n * n]);
+        // Stone Soup's KalmanPredictor: F x, F P Fᵀ + Q, not symmetrised (unlike
+        // `crate::kalman::predict`), as the Python builders compute it.
+        let xp = fm * x0;
+        let pp = fm * p0 * fm.transpose() + q;
         let jpda = mixture && row.missed.is_finite();
         let wanted: Vec<usize> = if jpda {
             row.assoc.iter().map(|&(d, _)| d).collect()
         } else if row.det >= 0 {
-            if self.measure == 0 || zm != 2 {
+            if self.measure == 0 {
                 return Ok(None);
             }
             vec![row.det as usize]
@@ -668,14 +636,8 @@ impl StoneSoupKit {
             if hm.nrows() != zm || hm.ncols() != n || r.nrows() != zm || r.ncols() != zm {
                 return Ok(None);
             }
-            let hv = row_major(&hm);
-            let ht = transpose(&hv, zm, n);
-            let zp = mat_vec(&hv, zm, n, &xp);
-            let cross = mat_mul(&pp, &ht, n, n, zm);
-            let mut s = mat_mul(&hv, &cross, zm, n, zm);
-            for (v, rv) in s.iter_mut().zip(row_major(&r)) {
-                *v += rv;
-            }
+            let cross = &pp * hm.transpose();
+            let (zp, s) = (&hm * &xp, &hm * &cross + r);
             row.mp_of.push(row.mps.len());
             row.mps.push(MeasurementPrediction {
                 model: key,
@@ -683,6 +645,17 @@ impl StoneSoupKit {
                 s,
                 c: cross,
             });
+        }
+        if !jpda && row.det >= 0 {
+            // The hypothesiser's measure: (squared) Mahalanobis distance of the detection.
+            let d = row.det as usize;
+            let mp = &row.mps[0];
+            let v = DVector::from_row_slice(&zs[d * zm..(d + 1) * zm]) - &mp.z;
+            let Some(chol) = mp.s.clone().cholesky() else {
+                return Ok(None);
+            };
+            let d2 = v.dot(&chol.solve(&v));
+            row.distance = if self.measure == 1 { d2.sqrt() } else { d2 };
         }
         row.pred = Some((xp, pp));
         Ok(Some(row))
