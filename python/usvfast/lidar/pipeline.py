@@ -286,7 +286,10 @@ class LidarDetection:
     time : UNIX s; position : (2,) world (north, east) m; covariance : (2, 2) m²;
     n_points : cluster size; sensor_id : the LiDAR's id; extended : a vessel's detection
     (`usvfast.lidar.vessels`): its position is the hull's estimated centre and its covariance
-    the finder's, not a cluster centroid's.
+    the finder's, not a cluster centroid's; spread : (2, 2) m², the members' sample
+    covariance without the `min_position_std` floor (the cluster's shape; None when not
+    known, e.g. for a vessel); top : the highest member's height above the water, m (None
+    when the points' heights were not given).
     """
 
     time: float
@@ -295,6 +298,8 @@ class LidarDetection:
     n_points: int
     sensor_id: str = "lidar"
     extended: bool = False
+    spread: np.ndarray | None = None
+    top: float | None = None
 
 
 def cluster_detections(
@@ -309,6 +314,7 @@ def cluster_detections(
     cluster_all: bool = False,
     backend: str = "rust",
     sensor_id: str = "lidar",
+    heights: np.ndarray | None = None,
 ) -> tuple[list[LidarDetection], np.ndarray, np.ndarray]:
     """Mean-shift (n, 2) world points and turn every big enough cluster into a detection.
 
@@ -319,6 +325,8 @@ def cluster_detections(
     members within core_radius of where a flat-kernel mean shift of that radius settles from
     the members' median (`_core_members`); the count, mean and covariance are the core's (two
     floats in one cluster: one of them, where the thesis's mean lies between them).
+    heights: optional (n,) height of each point above the water, m; each detection's `top`
+    is then its members' highest.
 
     Returns (detections, labels (n,) int with −1 for points in no kept cluster, centres
     (c, 2) of all mean-shift clusters). Labels of kept clusters index `centres`.
@@ -330,6 +338,12 @@ def cluster_detections(
     if core_radius is not None:
         core_radius = real("core_radius", core_radius, positive=True)
     pts = as_float_array("points", points, ndim=2)
+    if heights is not None:
+        heights = as_float_array("heights", heights, ndim=1)
+        if heights.shape[0] != pts.shape[0]:
+            raise ValueError(
+                f"heights: expected one height per point ({pts.shape[0]}), got {heights.shape[0]}"
+            )
     if pts.shape[0] == 0:
         return [], np.zeros(0, dtype=np.int64), np.zeros((0, 2))
     centres, labels = mean_shift(
@@ -353,10 +367,16 @@ def cluster_detections(
             labels[members] = -1
             continue
         m = pts[members]
-        cov = np.cov(m, rowvar=False)
-        w, v = np.linalg.eigh((cov + cov.T) / 2)
+        spread = np.cov(m, rowvar=False)
+        spread = (spread + spread.T) / 2
+        w, v = np.linalg.eigh(spread)
         cov = (v * np.maximum(w, floor)) @ v.T
-        detections.append(LidarDetection(float(time), m.mean(axis=0), cov, count, sensor_id))
+        top = None if heights is None else float(heights[members].max())
+        detections.append(
+            LidarDetection(
+                float(time), m.mean(axis=0), cov, count, sensor_id, spread=spread, top=top
+            )
+        )
     return detections, labels, np.asarray(centres, dtype=np.float64).reshape(-1, 2)
 
 
@@ -460,7 +480,8 @@ class LidarDetector:
         self._line_of_sight = line_of_sight or line_of_sight_filter
         self.memory = LineMemory(self.config.line_memory_frames, self.config.cover_tolerance)
         self._previous_pose: np.ndarray | None = None
-        self._buffer: list[tuple[np.ndarray, int, np.ndarray]] = []
+        # per buffered frame: world points (k, 2), frame index, point indices, heights (k,)
+        self._buffer: list[tuple[np.ndarray, int, np.ndarray, np.ndarray]] = []
         self._frames = 0
         self._removed = (np.zeros((0, 2)), np.zeros(2))
         self.vessel_finder: VesselFinder | None = None
@@ -526,7 +547,8 @@ class LidarDetector:
             # the cycle's last frame: the removed points, for the vessel finder
             sensor = sensor_to_world(np.zeros((1, 2)), pose, **mount)[0]
             self._removed = (sensor_to_world(xy[~keep], pose, **mount), sensor)
-        self._buffer.append((world, frame.index, index[keep]))
+        heights = np.asarray(frame.points["z"], dtype=np.float64)[index[keep]] + cfg.mount_height
+        self._buffer.append((world, frame.index, index[keep], heights))
         self._frames += 1
         result = FrameResult(
             frame.stamp, pose, xy, index, image, new, segments, los_segments, keep, world
@@ -544,6 +566,7 @@ class LidarDetector:
             [np.full(b[0].shape[0], b[1], dtype=np.int64) for b in self._buffer]
         )
         point_index = np.concatenate([b[2] for b in self._buffer]).astype(np.int64)
+        heights = np.concatenate([b[3] for b in self._buffer])
         detections, labels, centres = cluster_detections(
             points,
             time=stamp,
@@ -555,6 +578,7 @@ class LidarDetector:
             cluster_all=cfg.cluster_all,
             backend=cfg.backend,
             sensor_id=cfg.sensor_id,
+            heights=heights,
         )
         result = CycleResult(stamp, points, frame_index, point_index, labels, centres, detections)
         if self.vessel_finder is not None:

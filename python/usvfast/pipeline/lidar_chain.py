@@ -77,7 +77,8 @@ class LidarChain:
     "spread": each detection's R is its cluster's sample covariance, as LidarDetector gives
     it, or "centroid": that divided by the cluster size, the centroid's standard error; both
     floored at min_position_std², or "model": the measurement model of `_measurement_model`
-    (keys surface_offset, range_std, cross_range_std, metres, and reference_points)); mount: the
+    (keys surface_offset, range_std, cross_range_std, low_profile_height, metres;
+    surface_offset_share, low_profile_std, dimensionless; reference_points)); mount: the
     stream's mount (None: at the reference point, level); timer: a StageTimer for the
     per-stage times.
     """
@@ -109,9 +110,23 @@ class LidarChain:
         self.range_std = float(settings.get("range_std", 0.1))
         self.cross_range_std = float(settings.get("cross_range_std", 0.065))
         self.reference_points = float(settings.get("reference_points", 0) or 0)
-        for key in ("surface_offset", "range_std", "cross_range_std", "reference_points"):
+        self.surface_offset_share = float(settings.get("surface_offset_share", 0.0))
+        self.low_profile_std = float(settings.get("low_profile_std", 0.0))
+        self.low_profile_height = float(settings.get("low_profile_height", 0.15))
+        for key in (
+            "surface_offset",
+            "range_std",
+            "cross_range_std",
+            "reference_points",
+            "surface_offset_share",
+            "low_profile_std",
+        ):
             if not getattr(self, key) >= 0:
                 raise ValueError(f"lidar.{key}: expected a number >= 0, got {getattr(self, key)}")
+        if not (self.low_profile_height > 0 and np.isfinite(self.low_profile_height)):
+            raise ValueError(
+                f"lidar.low_profile_height: expected a number > 0, got {self.low_profile_height}"
+            )
         if self.covariance == "model" and not (self.range_std > 0 and self.cross_range_std > 0):
             raise ValueError(
                 "lidar.range_std, lidar.cross_range_std: must be > 0 with covariance = model"
@@ -173,23 +188,35 @@ class LidarChain:
         return dets
 
     def _measurement_model(self, dets: list[LidarDetection], pose: VesselPose) -> None:
-        """Per-detection measurement model, in place. A cluster's points lie on the surface
-        the sensor sees, so their centroid is nearer than the object's centre: it is moved
-        `surface_offset` metres away from the sensor along the horizontal line of sight (for a
-        round object of radius rho the visible-surface centroid lies pi/4 rho short of the
-        centre). Its covariance is diag(range_std², cross_range_std²) in the (line of sight,
-        across) frame: the random error of one cycle's centroid (VLP-16 range noise, beam
-        spread and the de-skewing of the buffered rotations). With `reference_points` > 0
-        both standard deviations are those of a cluster of that many points and grow as
-        sqrt(reference_points / n) for a cluster of n < reference_points (a float that one
-        beam grazes: which part of its surface is hit varies more than the mean of many
-        hits). Errors common to every sensor
-        (the GNSS position and heading biases) are not in it: they do not show in the
-        innovations, only against the truth."""
+        """Per-detection measurement model, in place (in the frame of the horizontal line of
+        sight u from the sensor to the cluster's centroid: along u, and across it).
+
+        Centre. A cluster's points lie on the surface the sensor sees, so their centroid is
+        nearer than the object's centre (for a round object of radius rho the visible-surface
+        centroid lies pi/4 rho short of it): the centroid is moved away from the sensor along
+        u by `surface_offset + surface_offset_share * b` metres, where b = sqrt(3) s_c is the
+        cluster's seen half-width (s_c, m: the members' standard deviation across u, without
+        the min_position_std floor; a uniformly covered width W has s_c = W / sqrt(12)): a
+        bigger object's centre lies further behind its seen surface.
+
+        Covariance, diag(s_along², s_across²) in the (u, across) frame, m²: the random error
+        of one cycle's centroid (VLP-16 range noise, beam spread, the de-skewing of the
+        buffered rotations), `range_std` along and `cross_range_std` across, both times
+        sqrt(reference_points / n) for a cluster of n < reference_points points (a float
+        that one beam grazes: which part of its surface is hit varies more than the mean of
+        many hits); plus, along u only, a low-profile term
+        `low_profile_std * W * max(0, 1 - top / low_profile_height)` (W = 2 b the seen width,
+        top the highest member's height above the water, m): the rings reach a low float's
+        top at grazing incidence, so the vessel's heave and pitch slide the hits over the
+        top's depth along the line of sight, while a tall object's hits stay on its face.
+        The two terms add in variance. Detections without a spread or a top (built by hand,
+        or a vessel's) get no width or low-profile term.
+
+        Errors common to every sensor (the GNSS position and heading biases) are not in it:
+        they do not show in the innovations, only against the truth."""
         lx, ly = float(self.mount.lever_arm[0]), float(self.mount.lever_arm[1])
         ch, sh = np.cos(pose.heading), np.sin(pose.heading)
         sensor = np.array([pose.north + ch * lx - sh * ly, pose.east + sh * lx + ch * ly])
-        var = np.array([self.range_std**2, self.cross_range_std**2])
         for d in dets:
             if d.extended:
                 continue  # a vessel's centre and covariance come from its extent
@@ -197,8 +224,18 @@ class LidarChain:
             r = float(np.hypot(los[0], los[1]))
             u = los / r if r > 1e-9 else np.array([1.0, 0.0])
             basis = np.array([[u[0], -u[1]], [u[1], u[0]]])  # columns: along, across
-            d.position = np.asarray(d.position, dtype=np.float64) + self.surface_offset * u
+            half_width = 0.0
+            if d.spread is not None:
+                across = basis[:, 1]
+                half_width = float(np.sqrt(3.0 * max(float(across @ d.spread @ across), 0.0)))
             scale = 1.0
             if self.reference_points > 0 and 0 < d.n_points < self.reference_points:
                 scale = self.reference_points / d.n_points
-            d.covariance = (basis * (var * scale)) @ basis.T
+            var_along = self.range_std**2 * scale
+            if self.low_profile_std > 0 and d.top is not None:
+                low = max(0.0, 1.0 - float(d.top) / self.low_profile_height)
+                var_along += (self.low_profile_std * 2.0 * half_width * low) ** 2
+            offset = self.surface_offset + self.surface_offset_share * half_width
+            d.position = np.asarray(d.position, dtype=np.float64) + offset * u
+            var = np.array([var_along, self.cross_range_std**2 * scale])
+            d.covariance = (basis * var) @ basis.T
