@@ -85,6 +85,7 @@ _LIDAR = {
     "reference_points": ("int", 0),
     "surface_offset_share": ("float", 0.0),
     "low_profile_std": ("float", 0.0),
+    "low_profile_width": ("float", 0.3),
     "low_profile_height": ("float", 0.15),
     "min_cluster_points": ("int", 15),
     "core_radius": ("float", None),

@@ -77,8 +77,9 @@ class LidarChain:
     "spread": each detection's R is its cluster's sample covariance, as LidarDetector gives
     it, or "centroid": that divided by the cluster size, the centroid's standard error; both
     floored at min_position_std², or "model": the measurement model of `_measurement_model`
-    (keys surface_offset, range_std, cross_range_std, low_profile_height, metres;
-    surface_offset_share, low_profile_std, dimensionless; reference_points)); mount: the
+    (keys surface_offset, range_std, cross_range_std, low_profile_std, low_profile_width,
+    low_profile_height, metres; surface_offset_share, dimensionless; reference_points));
+    mount: the
     stream's mount (None: at the reference point, level); timer: a StageTimer for the
     per-stage times.
     """
@@ -112,6 +113,7 @@ class LidarChain:
         self.reference_points = float(settings.get("reference_points", 0) or 0)
         self.surface_offset_share = float(settings.get("surface_offset_share", 0.0))
         self.low_profile_std = float(settings.get("low_profile_std", 0.0))
+        self.low_profile_width = float(settings.get("low_profile_width", 0.3))
         self.low_profile_height = float(settings.get("low_profile_height", 0.15))
         for key in (
             "surface_offset",
@@ -123,10 +125,10 @@ class LidarChain:
         ):
             if not getattr(self, key) >= 0:
                 raise ValueError(f"lidar.{key}: expected a number >= 0, got {getattr(self, key)}")
-        if not (self.low_profile_height > 0 and np.isfinite(self.low_profile_height)):
-            raise ValueError(
-                f"lidar.low_profile_height: expected a number > 0, got {self.low_profile_height}"
-            )
+        for key in ("low_profile_width", "low_profile_height"):
+            value = getattr(self, key)
+            if not (value > 0 and np.isfinite(value)):
+                raise ValueError(f"lidar.{key}: expected a number > 0, got {value}")
         if self.covariance == "model" and not (self.range_std > 0 and self.cross_range_std > 0):
             raise ValueError(
                 "lidar.range_std, lidar.cross_range_std: must be > 0 with covariance = model"
@@ -205,11 +207,13 @@ class LidarChain:
         sqrt(reference_points / n) for a cluster of n < reference_points points (a float
         that one beam grazes: which part of its surface is hit varies more than the mean of
         many hits); plus, along u only, a low-profile term
-        `low_profile_std * W * max(0, 1 - top / low_profile_height)` (W = 2 b the seen width,
-        top the highest member's height above the water, m): the rings reach a low float's
-        top at grazing incidence, so the vessel's heave and pitch slide the hits over the
-        top's depth along the line of sight, while a tall object's hits stay on its face.
-        The two terms add in variance. Detections without a spread or a top (built by hand,
+        `low_profile_std * (W / low_profile_width)² * max(0, 1 - top / low_profile_height)`
+        (W = 2 b the seen width, top the highest member's height above the water, m): the
+        rings reach a low float's top at grazing incidence, so the vessel's heave and pitch
+        slide the hits over the top along the line of sight, while a tall object's hits stay
+        on its face; a narrow float (a bottle) offers its top to few hits, a wide one (a bag)
+        to most (measured: the slide is ~0 at W = 0.25 m and 0.05-0.06 m at W = 0.3-0.4 m,
+        which the square follows with one coefficient). The two terms add in variance. Detections without a spread or a top (built by hand,
         or a vessel's) get no width or low-profile term.
 
         Errors common to every sensor (the GNSS position and heading biases) are not in it:
@@ -234,7 +238,8 @@ class LidarChain:
             var_along = self.range_std**2 * scale
             if self.low_profile_std > 0 and d.top is not None:
                 low = max(0.0, 1.0 - float(d.top) / self.low_profile_height)
-                var_along += (self.low_profile_std * 2.0 * half_width * low) ** 2
+                width = 2.0 * half_width / self.low_profile_width
+                var_along += (self.low_profile_std * width * width * low) ** 2
             offset = self.surface_offset + self.surface_offset_share * half_width
             d.position = np.asarray(d.position, dtype=np.float64) + offset * u
             var = np.array([var_along, self.cross_range_std**2 * scale])

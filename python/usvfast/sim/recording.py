@@ -408,18 +408,20 @@ _SENSOR_MODELS = {
 # the cluster's seen half-width (sqrt(3) x its spread across the line of sight; fitted to
 # the cores' offsets from the truth). The random error of one cycle along / across the
 # line of sight, growing as sqrt(12 / n) below 12 points, plus along it a low-profile term,
-# 0.29 x the seen width x (1 - top / 0.145 m): the rings reach a low, wide float's top at
-# grazing incidence and the vessel's heave slides its hits along the line of sight (set
-# from the innovations of held-out seeds: LiDAR NIS per object kind 1.6-2.2, was 1.2-2.9).
+# 0.097 m x (seen width / 0.3 m)^2 x (1 - top / 0.145 m): the rings reach a low, wide
+# float's top at grazing incidence and the vessel's heave slides its hits along the line of
+# sight (set from the innovations of held-out seeds: LiDAR NIS by object kind 1.7-2.1, was
+# 1.2-2.9 with one error for all).
 covariance = "model"
 core_radius = 0.5
 min_cluster_points = 6
 surface_offset = 0.03
 surface_offset_share = 0.32
-range_std = 0.03
-cross_range_std = 0.02
+range_std = 0.035
+cross_range_std = 0.019
 reference_points = 12
-low_profile_std = 0.29
+low_profile_std = 0.097
+low_profile_width = 0.3
 low_profile_height = 0.145
 # A moving vessel's hull is removed by the line-of-sight filter like a quay: find it among
 # the removed points (a vessel-sized group whose ends move >= 0.8 m/s) and give it one
