@@ -213,8 +213,9 @@ class LidarChain:
         slide the hits over the top along the line of sight, while a tall object's hits stay
         on its face; a narrow float (a bottle) offers its top to few hits, a wide one (a bag)
         to most (measured: the slide is ~0 at W = 0.25 m and 0.05-0.06 m at W = 0.3-0.4 m,
-        which the square follows with one coefficient). The two terms add in variance. Detections without a spread or a top (built by hand,
-        or a vessel's) get no width or low-profile term.
+        which the square follows with one coefficient). The two terms add in variance.
+        Detections without a spread or a top (built by hand, or a vessel's) get no width
+        or low-profile term.
 
         Errors common to every sensor (the GNSS position and heading biases) are not in it:
         they do not show in the innovations, only against the truth."""
