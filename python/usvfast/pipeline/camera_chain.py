@@ -27,6 +27,13 @@ from usvfast.camera.georef import (
     horizon_line,
     mount_rotation,
 )
+from usvfast.camera.vessels import (
+    MovingBoats,
+    fuse_boxes,
+    hull_centre,
+    hull_covariance,
+    separate,
+)
 from usvfast.frames import Mount
 from usvfast.pipeline.pose import VesselPose
 from usvfast.pipeline.timing import StageTimer
@@ -133,6 +140,12 @@ class CameraChain:
         )
         self.timer = timer
         self.depth_table = _depth_table(settings)
+        moving = settings.get("moving_classes")
+        self.moving_classes = None if moving is None else [int(c) for c in moving]
+        self.boats = MovingBoats(
+            history_s=float(settings.get("vessel_history_s", 1.5)),
+            min_speed=float(settings.get("vessel_min_speed", 0.8)),
+        )
 
     def _horizon(self, pose: VesselPose) -> tuple[float, float] | None:
         if self.settings.get("horizon") != "attitude" or not hasattr(self.camera, "project"):
@@ -169,6 +182,11 @@ class CameraChain:
             self.filters.horizon_line = self._horizon(pose)
             reason = self.filters.filter(det)
         ok = reason == OK
+        boat = np.zeros(len(det.boxes), bool)
+        if self.moving_classes is not None:
+            boat = np.isin(det.classes, self.moving_classes)
+            reason[boat] = np.where(ok[boat], -1, reason[boat])
+            ok &= ~boat
         positions = np.zeros((0, 2))
         covs = np.zeros((0, 2, 2))
         if ok.any():
@@ -186,11 +204,67 @@ class CameraChain:
                 covs = covs + (sigma**2)[:, None, None] * np.eye(2)
         keep = reason == OK
         rejected: dict[str, int] = {}
-        for code in np.unique(reason[~keep]):
+        for code in np.unique(reason[~keep & (reason >= 0)]):
             rejected[REASONS[int(code)]] = int(np.sum(reason == code))
-        return CameraResult(
-            positions, covs, det.scores[keep], det.boxes[keep], len(det.boxes), rejected
+        scores, boxes = det.scores[keep], det.boxes[keep]
+        if self.moving_classes is not None:
+            with tm("camera.vessels"):
+                vp, vc, vs, vb, still = self._vessels(
+                    det.boxes[reason == -1], det.scores[reason == -1], pose
+                )
+            positions, covs = np.vstack([positions, vp]), np.concatenate([covs, vc])
+            scores, boxes = np.concatenate([scores, vs]), np.vstack([boxes.reshape(-1, 4), vb])
+            if still:
+                rejected["not_moving"] = still
+        return CameraResult(positions, covs, scores, boxes, len(det.boxes), rejected)
+
+    def _vessels(
+        self, boxes: np.ndarray, scores: np.ndarray, pose: VesselPose
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+        """The boat-class boxes of a frame (camera.moving_classes; usvfast.camera.vessels):
+        boxes cut by the image's side edges dropped, overlapping boxes fused, the fused box's
+        waterline point georeferenced and kept only while the boat moves (and is the best
+        of the moving boats within camera.vessel_separation m); then moved to the
+        hull's centre with the hull's covariance. Returns positions, covariances, scores,
+        boxes of the moving boats and the number of boats that did not move."""
+        s = self.settings
+        width = float(self.camera.image_size[0])
+        inside = (boxes[:, 0] > 1.0) & (boxes[:, 2] < width - 1.0)
+        fused, best = fuse_boxes(boxes[inside], scores[inside])
+        empty = (np.zeros((0, 2)), np.zeros((0, 2, 2)), np.zeros(0), np.zeros((0, 4)))
+        g = self._georeference(fused, pose) if len(fused) else None
+        good = np.zeros(0, bool) if g is None else g.reason == OK
+        contact = np.zeros((0, 2)) if g is None else g.positions[good]
+        vel, moving = self.boats.update(pose.time, contact)
+        if moving.any():
+            sep = separate(
+                contact[moving], best[good][moving], float(s.get("vessel_separation", 9.0))
+            )
+            moving[np.flatnonzero(moving)[~sep]] = False
+        if g is None or not moving.any():
+            return (*empty, int(good.sum()))
+        cam = self._camera_ne(pose)
+        centre, _ = hull_centre(
+            contact[moving],
+            cam,
+            vel[moving],
+            float(s.get("vessel_length", 6.0)),
+            float(s.get("vessel_beam", 2.2)),
         )
+        cov = g.covariances[good][moving] + hull_covariance(
+            contact[moving],
+            cam,
+            float(s.get("vessel_along_std", 1.0)),
+            float(s.get("vessel_across_std", 0.6)),
+        )
+        kept = fused[good][moving], best[good][moving]
+        return centre, cov, kept[1], kept[0], int((~moving).sum())
+
+    def _camera_ne(self, pose: VesselPose) -> np.ndarray:
+        """The camera's (north, east) m at `pose` (its lever arm turned by the heading)."""
+        lx, ly = float(self.position[0]), float(self.position[1])
+        ch, sh = math.cos(pose.heading), math.sin(pose.heading)
+        return np.array([pose.north + ch * lx - sh * ly, pose.east + sh * lx + ch * ly])
 
     def coverage(self) -> tuple[float, float, float]:
         """(range m, horizontal field of view deg, axis yaw deg clockwise from the heading):
@@ -266,9 +340,7 @@ class CameraChain:
         left = self._georeference(boxes, pose, "left").positions
         right = self._georeference(boxes, pose, "right").positions
         width = np.linalg.norm(right - left, axis=1)
-        lx, ly = float(self.position[0]), float(self.position[1])
-        ch, sh = math.cos(pose.heading), math.sin(pose.heading)
-        cam = np.array([pose.north + ch * lx - sh * ly, pose.east + sh * lx + ch * ly])
+        cam = self._camera_ne(pose)
         los = contact - cam
         rng = np.linalg.norm(los, axis=1, keepdims=True)
         shift = np.where(np.isfinite(width), factor * width, 0.0)

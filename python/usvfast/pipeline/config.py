@@ -108,6 +108,20 @@ _CAMERA = {
     "depth_classes": ("floats:0", None),
     "class_depth_m": ("floats:0", None),
     "class_depth_std_m": ("floats:0", None),
+    # Boat classes (usvfast.camera.vessels): their boxes are fused per hull and kept only
+    # while the boat moves (median speed over vessel_history_s s >= vessel_min_speed m/s);
+    # the hull's centre lies half its depth along the line of sight beyond the box bottom
+    # (vessel_length x vessel_beam m, heading from the velocity), with vessel_along_std /
+    # vessel_across_std m added along / across the line of sight; of the moving boats within
+    # vessel_separation m of each other only the best-scoring one is kept.
+    "moving_classes": ("floats:0", None),
+    "vessel_min_speed": ("float", 0.8),
+    "vessel_history_s": ("float", 1.5),
+    "vessel_length": ("float", 6.0),
+    "vessel_beam": ("float", 2.2),
+    "vessel_along_std": ("float", 1.0),
+    "vessel_across_std": ("float", 0.6),
+    "vessel_separation": ("float", 9.0),
     "attitude_sigma_deg": ("float", 0.5),
     "height_sigma": ("float", 0.0),
     "heading_sigma_deg": ("float", 0.0),
