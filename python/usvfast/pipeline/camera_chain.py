@@ -83,7 +83,8 @@ def load_detector(settings: dict[str, Any], base: Any = None) -> Any:
 class CameraResult:
     """Georeferenced detections of one frame: positions (k, 2) NED m, covariances (k, 2, 2)
     m², scores (k,), boxes (k, 4) xyxy px; `n_boxes` detector boxes before the filters,
-    `rejected` {reason: count}."""
+    `rejected` {reason: count}; `vessel` (k,) bool: the moving boats (camera.moving_classes),
+    None when there are none."""
 
     positions: np.ndarray
     covariances: np.ndarray
@@ -91,6 +92,7 @@ class CameraResult:
     boxes: np.ndarray
     n_boxes: int
     rejected: dict[str, int]
+    vessel: np.ndarray | None = None
 
 
 class CameraChain:
@@ -143,8 +145,9 @@ class CameraChain:
         moving = settings.get("moving_classes")
         self.moving_classes = None if moving is None else [int(c) for c in moving]
         self.boats = MovingBoats(
-            history_s=float(settings.get("vessel_history_s", 1.5)),
-            min_speed=float(settings.get("vessel_min_speed", 0.8)),
+            history_s=float(settings.get("vessel_history_s", 2.0)),
+            min_speed=float(settings.get("vessel_min_speed", 1.0)),
+            min_frames=int(settings.get("vessel_min_frames", 5)),
         )
 
     def _horizon(self, pose: VesselPose) -> tuple[float, float] | None:
@@ -207,6 +210,7 @@ class CameraChain:
         for code in np.unique(reason[~keep & (reason >= 0)]):
             rejected[REASONS[int(code)]] = int(np.sum(reason == code))
         scores, boxes = det.scores[keep], det.boxes[keep]
+        vessel = None
         if self.moving_classes is not None:
             with tm("camera.vessels"):
                 vp, vc, vs, vb, still = self._vessels(
@@ -216,13 +220,15 @@ class CameraChain:
             scores, boxes = np.concatenate([scores, vs]), np.vstack([boxes.reshape(-1, 4), vb])
             if still:
                 rejected["not_moving"] = still
-        return CameraResult(positions, covs, scores, boxes, len(det.boxes), rejected)
+            vessel = np.r_[np.zeros(len(positions) - len(vp), bool), np.ones(len(vp), bool)]
+        return CameraResult(positions, covs, scores, boxes, len(det.boxes), rejected, vessel)
 
     def _vessels(
         self, boxes: np.ndarray, scores: np.ndarray, pose: VesselPose
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
         """The boat-class boxes of a frame (camera.moving_classes; usvfast.camera.vessels):
-        boxes cut by the image's side edges dropped, overlapping boxes fused, the fused box's
+        boxes cut by the image's side edges dropped, overlapping boxes fused, fused boxes that
+        span less than camera.vessel_min_height m above the water dropped, the fused box's
         waterline point georeferenced and kept only while the boat moves (and is the best
         of the moving boats within camera.vessel_separation m); then moved to the
         hull's centre with the hull's covariance. Returns positions, covariances, scores,
@@ -234,6 +240,10 @@ class CameraChain:
         empty = (np.zeros((0, 2)), np.zeros((0, 2, 2)), np.zeros(0), np.zeros((0, 4)))
         g = self._georeference(fused, pose) if len(fused) else None
         good = np.zeros(0, bool) if g is None else g.reason == OK
+        if g is not None and good.any():
+            good &= self._box_height(fused, g.positions, pose) >= float(
+                s.get("vessel_min_height", 1.2)
+            )
         contact = np.zeros((0, 2)) if g is None else g.positions[good]
         vel, moving = self.boats.update(pose.time, contact)
         if moving.any():
@@ -259,6 +269,17 @@ class CameraChain:
         )
         kept = fused[good][moving], best[good][moving]
         return centre, cov, kept[1], kept[0], int((~moving).sum())
+
+    def _box_height(self, boxes: np.ndarray, contact: np.ndarray, pose: VesselPose) -> np.ndarray:
+        """Height (k,) m above the water that each box spans at the horizontal distance of its
+        georeferenced bottom point `contact` (k, 2) NED m: the distance times the difference of
+        the normalised image coordinates of its top and bottom centres (lens distortion
+        undone; small-angle, NaN where the bottom did not georeference)."""
+        u = (boxes[:, 0] + boxes[:, 2]) / 2.0
+        top, _ = self.camera.normalized(np.column_stack([u, boxes[:, 1]]))
+        bottom, _ = self.camera.normalized(np.column_stack([u, boxes[:, 3]]))
+        dist = np.hypot(*(np.asarray(contact, float) - self._camera_ne(pose)[None]).T)
+        return dist * (bottom[:, 1] - top[:, 1])
 
     def _camera_ne(self, pose: VesselPose) -> np.ndarray:
         """The camera's (north, east) m at `pose` (its lever arm turned by the heading)."""
