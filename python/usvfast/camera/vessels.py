@@ -9,13 +9,13 @@ of the "boat" classes are handled apart from the floating objects:
    box's area ≥ `min_overlap`) become their union, so a hull boxed in pieces (bow, stern,
    cabin) gives one detection;
 2. :class:`MovingBoats`: each frame's boat positions (NED m, the box bottom's waterline point)
-   are kept for `history_s` seconds; a boat's velocity is the median over the earlier frames
-   of (p − p_k) / (t − t_k), p_k being that frame's boat position nearest to p (within
-   `max_speed` · dt + `gate` m). A boat counts as moving — and is passed to the tracker — when
-   at least `min_frames` earlier frames give a velocity, the earlier positions lie on the
-   line that velocity draws (median distance ≤ `max_residual` m: a box that just appeared
-   next to another boat's trail gives rates that disagree) and its median speed is ≥
-   `min_speed` m/s. A moored boat only jitters (the box edges move by a pixel or two); its
+   are kept for `history_s` seconds; p_k is an earlier frame's boat position nearest to the
+   present one p (within `max_speed` · dt + `gate` m, dt ≥ `min_dt`). With at least
+   `min_frames` such frames spanning at least `history_s` / 2 s, the line p_k = c − v dt_k is fitted by least squares; the boat
+   counts as moving — and is passed to the tracker — when the line passes through p
+   (|c − p| ≤ `max_residual` m: a box that just appeared beside another boat's trail does
+   not), the median distance of the p_k from it is ≤ `max_residual` m and its speed |v| is
+   ≥ `min_speed` m/s. A moored boat only jitters (the box edges move by a pixel or two); its
    median displacement over ≥ 0.5 s stays well below a vessel's 1.5–2.5 m/s. Of the moving
    boats of a frame within `separation` m of each other only the best-scoring one is kept
    (the bow wave or the stern of a hull boxed apart moves with it);
@@ -77,7 +77,8 @@ class MovingBoats:
     min_speed, max_speed: m/s; gate: m added to max_speed · dt when looking for a boat's
     position in an earlier frame; min_dt: s, earlier frames closer in time are not used (a
     jitter of a pixel over 0.1 s would look like a speed); min_frames: earlier frames needed;
-    max_residual: m, the median distance of the earlier positions from the fitted line.
+    max_residual: m, the fitted line's distance from the present position and the median
+    distance of the earlier positions from it.
     """
 
     def __init__(
@@ -89,7 +90,7 @@ class MovingBoats:
         gate: float = 1.5,
         min_dt: float = 0.5,
         min_frames: int = 3,
-        max_residual: float = 0.8,
+        max_residual: float = 1.5,
     ) -> None:
         if not history_s > min_dt >= 0:
             raise ValueError(
@@ -116,7 +117,7 @@ class MovingBoats:
             self._frames.popleft()
         vel = np.full((len(p), 2), np.nan)
         for k in range(len(p)):
-            rates, gaps, past = [], [], []
+            gaps, past = [], []
             for tk, pk in self._frames:
                 dt = t - tk
                 if dt < self.min_dt or len(pk) == 0:
@@ -125,16 +126,20 @@ class MovingBoats:
                 dist = np.hypot(d[:, 0], d[:, 1])
                 j = int(np.argmin(dist))
                 if dist[j] <= self.max_speed * dt + self.gate:
-                    rates.append(d[j] / dt)
                     gaps.append(dt)
                     past.append(pk[j])
-            if len(rates) < self.min_frames:
+            if len(gaps) < self.min_frames or max(gaps) - min(gaps) < self.history_s / 2:
                 continue
-            v = np.median(np.asarray(rates), axis=0)
-            line = p[k] - np.asarray(gaps)[:, None] * v
-            res = np.hypot(*(np.asarray(past) - line).T)
-            if np.median(res) <= self.max_residual:
-                vel[k] = v
+            # the earlier positions as a line in time, p_k = c - v dt_k (least squares): a
+            # boat's own trail passes through its present position (c = p) and lies on the
+            # line; a box that just appeared beside another boat's trail does not
+            a = np.column_stack([np.ones(len(gaps)), -np.asarray(gaps)])
+            coef, *_ = np.linalg.lstsq(a, np.asarray(past), rcond=None)
+            res = np.hypot(*(np.asarray(past) - a @ coef).T)
+            if np.hypot(*(coef[0] - p[k])) <= self.max_residual and np.median(res) <= (
+                self.max_residual
+            ):
+                vel[k] = coef[1]
         speed = np.hypot(vel[:, 0], vel[:, 1])
         moving = np.isfinite(speed) & (speed >= self.min_speed)
         self._frames.append((float(t), p[np.all(np.isfinite(p), axis=1)]))

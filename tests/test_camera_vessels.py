@@ -1,0 +1,95 @@
+"""Moving boats in the camera chain (usvfast.camera.vessels) and the vessel tracker's joined
+snapshots (usvfast.pipeline.tracker)."""
+
+import numpy as np
+import pytest
+
+from usvfast.camera.vessels import MovingBoats, fuse_boxes, hull_centre, hull_covariance, separate
+from usvfast.pipeline.tracker import Snapshot, join_snapshots
+
+
+def test_fuse_boxes_unions_overlapping_groups_only():
+    boxes = np.array(
+        [
+            [100, 50, 180, 80],  # bow
+            [150, 45, 220, 82],  # stern, overlaps the bow
+            [205, 60, 240, 81],  # overlaps the stern only: same hull through it
+            [400, 60, 420, 70],  # another object
+        ],
+        float,
+    )
+    scores = np.array([0.4, 0.7, 0.3, 0.9])
+    fused, best = fuse_boxes(boxes, scores, min_overlap=0.3)
+    assert best.tolist() == [0.9, 0.7]
+    np.testing.assert_array_equal(fused, [[400, 60, 420, 70], [100, 45, 240, 82]])
+    # a slight touch (below min_overlap of the smaller box) does not fuse
+    two = np.array([[0, 0, 10, 10], [9, 0, 30, 10]], float)
+    assert len(fuse_boxes(two, np.array([0.5, 0.6]), min_overlap=0.3)[0]) == 2
+    with pytest.raises(ValueError, match="scores"):
+        fuse_boxes(two, np.array([0.5]))
+
+
+def test_moving_boats_tells_a_vessel_from_a_moored_boat():
+    rng = np.random.default_rng(3)
+    boats = MovingBoats(history_s=2.0, min_speed=1.0, min_frames=5)
+    moored = np.array([30.0, 10.0])
+    start = np.array([40.0, -5.0])
+    velocity = np.array([-2.0, 0.3])
+    moving_flags, still_flags, est = [], [], []
+    for k in range(40):
+        t = 0.1 * k
+        p = np.vstack([start + velocity * t, moored]) + rng.normal(0, 0.3, (2, 2))
+        vel, moving = boats.update(t, p)
+        if t >= 1.5:  # min_dt + history_s / 2: the first frames that can tell
+            moving_flags.append(moving[0])
+            still_flags.append(moving[1])
+            est.append(vel[0])
+    assert np.mean(moving_flags) >= 0.9 and not any(still_flags)
+    np.testing.assert_allclose(np.mean(est, axis=0), velocity, atol=0.15)
+
+
+def test_moving_boats_rejects_a_box_appearing_beside_another_boats_trail():
+    boats = MovingBoats(history_s=2.0, min_speed=1.0, min_frames=3, gate=1.5)
+    for k in range(15):  # a vessel sails east for 1.5 s
+        boats.update(0.1 * k, np.array([[0.0, 2.0 * 0.1 * k]]))
+    # a still object appears 2 m beside the vessel's trail: its "rates" to that trail
+    # disagree with one another
+    vel, moving = boats.update(1.5, np.array([[2.0, 1.5]]))
+    assert not moving[0] and np.isnan(vel[0]).all()
+
+
+def test_hull_centre_half_the_depth_seen_along_the_line_of_sight():
+    cam = np.array([0.0, 0.0])
+    contact = np.array([[10.0, 0.0], [10.0, 0.0], [0.0, 10.0]])
+    # heading across the line of sight (broadside): half the beam; along it: half the length
+    vel = np.array([[0.0, 2.0], [-2.0, 0.0], [np.sqrt(2), np.sqrt(2)]])
+    centre, depth = hull_centre(contact, cam, vel, length=6.0, beam=2.0)
+    a = np.radians(45.0)
+    np.testing.assert_allclose(depth, [1.0, 3.0, 0.5 * (6 * np.cos(a) + 2 * np.sin(a))])
+    np.testing.assert_allclose(centre[:2], [[11.0, 0.0], [13.0, 0.0]])
+    np.testing.assert_allclose(centre[2], [0.0, 10.0 + depth[2]])
+
+
+def test_hull_covariance_along_and_across_the_line_of_sight():
+    contact = np.array([[3.0, 4.0]])
+    cov = hull_covariance(contact, np.zeros(2), along_std=1.5, across_std=0.5)[0]
+    w, v = np.linalg.eigh(cov)
+    np.testing.assert_allclose(w, [0.25, 2.25])
+    np.testing.assert_allclose(np.abs(v[:, 1]), [0.6, 0.8])
+
+
+def test_separate_keeps_the_best_within_the_separation():
+    p = np.array([[0.0, 0.0], [5.0, 0.0], [20.0, 0.0]])
+    assert separate(p, np.array([0.3, 0.8, 0.5]), 9.0).tolist() == [False, True, True]
+    assert separate(p, np.array([0.3, 0.8, 0.5]), 4.0).tolist() == [True, True, True]
+
+
+def test_join_snapshots_shifts_the_vessel_ids():
+    a = Snapshot(np.array([0, 3]), np.ones((2, 4)), np.tile(np.eye(4), (2, 1, 1)), [(3, 0, 1.5)])
+    b = Snapshot(np.array([0]), 2 * np.ones((1, 4)), np.eye(4)[None], [(0, 1, 2.5)])
+    j = join_snapshots(a, b, 100000)
+    assert j.ids.tolist() == [0, 3, 100000]
+    assert j.states[2].tolist() == [2.0] * 4
+    assert j.innovations == [(3, 0, 1.5), (100000, 1, 2.5)]
+    empty = Snapshot(np.zeros(0, np.int64), np.zeros((0, 4)), np.zeros((0, 4, 4)), [])
+    assert join_snapshots(a, empty, 100000).ids.tolist() == [0, 3]
