@@ -1,9 +1,12 @@
 """Moving boats in the camera chain (usvfast.camera.vessels) and the vessel tracker's joined
 snapshots (usvfast.pipeline.tracker)."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
+import usvfast
 from usvfast.camera.vessels import MovingBoats, fuse_boxes, hull_centre, hull_covariance, separate
 from usvfast.pipeline.tracker import Snapshot, join_snapshots
 
@@ -93,3 +96,36 @@ def test_join_snapshots_shifts_the_vessel_ids():
     assert j.innovations == [(3, 0, 1.5), (100000, 1, 2.5)]
     empty = Snapshot(np.zeros(0, np.int64), np.zeros((0, 4)), np.zeros((0, 4, 4)), [])
     assert join_snapshots(a, empty, 100000).ids.tolist() == [0, 3]
+
+
+def test_camera_chain_passes_the_moving_boat_only():
+    from usvfast.camera.detect import Detections
+    from usvfast.pipeline import load_config
+    from usvfast.pipeline.camera_chain import CameraChain
+    from usvfast.pipeline.pose import VesselPose
+    from usvfast.pipeline.timing import StageTimer
+
+    cfg = load_config(
+        Path(usvfast.__file__).parent / "data" / "harbour" / "recording.toml",
+        {"camera.moving_classes": [4, 5]},
+    )
+    frame = {"t": 0.0}
+
+    def detector(images):
+        # a boat crossing the view at a constant row (its range) and one that stays put,
+        # both 65 px tall (about 2 m at 10 m), called "moored boat" (class 5)
+        u = 150.0 + 60.0 * frame["t"]
+        boxes = np.array([[u - 40, 130, u + 40, 195], [480, 130, 560, 195]], float)
+        return [Detections(boxes, np.array([0.8, 0.7]), np.array([5, 5]))]
+
+    chain = CameraChain(cfg.camera, detector, cfg.streams_of("camera")[0].mount, StageTimer())
+    moving, still = [], []
+    for k in range(30):
+        frame["t"] = 0.1 * k
+        pose = VesselPose(1000.0 + frame["t"], 0.0, 0.0, 0.0)
+        res = chain.finish(chain.detect(np.zeros((360, 640, 3), np.uint8)), pose)
+        assert res.vessel is not None and res.vessel.all()
+        moving.append(len(res.positions))
+        still.append(res.rejected.get("not_moving", 0))
+    assert sum(moving[:15]) == 0  # 1.5 s of history needed first
+    assert all(n == 1 for n in moving[16:]) and all(n == 1 for n in still[16:])
