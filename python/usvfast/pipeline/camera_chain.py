@@ -227,7 +227,8 @@ class CameraChain:
         self, boxes: np.ndarray, scores: np.ndarray, pose: VesselPose
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
         """The boat-class boxes of a frame (camera.moving_classes; usvfast.camera.vessels):
-        boxes cut by the image's side edges dropped, overlapping boxes fused, fused boxes that
+        boxes within camera.vessel_edge_margin_px of the image's side edges dropped (a hull
+        cut by the edge is boxed off its centre), overlapping boxes fused, fused boxes that
         span less than camera.vessel_min_height m above the water dropped, the fused box's
         waterline point georeferenced and kept only while the boat moves (and is the best
         of the moving boats within camera.vessel_separation m); then moved to the
@@ -235,7 +236,8 @@ class CameraChain:
         boxes of the moving boats and the number of boats that did not move."""
         s = self.settings
         width = float(self.camera.image_size[0])
-        inside = (boxes[:, 0] > 1.0) & (boxes[:, 2] < width - 1.0)
+        margin = float(s.get("vessel_edge_margin_px", 16.0))
+        inside = (boxes[:, 0] > margin) & (boxes[:, 2] < width - margin)
         fused, best = fuse_boxes(boxes[inside], scores[inside])
         empty = (np.zeros((0, 2)), np.zeros((0, 2, 2)), np.zeros(0), np.zeros((0, 4)))
         g = self._georeference(fused, pose) if len(fused) else None

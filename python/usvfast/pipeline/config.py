@@ -115,12 +115,14 @@ _CAMERA = {
     # vessel_across_std m added along / across the line of sight; of the moving boats within
     # vessel_separation m of each other only the best-scoring one is kept; a boat box must
     # span vessel_min_height m above the water (a hull and cabin, not a float) and give a
-    # velocity from vessel_min_frames earlier frames.
+    # velocity from vessel_min_frames earlier frames, and lie vessel_edge_margin_px from the
+    # image's side edges.
     "moving_classes": ("floats:0", None),
     "vessel_min_speed": ("float", 1.0),
     "vessel_history_s": ("float", 2.0),
     "vessel_min_frames": ("int", 5),
     "vessel_min_height": ("float", 1.2),
+    "vessel_edge_margin_px": ("float", 16.0),
     "vessel_length": ("float", 6.0),
     "vessel_beam": ("float", 2.2),
     "vessel_along_std": ("float", 1.0),
