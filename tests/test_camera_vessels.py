@@ -129,3 +129,29 @@ def test_camera_chain_passes_the_moving_boat_only():
         still.append(res.rejected.get("not_moving", 0))
     assert sum(moving[:15]) == 0  # 1.5 s of history needed first
     assert all(n == 1 for n in moving[16:]) and all(n == 1 for n in still[16:])
+
+
+def test_vessel_tracker_settings_and_routing():
+    from usvfast.pipeline import load_config
+    from usvfast.pipeline.tracker import make_vessel_tracker
+
+    path = Path(usvfast.__file__).parent / "data" / "harbour" / "recording.toml"
+    cfg = load_config(path)
+    assert cfg.tracker["vessels"] is True
+    vt = make_vessel_tracker(cfg.tracker)
+    assert vt is not None
+    assert vt.s["q"] == cfg.tracker["vessel_q"] != cfg.tracker["q"]
+    assert vt.s["prior_velocity_var"] == 6.25 and vt.s["covariance_trace"] is None
+    assert vt.s["delete_after_s"] == 2.0
+    assert make_vessel_tracker(load_config(path, {"tracker.vessels": False}).tracker) is None
+    # a vessel at 2 m/s: its own tracker follows it within a few scans
+    z0 = np.array([10.0, 0.0])
+    for k in range(40):
+        t = 0.4 * k
+        snap = vt.step(
+            t, (z0 + np.array([0.0, 2.0 * t]))[None], np.zeros(1, np.int64), np.eye(2)[None] * 0.05
+        )
+    assert len(snap.ids) == 1
+    np.testing.assert_allclose(snap.states[0, [1, 3]], [0.0, 2.0], atol=0.1)
+    with pytest.raises(ValueError, match="vessels"):
+        load_config(path, {"tracker.vessels": "yes"})
