@@ -11,12 +11,12 @@ of the "boat" classes are handled apart from the floating objects:
 2. :class:`MovingBoats`: each frame's boat positions (NED m, the box bottom's waterline point)
    are kept for `history_s` seconds; p_k is an earlier frame's boat position nearest to the
    present one p (within `max_speed` · dt + `gate` m, dt ≥ `min_dt`). With at least
-   `min_frames` such frames spanning at least `history_s` / 2 s, the line p_k = c − v dt_k is fitted by least squares; the boat
-   counts as moving — and is passed to the tracker — when the line passes through p
-   (|c − p| ≤ `max_residual` m: a box that just appeared beside another boat's trail does
-   not), the median distance of the p_k from it is ≤ `max_residual` m and its speed |v| is
+   `min_frames` such frames spanning at least `history_s` / 2 s, the line p_k = c − v dt_k
+   is fitted by least squares; the boat counts as moving — and is passed to the tracker —
+   when the line passes through p (|c − p| ≤ `max_residual` m: a box that just appeared
+   beside another boat's trail does not), the median distance of the p_k from it is ≤ `max_residual` m and its speed |v| is
    ≥ `min_speed` m/s. A moored boat only jitters (the box edges move by a pixel or two); its
-   median displacement over ≥ 0.5 s stays well below a vessel's 1.5–2.5 m/s. Of the moving
+   displacement over ≥ 1 s stays well below a vessel's 1.5–2.5 m/s. Of the moving
    boats of a frame within `separation` m of each other only the best-scoring one is kept
    (the bow wave or the stern of a hull boxed apart moves with it);
 3. :func:`hull_centre`: the box bottom images the hull's nearest waterline; the centre lies
