@@ -15,10 +15,10 @@ of the "boat" classes are handled apart from the floating objects:
    is fitted by least squares; the boat counts as moving — and is passed to the tracker —
    when the line passes through p (|c − p| ≤ `max_residual` m: a box that just appeared
    beside another boat's trail does not), the median distance of the p_k from it is
-   ≤ `max_residual` m and its speed |v| is ≥ `min_speed` m/s. A moored boat only jitters (the box edges move by a pixel or two); its
-   displacement over ≥ 1 s stays well below a vessel's 1.5–2.5 m/s. Of the moving
-   boats of a frame within `separation` m of each other only the best-scoring one is kept
-   (the bow wave or the stern of a hull boxed apart moves with it);
+   ≤ `max_residual` m and its speed |v| is ≥ `min_speed` m/s. A moored boat only jitters
+   (the box edges move by a pixel or two): over ≥ 1 s that stays well below a vessel's
+   1.5–2.5 m/s. Of the moving boats of a frame within `separation` m of each other only the
+   best-scoring one is kept (the bow wave or the stern of a hull boxed apart moves with it);
 3. :func:`hull_centre`: the box bottom images the hull's nearest waterline; the centre lies
    farther along the line of sight by half the hull's depth seen along that line,
    d = (L |cos α| + B |sin α|) / 2 for a hull of length L and beam B whose heading (the
