@@ -155,3 +155,23 @@ def test_vessel_tracker_settings_and_routing():
     np.testing.assert_allclose(snap.states[0, [1, 3]], [0.0, 2.0], atol=0.1)
     with pytest.raises(ValueError, match="vessels"):
         load_config(path, {"tracker.vessels": "yes"})
+
+
+def test_vessel_tracker_stonesoup_backend_gives_the_same_track():
+    pytest.importorskip("stonesoup")
+    from usvfast.pipeline import load_config
+    from usvfast.pipeline.tracker import make_vessel_tracker
+
+    path = Path(usvfast.__file__).parent / "data" / "harbour" / "recording.toml"
+    native = make_vessel_tracker(load_config(path).tracker)
+    soup = make_vessel_tracker(load_config(path, {"tracker.backend": "stonesoup"}).tracker)
+    assert native is not None and soup is not None
+    rng = np.random.default_rng(5)
+    for k in range(25):
+        t = 0.4 * k
+        z = (np.array([10.0, 0.0]) + np.array([0.0, 2.0 * t]) + rng.normal(0, 0.2, 2))[None]
+        cov = np.eye(2)[None] * 0.05
+        a = native.step(t, z, np.zeros(1, np.int64), cov)
+        b = soup.step(t, z, np.zeros(1, np.int64), cov)
+        np.testing.assert_allclose(a.states, b.states, atol=1e-6)
+    assert len(a.ids) == 1
