@@ -158,7 +158,6 @@ def test_vessel_tracker_settings_and_routing():
 
 
 def test_vessel_tracker_stonesoup_backend_gives_the_same_track():
-    pytest.importorskip("stonesoup")
     from usvfast.pipeline import load_config
     from usvfast.pipeline.tracker import make_vessel_tracker
 
