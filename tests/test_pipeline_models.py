@@ -86,6 +86,7 @@ def _camera_chain(depth: float) -> tuple[CameraChain, CameraModel]:
     chain.position = np.array([0.0, 0.0, -0.9])
     chain.height = 1.2
     chain.timer = StageTimer()
+    chain.moving_classes = None
     return chain, model
 
 

@@ -27,6 +27,13 @@ from usvfast.camera.georef import (
     horizon_line,
     mount_rotation,
 )
+from usvfast.camera.vessels import (
+    MovingBoats,
+    fuse_boxes,
+    hull_centre,
+    hull_covariance,
+    separate,
+)
 from usvfast.frames import Mount
 from usvfast.pipeline.pose import VesselPose
 from usvfast.pipeline.timing import StageTimer
@@ -76,7 +83,8 @@ def load_detector(settings: dict[str, Any], base: Any = None) -> Any:
 class CameraResult:
     """Georeferenced detections of one frame: positions (k, 2) NED m, covariances (k, 2, 2)
     m², scores (k,), boxes (k, 4) xyxy px; `n_boxes` detector boxes before the filters,
-    `rejected` {reason: count}."""
+    `rejected` {reason: count}; `vessel` (k,) bool: the moving boats (camera.moving_classes),
+    None when there are none."""
 
     positions: np.ndarray
     covariances: np.ndarray
@@ -84,6 +92,7 @@ class CameraResult:
     boxes: np.ndarray
     n_boxes: int
     rejected: dict[str, int]
+    vessel: np.ndarray | None = None
 
 
 class CameraChain:
@@ -133,6 +142,13 @@ class CameraChain:
         )
         self.timer = timer
         self.depth_table = _depth_table(settings)
+        moving = settings.get("moving_classes")
+        self.moving_classes = None if moving is None else [int(c) for c in moving]
+        self.boats = MovingBoats(
+            history_s=float(settings.get("vessel_history_s", 2.0)),
+            min_speed=float(settings.get("vessel_min_speed", 1.0)),
+            min_frames=int(settings.get("vessel_min_frames", 5)),
+        )
 
     def _horizon(self, pose: VesselPose) -> tuple[float, float] | None:
         if self.settings.get("horizon") != "attitude" or not hasattr(self.camera, "project"):
@@ -169,6 +185,11 @@ class CameraChain:
             self.filters.horizon_line = self._horizon(pose)
             reason = self.filters.filter(det)
         ok = reason == OK
+        boat = np.zeros(len(det.boxes), bool)
+        if self.moving_classes is not None:
+            boat = np.isin(det.classes, self.moving_classes)
+            reason[boat] = np.where(ok[boat], -1, reason[boat])
+            ok &= ~boat
         positions = np.zeros((0, 2))
         covs = np.zeros((0, 2, 2))
         if ok.any():
@@ -186,11 +207,87 @@ class CameraChain:
                 covs = covs + (sigma**2)[:, None, None] * np.eye(2)
         keep = reason == OK
         rejected: dict[str, int] = {}
-        for code in np.unique(reason[~keep]):
+        for code in np.unique(reason[~keep & (reason >= 0)]):
             rejected[REASONS[int(code)]] = int(np.sum(reason == code))
-        return CameraResult(
-            positions, covs, det.scores[keep], det.boxes[keep], len(det.boxes), rejected
+        scores, boxes = det.scores[keep], det.boxes[keep]
+        vessel = None
+        if self.moving_classes is not None:
+            with tm("camera.vessels"):
+                vp, vc, vs, vb, still = self._vessels(
+                    det.boxes[reason == -1], det.scores[reason == -1], pose
+                )
+            positions, covs = np.vstack([positions, vp]), np.concatenate([covs, vc])
+            scores, boxes = np.concatenate([scores, vs]), np.vstack([boxes.reshape(-1, 4), vb])
+            if still:
+                rejected["not_moving"] = still
+            vessel = np.r_[np.zeros(len(positions) - len(vp), bool), np.ones(len(vp), bool)]
+        return CameraResult(positions, covs, scores, boxes, len(det.boxes), rejected, vessel)
+
+    def _vessels(
+        self, boxes: np.ndarray, scores: np.ndarray, pose: VesselPose
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+        """The boat-class boxes of a frame (camera.moving_classes; usvfast.camera.vessels):
+        boxes within camera.vessel_edge_margin_px of the image's side edges dropped (a hull
+        cut by the edge is boxed off its centre), overlapping boxes fused, fused boxes that
+        span less than camera.vessel_min_height m above the water dropped, the fused box's
+        waterline point georeferenced and kept only while the boat moves (and is the best
+        of the moving boats within camera.vessel_separation m); then moved to the
+        hull's centre with the hull's covariance. Returns positions, covariances, scores,
+        boxes of the moving boats and the number of boats that did not move."""
+        s = self.settings
+        width = float(self.camera.image_size[0])
+        margin = float(s.get("vessel_edge_margin_px", 16.0))
+        inside = (boxes[:, 0] > margin) & (boxes[:, 2] < width - margin)
+        fused, best = fuse_boxes(boxes[inside], scores[inside])
+        empty = (np.zeros((0, 2)), np.zeros((0, 2, 2)), np.zeros(0), np.zeros((0, 4)))
+        g = self._georeference(fused, pose) if len(fused) else None
+        good = np.zeros(0, bool) if g is None else g.reason == OK
+        if g is not None and good.any():
+            good &= self._box_height(fused, g.positions, pose) >= float(
+                s.get("vessel_min_height", 1.2)
+            )
+        contact = np.zeros((0, 2)) if g is None else g.positions[good]
+        vel, moving = self.boats.update(pose.time, contact)
+        if moving.any():
+            sep = separate(
+                contact[moving], best[good][moving], float(s.get("vessel_separation", 9.0))
+            )
+            moving[np.flatnonzero(moving)[~sep]] = False
+        if g is None or not moving.any():
+            return (*empty, int(good.sum()))
+        cam = self._camera_ne(pose)
+        centre, _ = hull_centre(
+            contact[moving],
+            cam,
+            vel[moving],
+            float(s.get("vessel_length", 6.0)),
+            float(s.get("vessel_beam", 2.2)),
         )
+        cov = g.covariances[good][moving] + hull_covariance(
+            contact[moving],
+            cam,
+            float(s.get("vessel_along_std", 1.0)),
+            float(s.get("vessel_across_std", 0.6)),
+        )
+        kept = fused[good][moving], best[good][moving]
+        return centre, cov, kept[1], kept[0], int((~moving).sum())
+
+    def _box_height(self, boxes: np.ndarray, contact: np.ndarray, pose: VesselPose) -> np.ndarray:
+        """Height (k,) m above the water that each box spans at the horizontal distance of its
+        georeferenced bottom point `contact` (k, 2) NED m: the distance times the difference of
+        the normalised image coordinates of its top and bottom centres (lens distortion
+        undone; small-angle, NaN where the bottom did not georeference)."""
+        u = (boxes[:, 0] + boxes[:, 2]) / 2.0
+        top, _ = self.camera.normalized(np.column_stack([u, boxes[:, 1]]))
+        bottom, _ = self.camera.normalized(np.column_stack([u, boxes[:, 3]]))
+        dist = np.hypot(*(np.asarray(contact, float) - self._camera_ne(pose)[None]).T)
+        return dist * (bottom[:, 1] - top[:, 1])
+
+    def _camera_ne(self, pose: VesselPose) -> np.ndarray:
+        """The camera's (north, east) m at `pose` (its lever arm turned by the heading)."""
+        lx, ly = float(self.position[0]), float(self.position[1])
+        ch, sh = math.cos(pose.heading), math.sin(pose.heading)
+        return np.array([pose.north + ch * lx - sh * ly, pose.east + sh * lx + ch * ly])
 
     def coverage(self) -> tuple[float, float, float]:
         """(range m, horizontal field of view deg, axis yaw deg clockwise from the heading):
@@ -266,9 +363,7 @@ class CameraChain:
         left = self._georeference(boxes, pose, "left").positions
         right = self._georeference(boxes, pose, "right").positions
         width = np.linalg.norm(right - left, axis=1)
-        lx, ly = float(self.position[0]), float(self.position[1])
-        ch, sh = math.cos(pose.heading), math.sin(pose.heading)
-        cam = np.array([pose.north + ch * lx - sh * ly, pose.east + sh * lx + ch * ly])
+        cam = self._camera_ne(pose)
         los = contact - cam
         rng = np.linalg.norm(los, axis=1, keepdims=True)
         shift = np.where(np.isfinite(width), factor * width, 0.0)

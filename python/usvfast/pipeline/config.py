@@ -112,6 +112,26 @@ _CAMERA = {
     "depth_classes": ("floats:0", None),
     "class_depth_m": ("floats:0", None),
     "class_depth_std_m": ("floats:0", None),
+    # Boat classes (usvfast.camera.vessels): their boxes are fused per hull and kept only
+    # while the boat moves (median speed over vessel_history_s s >= vessel_min_speed m/s);
+    # the hull's centre lies half its depth along the line of sight beyond the box bottom
+    # (vessel_length x vessel_beam m, heading from the velocity), with vessel_along_std /
+    # vessel_across_std m added along / across the line of sight; of the moving boats within
+    # vessel_separation m of each other only the best-scoring one is kept; a boat box must
+    # span vessel_min_height m above the water (a hull and cabin, not a float) and give a
+    # velocity from vessel_min_frames earlier frames, and lie vessel_edge_margin_px from the
+    # image's side edges.
+    "moving_classes": ("floats:0", None),
+    "vessel_min_speed": ("float", 1.0),
+    "vessel_history_s": ("float", 2.0),
+    "vessel_min_frames": ("int", 5),
+    "vessel_min_height": ("float", 1.2),
+    "vessel_edge_margin_px": ("float", 16.0),
+    "vessel_length": ("float", 6.0),
+    "vessel_beam": ("float", 2.2),
+    "vessel_along_std": ("float", 1.0),
+    "vessel_across_std": ("float", 0.6),
+    "vessel_separation": ("float", 9.0),
     "attitude_sigma_deg": ("float", 0.5),
     "height_sigma": ("float", 0.0),
     "heading_sigma_deg": ("float", 0.0),
@@ -156,6 +176,17 @@ _TRACKER = {
     "delete_after_s": ("float", None),
     "covariance_trace": ("float", 1.5),
     "initiate_in_gates": ("bool", True),
+    # A second tracker for moving vessels (the LiDAR's vessel detections and the camera's
+    # moving boats), apart from the floating objects: a vessel under way at 1.5-2.5 m/s
+    # starts far outside a float's velocity prior and manoeuvres (process noise vessel_q,
+    # velocity prior variance vessel_prior_velocity_var m²/s², tracks deleted
+    # vessel_delete_after_s s after their last update; no covariance-trace deletion unless
+    # vessel_covariance_trace). Its track ids start at 100000.
+    "vessels": ("bool", False),
+    "vessel_q": ("float", 0.05),
+    "vessel_prior_velocity_var": ("float", 6.25),
+    "vessel_delete_after_s": ("float", 2.0),
+    "vessel_covariance_trace": ("float", None),
 }
 _OUTPUTS = {
     "animation": ("bool", True),

@@ -38,7 +38,14 @@ from usvfast.pipeline.lidar_chain import LidarChain
 from usvfast.pipeline.outputs import OutputWriter
 from usvfast.pipeline.pose import LivePose, NavTrack, VesselPose, imu_roll_pitch, parse_sentence
 from usvfast.pipeline.timing import StageTimer
-from usvfast.pipeline.tracker import SENSORS, Snapshot, make_tracker
+from usvfast.pipeline.tracker import (
+    SENSORS,
+    VESSEL_IDS,
+    Snapshot,
+    join_snapshots,
+    make_tracker,
+    make_vessel_tracker,
+)
 
 __all__ = ["Pipeline", "TrackUpdate"]
 
@@ -81,6 +88,7 @@ class Pipeline:
             for spec in cameras:
                 self.chains[spec.id] = CameraChain(cfg.camera, det, spec.mount, self.timer)
         self.tracker = make_tracker(cfg.tracker)
+        self.vessel_tracker = make_vessel_tracker(cfg.tracker)
         nav = cfg.recording.stream(cfg.navigation[0])
         self.live = LivePose(
             cfg.origin,
@@ -178,7 +186,8 @@ class Pipeline:
             z = np.array([d.position for d in dets], dtype=np.float64).reshape(-1, 2)
             covs = np.array([d.covariance for d in dets], dtype=np.float64).reshape(-1, 2, 2)
             scores = np.array([d.n_points for d in dets], dtype=np.float64)
-            return _Scan(t, stream, chain, pose, None, (z, covs, scores))
+            vessel = np.array([bool(d.extended) for d in dets], dtype=bool)
+            return _Scan(t, stream, chain, pose, None, (z, covs, scores), vessel)
         image = data.image if hasattr(data, "image") else data
         if not isinstance(image, np.ndarray) or image.ndim not in (2, 3):
             self.counts[stream]["damaged"] += 1
@@ -198,18 +207,18 @@ class Pipeline:
             sensor = "lidar"
             assert scan.lidar is not None
             z, covs, scores = scan.lidar
+            vessel = scan.vessel
         else:
             sensor = "camera"
             res = scan.chain.finish(raw, pose)
             z, covs, scores = res.positions, res.covariances, res.scores
+            vessel = res.vessel
             if self.writer is not None:
                 with self.timer("outputs"):
                     self.writer.write_frame(t, scan.image)
         sid = SENSORS.index(sensor)
         with self.timer("tracker"):
-            snap = self.tracker.step(
-                round(t - self.epoch, 6), z, np.full(len(z), sid, dtype=np.int64), covs
-            )
+            snap = self._track(round(t - self.epoch, 6), z, sid, covs, vessel)
         self.scans += 1
         self.detections[sensor] += len(z)
         self.track_ids.update(snap.ids.tolist())
@@ -219,6 +228,19 @@ class Pipeline:
                 self.writer.write_detections(t, sensor, z, covs, scores)
                 self.writer.write_tracks(t, snap)
         return [TrackUpdate(t, sensor, scan.stream, len(z), snap, pose)]
+
+    def _track(
+        self, t: float, z: np.ndarray, sid: int, covs: np.ndarray, vessel: np.ndarray | None
+    ) -> Any:
+        """One scan through the tracker; with a vessel tracker (tracker.vessels) the `vessel`
+        detections go to it, the rest to the floats' tracker, and the snapshots are joined."""
+        sensors = np.full(len(z), sid, dtype=np.int64)
+        if self.vessel_tracker is None:
+            return self.tracker.step(t, z, sensors, covs)
+        v = np.zeros(len(z), bool) if vessel is None else vessel
+        snap = self.tracker.step(t, z[~v], sensors[~v], covs[~v])
+        ves = self.vessel_tracker.step(t, z[v], sensors[v], covs[v])
+        return join_snapshots(snap, ves, VESSEL_IDS)
 
     def _collect(self, scan: _Scan, fut: Future[tuple[Any, float]] | None) -> list[TrackUpdate]:
         """`_end` of a scan whose camera network ran on the worker (`fut`); the network's
@@ -412,7 +434,8 @@ _LOOKAHEAD = 3
 @dataclass(frozen=True)
 class _Scan:
     """A sensor message past `Pipeline._begin`: time (UNIX s), stream id, its chain, the pose,
-    the camera image (camera) or the LiDAR detections (z, covariances, scores)."""
+    the camera image (camera) or the LiDAR detections (z, covariances, scores) and which of
+    them are vessels."""
 
     time: float
     stream: str
@@ -420,6 +443,7 @@ class _Scan:
     pose: VesselPose
     image: Any
     lidar: tuple[np.ndarray, np.ndarray, np.ndarray] | None
+    vessel: np.ndarray | None = None
 
 
 def _timed(fn: Callable[[Any], Any], arg: Any) -> tuple[Any, float]:

@@ -18,7 +18,17 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["SENSORS", "Snapshot", "make_tracker"]
+__all__ = [
+    "SENSORS",
+    "VESSEL_IDS",
+    "Snapshot",
+    "join_snapshots",
+    "make_tracker",
+    "make_vessel_tracker",
+]
+
+#: First track id of the vessel tracker (tracker.vessels).
+VESSEL_IDS = 100000
 
 SENSORS = ("lidar", "camera")
 _H = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]])
@@ -347,3 +357,32 @@ def make_tracker(settings: dict[str, Any]) -> NativeTracker | StoneSoupTracker:
     if settings["backend"] == "stonesoup":
         return StoneSoupTracker(settings)
     return NativeTracker(settings)
+
+
+def make_vessel_tracker(settings: dict[str, Any]) -> NativeTracker | StoneSoupTracker | None:
+    """The moving vessels' tracker of the [tracker] table (`vessels = true`; None otherwise):
+    the same tracker with the vessel_* settings (config.py) for q, the velocity prior, the
+    time and covariance-trace deletion."""
+    if not settings.get("vessels"):
+        return None
+    s = dict(settings)
+    s["q"] = settings["vessel_q"]
+    s["prior_velocity_var"] = settings["vessel_prior_velocity_var"]
+    s["covariance_trace"] = settings["vessel_covariance_trace"]
+    if s["deletion"] == "time":
+        s["delete_after_s"] = settings["vessel_delete_after_s"]
+    return make_tracker(s)
+
+
+def join_snapshots(floats: Snapshot, vessels: Snapshot, offset: int) -> Snapshot:
+    """One Snapshot of two trackers' scans: the second's track ids shifted by `offset`."""
+    ids = np.concatenate([floats.ids, vessels.ids + offset]).astype(np.int64)
+    inn = floats.innovations + [(i + offset, k, v) for i, k, v in vessels.innovations]
+    return Snapshot(
+        ids,
+        np.vstack([floats.states.reshape(-1, 4), vessels.states.reshape(-1, 4)]),
+        np.concatenate(
+            [floats.covariances.reshape(-1, 4, 4), vessels.covariances.reshape(-1, 4, 4)]
+        ),
+        inn,
+    )
