@@ -149,6 +149,7 @@ class _Frame:
     grey: np.ndarray
     scale: float
     from_prev: np.ndarray | None
+    size: tuple[int, int]
 
 
 class ChangeDetector:
@@ -185,7 +186,7 @@ class ChangeDetector:
         blurred = (cv2.GaussianBlur(small, (k, k), 0) if k > 1 else small).astype(np.float32)
         link = None
         if prev is not None:
-            if prev.grey.shape != grey.shape:
+            if prev.size != (h0, w0):
                 raise ValueError(
                     f"image: size {image.shape[:2]} differs from the previous frame's; "
                     "a video's frames must share one size (reset() between videos)"
@@ -195,7 +196,7 @@ class ChangeDetector:
             link = None if method == "none" else _homogeneous(warp)
         else:
             self.methods.append("first")
-        return _Frame(blurred, grey, s, link)
+        return _Frame(blurred, grey, s, link, (h0, w0))
 
     def _change(
         self, frames: Sequence[_Frame], t: int, neighbours: Sequence[int]
@@ -337,10 +338,12 @@ class ChangeDetector:
     def step(self, image: np.ndarray, horizon: HorizonLine | None = None) -> Detections:
         """Boats of the next BGR uint8 frame (h, w, 3) of a video, against its past
         neighbours (online, whatever `config.online` says; the horizon is found when not
-        given)."""
+        given). A frame of another size than the previous one starts a new sequence."""
         _check_frame(image, horizon)
         if horizon is None:
             horizon = detect_horizon(image, config=self.config.contrast.horizon)
+        if self._past and self._past[-1].size != image.shape[:2]:
+            self.reset()  # another size: a new sequence (a folder of several cameras)
         frame = self._prepare(image, self._past[-1] if self._past else None)
         frames = [*self._past, frame]
         t = len(frames) - 1
