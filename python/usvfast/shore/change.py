@@ -264,6 +264,11 @@ class ChangeDetector:
     ) -> Detections:
         cfg = self.config
         h, w = z.shape
+        cz = None
+        if cfg.refine and horizon is not None:
+            cz, _, _ = contrast_map(image, horizon, cfg.contrast)
+            if cz.shape != (h, w):  # another working width: bring it to this one
+                cz = cv2.resize(cz, (w, h), interpolation=cv2.INTER_NEAREST)
         raw = z > cfg.threshold
         mask = raw.astype(np.uint8)
         if cfg.open_px > 1:
@@ -282,8 +287,8 @@ class ChangeDetector:
         fill = np.bincount(labels.ravel(), weights=raw.ravel(), minlength=n)[1:] / np.maximum(
             box[:, 2] * box[:, 3], 1
         )
-        if cfg.refine and horizon is not None:
-            box = self._refine(box, labels, image, horizon, (h, w))
+        if cz is not None:
+            box = self._refine(box, labels, cz)
         keep = (box[:, 2] >= cfg.min_width * w) & (box[:, 2] >= cfg.min_aspect * box[:, 3])
         keep &= fill >= cfg.min_fill
         if horizon is not None:
@@ -300,15 +305,11 @@ class ChangeDetector:
         self,
         box: np.ndarray,
         labels: np.ndarray,
-        image: np.ndarray,
-        horizon: HorizonLine,
-        size: tuple[int, int],
+        cz: np.ndarray,
     ) -> np.ndarray:
-        """Change boxes (k, 4, working px) grown by the contrast components they touch."""
+        """Change boxes (k, 4, working px; components `labels`) grown by the components of
+        the contrast map `cz` (working px) they touch."""
         cfg = self.config
-        cz, _, _ = contrast_map(image, horizon, cfg.contrast)
-        if cz.shape != size:  # another working width: bring it to this one
-            cz = cv2.resize(cz, size[::-1], interpolation=cv2.INTER_NEAREST)
         cmask = (cz > cfg.contrast.threshold).astype(np.uint8)
         if cfg.contrast.open_px > 1:
             k = np.ones((cfg.contrast.open_px,) * 2, np.uint8)

@@ -2,15 +2,19 @@
 a neighbouring frame can be warped onto the current one before a per-pixel background is
 built (:mod:`usvfast.shore.change`).
 
-Two OpenCV estimators, tried in order:
+Two OpenCV estimators:
 
 1. ORB keypoints (`cv2.ORB_create`), brute-force Hamming matching with cross-check, and a
    RANSAC similarity (rotation, uniform scale, translation; `cv2.estimateAffinePartial2D`):
-   robust to large pans and to boats moving through the scene (their matches are outliers);
-2. when too few keypoints agree (textureless sky and water), an intensity-based translation
-   by enhanced correlation (`cv2.findTransformECC`, `MOTION_TRANSLATION`) from the identity.
+   robust to large pans and zooms and to boats moving through the scene (their matches are
+   outliers);
+2. enhanced correlation (`cv2.findTransformECC`) over the whole frame, from the identity
+   (rotation + translation) and from the ORB similarity (affine when it zooms); the start
+   whose result correlates best is kept — the frame's area, not its keypoints, decides, so
+   a big textured boat that holds most keypoints cannot pull the warp onto itself. ECC
+   failing from both, the ORB similarity alone.
 
-When both fail the pair is reported as not registered (the caller skips that neighbour).
+When all fail the pair is reported as not registered (the caller skips that neighbour).
 Warps are 2 × 3 float32 affine matrices mapping pixel (x, y) of the *moving* frame to the
 *reference* frame (origin top-left, x right, y down), in input pixels.
 """
@@ -37,7 +41,9 @@ class RegisterConfig:
     work_width: frames wider than this are registered at this width (px; the warp is scaled
     back to input pixels). orb_features: ORB keypoints per frame. min_inliers: RANSAC inliers
     needed to accept the ORB similarity. ransac_px: RANSAC reprojection threshold (working
-    px). max_scale: the similarity's scale must lie within [1/max_scale, max_scale]. ecc_iters,
+    px). max_scale: the similarity's scale must lie within [1/max_scale, max_scale]. zoom:
+    from a similarity whose scale differs from 1 by more than this, ECC refines an affine warp
+    (else rotation + translation). ecc_iters,
     ecc_eps: ECC's iteration limit and convergence threshold. min_ecc: smallest ECC
     correlation accepted (in [0, 1]).
     """
@@ -46,7 +52,8 @@ class RegisterConfig:
     orb_features: int = 500
     min_inliers: int = 12
     ransac_px: float = 2.0
-    max_scale: float = 1.1
+    max_scale: float = 1.6
+    zoom: float = 0.05
     ecc_iters: int = 60
     ecc_eps: float = 1e-4
     min_ecc: float = 0.8
@@ -57,6 +64,7 @@ class RegisterConfig:
         integer("min_inliers", self.min_inliers, low=3)
         real("ransac_px", self.ransac_px, positive=True)
         real("max_scale", self.max_scale, low=1.0)
+        real("zoom", self.zoom, low=0.0)
         integer("ecc_iters", self.ecc_iters, low=1)
         real("ecc_eps", self.ecc_eps, positive=True)
         if not 0.0 <= real("min_ecc", self.min_ecc) <= 1.0:
@@ -99,15 +107,15 @@ def _orb(ref: np.ndarray, mov: np.ndarray, cfg: RegisterConfig) -> np.ndarray | 
 
 
 def _ecc(
-    ref: np.ndarray, mov: np.ndarray, start: np.ndarray, cfg: RegisterConfig
+    ref: np.ndarray, mov: np.ndarray, start: np.ndarray, motion: int, cfg: RegisterConfig
 ) -> tuple[np.ndarray, float] | None:
-    """ECC refinement (rotation + translation) of the warp `start` (moving -> reference) and
+    """ECC refinement (OpenCV `motion` type) of the warp `start` (moving -> reference) and
     its correlation; None when ECC does not converge or correlates below `min_ecc`."""
     # ECC's warp maps template (reference) pixels to input (moving) pixels.
     init = cv2.invertAffineTransform(start).astype(np.float32)
     criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, cfg.ecc_iters, cfg.ecc_eps)
     try:
-        rho, warp = cv2.findTransformECC(ref, mov, init, cv2.MOTION_EUCLIDEAN, criteria, None, 5)
+        rho, warp = cv2.findTransformECC(ref, mov, init, motion, criteria, None, 5)
     except cv2.error:
         return None
     if not np.isfinite(rho) or rho < cfg.min_ecc or not np.all(np.isfinite(warp)):
@@ -135,17 +143,19 @@ def register(
         mov = cv2.resize(mov, size, interpolation=cv2.INTER_AREA)
     orb = _orb(ref, mov, cfg)
     best: tuple[np.ndarray, float, str] | None = None
-    starts = [("ecc", np.eye(2, 3, dtype=np.float32))]
+    # from the identity: rotation + translation (a pan); from ORB's similarity: affine (a
+    # pan with a zoom)
+    starts = [("ecc", np.eye(2, 3, dtype=np.float32), cv2.MOTION_EUCLIDEAN)]
     if orb is not None:
-        starts.append(
-            (
-                "orb",
-                orb / np.hypot(orb[0, 0], orb[1, 0]) * [[1, 1, 0], [1, 1, 0]]
-                + orb * [[0, 0, 1], [0, 0, 1]],
-            )
-        )
-    for name, start in starts:
-        found = _ecc(ref, mov, start.astype(np.float32), cfg)
+        scale = float(np.hypot(orb[0, 0], orb[1, 0]))
+        if abs(scale - 1.0) > cfg.zoom:
+            starts.append(("orb", orb, cv2.MOTION_AFFINE))
+        else:  # no zoom: the similarity's rotation and translation only
+            rigid = orb.copy()
+            rigid[:, :2] /= scale
+            starts.append(("orb", rigid, cv2.MOTION_EUCLIDEAN))
+    for name, start, motion in starts:
+        found = _ecc(ref, mov, start, motion, cfg)
         if found is not None and (best is None or found[1] > best[1]):
             best = (found[0], found[1], name)
     if best is not None:
