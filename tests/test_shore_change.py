@@ -216,7 +216,7 @@ def test_video3_scores_of_the_change_detector(mardct_annotations):
     c, hcfg = DetectionCounts(), HorizonConfig()
     for f, im, hz, d in zip(frames, images, lines, out, strict=True):
         c.add(f.boxes, d.subset(horizon_keep(d, hz, im.shape[0], hcfg)).boxes)
-    # measured 0.424 / 0.614 (59 TP, 94 FP, 80 FN of 139 boxes); the contrast detector
+    # measured 0.410 / 0.612 (57 TP, 90 FP, 82 FN of 139 boxes); the contrast detector
     # alone scores 0.295 / 0.839 there
     assert c.tp + c.fn == 139
-    assert c.tpr > 0.38 and c.far < 0.66
+    assert c.tpr > 0.38 and c.far < 0.65
