@@ -132,7 +132,7 @@ def _uncontained(box: np.ndarray, share: float) -> np.ndarray:
     inter = np.clip(iw, 0, None) * np.clip(ih, 0, None)
     area = box[:, 2] * box[:, 3]
     inside = (inter > share * np.maximum(area, 1e-9)[:, None]) & (area[None] > area[:, None])
-    return ~inside.any(axis=1)
+    return np.asarray(~inside.any(axis=1))
 
 
 def _homogeneous(warp: np.ndarray) -> np.ndarray:
@@ -208,23 +208,17 @@ class ChangeDetector:
         h, w = cur.grey.shape
         stack, seen = [], []
         for j in neighbours:
-            m = np.eye(3)
-            ok = True
-            if j < t:
-                for k in range(j + 1, t + 1):  # j -> t: chain the forward links
-                    if frames[k].from_prev is None:
-                        ok = False
-                        break
-                    m = frames[k].from_prev @ m
-            else:
-                for k in range(t + 1, j + 1):  # t -> j, inverted below
-                    if frames[k].from_prev is None:
-                        ok = False
-                        break
-                    m = frames[k].from_prev @ m
-                m = np.linalg.inv(m) if ok else m
-            if not ok:
+            m: np.ndarray | None = np.eye(3)
+            for k in range(min(j, t) + 1, max(j, t) + 1):  # chain the links between j and t
+                link = frames[k].from_prev
+                if link is None or m is None:
+                    m = None
+                    break
+                m = link @ m
+            if m is None:
                 continue
+            if j > t:  # the chain maps t -> j: invert it
+                m = np.linalg.inv(m)
             warp = m[:2].astype(np.float32)
             stack.append(
                 cv2.warpAffine(

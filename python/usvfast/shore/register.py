@@ -85,7 +85,7 @@ def _grey(image: np.ndarray, name: str) -> np.ndarray:
 
 
 def _orb(ref: np.ndarray, mov: np.ndarray, cfg: RegisterConfig) -> np.ndarray | None:
-    orb = cv2.ORB_create(nfeatures=cfg.orb_features)
+    orb = cv2.ORB_create(nfeatures=cfg.orb_features)  # pyright: ignore[reportAttributeAccessIssue]
     k1, d1 = orb.detectAndCompute(ref, None)
     k2, d2 = orb.detectAndCompute(mov, None)
     if d1 is None or d2 is None or len(k1) < cfg.min_inliers or len(k2) < cfg.min_inliers:
@@ -93,8 +93,8 @@ def _orb(ref: np.ndarray, mov: np.ndarray, cfg: RegisterConfig) -> np.ndarray | 
     matches = cv2.BFMatcher(cv2.NORM_HAMMING, crossCheck=True).match(d2, d1)
     if len(matches) < cfg.min_inliers:
         return None
-    src = np.float32([k2[m.queryIdx].pt for m in matches])
-    dst = np.float32([k1[m.trainIdx].pt for m in matches])
+    src = np.array([k2[m.queryIdx].pt for m in matches], dtype=np.float32)
+    dst = np.array([k1[m.trainIdx].pt for m in matches], dtype=np.float32)
     warp, inliers = cv2.estimateAffinePartial2D(
         src, dst, method=cv2.RANSAC, ransacReprojThreshold=cfg.ransac_px
     )
@@ -115,7 +115,7 @@ def _ecc(
     init = cv2.invertAffineTransform(start).astype(np.float32)
     criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, cfg.ecc_iters, cfg.ecc_eps)
     try:
-        rho, warp = cv2.findTransformECC(ref, mov, init, motion, criteria, None, 5)
+        rho, warp = cv2.findTransformECC(ref, mov, init, motion, criteria, None, 5)  # pyright: ignore[reportCallIssue, reportArgumentType]
     except cv2.error:
         return None
     if not np.isfinite(rho) or rho < cfg.min_ecc or not np.all(np.isfinite(warp)):
