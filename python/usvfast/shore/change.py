@@ -4,7 +4,8 @@ the registered background of the neighbouring frames is a boat candidate.
 Per frame of a video (frames in time order, analysed at a working width):
 
 1. every frame is registered to the one before it (:func:`usvfast.shore.register.register`:
-   ECC from the identity and from the ORB + RANSAC similarity, the better correlation kept),
+   ECC from the identity and from the ORB + RANSAC similarity, the better correlation kept;
+   affine when the camera zooms),
    and the pairwise warps are chained, so any neighbour can be warped onto the current frame;
    an unregistered pair cuts the chain (frames across the cut are not neighbours);
 2. the background of the frame is the per-pixel, per-channel median of its `history`
@@ -41,7 +42,7 @@ from usvfast._validate import instance, integer, real
 from usvfast.shore.boxes import Detections
 from usvfast.shore.contrast import ContrastConfig, ContrastDetector, _check_frame, contrast_map
 from usvfast.shore.horizon import HorizonLine, detect_horizon
-from usvfast.shore.register import RegisterConfig, register
+from usvfast.shore.register import RegisterConfig, register, warp_to
 
 
 @dataclass(frozen=True)
@@ -219,25 +220,9 @@ class ChangeDetector:
                 continue
             if j > t:  # the chain maps t -> j: invert it
                 m = np.linalg.inv(m)
-            warp = m[:2].astype(np.float32)
-            stack.append(
-                cv2.warpAffine(
-                    frames[j].image,
-                    warp,
-                    (w, h),
-                    flags=cv2.INTER_LINEAR,
-                    borderMode=cv2.BORDER_REPLICATE,
-                )
-            )
-            seen.append(
-                cv2.warpAffine(
-                    np.ones((h, w), np.uint8),
-                    warp,
-                    (w, h),
-                    flags=cv2.INTER_NEAREST,
-                    borderValue=0,
-                )
-            )
+            image, inside = warp_to(frames[j].image, m[:2], (w, h))
+            stack.append(image)
+            seen.append(inside)
         if len(stack) < cfg.min_neighbours:
             return None
         st = np.stack(stack)  # (n, h, w, 3)
