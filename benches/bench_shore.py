@@ -22,9 +22,13 @@ Frames: MarDCT's regDTV9 frames resized to each size when ../shared/data is pres
   Per-stage milliseconds (detect / horizon / track) are printed for each run.
 * The training-free contrast detector (`usvfast.shore.contrast`) and the fused CNN +
   contrast score (`usvfast.shore.fused`, on the `--cnn` model or the untrained one).
+* The temporal change detector (`usvfast.shore.change`, online: every frame registered to
+  the previous one, ORB + ECC, and compared with the median of the 4 previous ones), in the
+  chain; beside it, OpenCV's MOG2 background subtractor alone on the same frames (no
+  registration, no boxes: the library's cheapest per-pixel background, for scale).
 
 Run: python benches/bench_shore.py [--frames N] [--repeat R] [--cascade boat.xml]
-    [--cnn MODEL.onnx] [--only contrast fused]
+    [--cnn MODEL.onnx] [--only contrast fused change]
 """
 
 from __future__ import annotations
@@ -94,6 +98,16 @@ def chain_fps(
         chain.step(f)
     stages = {k: 1e3 * v / len(frames) for k, v in chain.seconds.items()}
     return len(frames) / (time.perf_counter() - t0), stages
+
+
+def mog2_fps(frames: list[np.ndarray]) -> float:
+    """Frames per second of OpenCV's MOG2 subtractor's `apply` alone (foreground mask only)."""
+    sub = cv2.createBackgroundSubtractorMOG2(history=4, detectShadows=False)
+    sub.apply(frames[0])
+    t0 = time.perf_counter()
+    for f in frames:
+        sub.apply(f)
+    return len(frames) / (time.perf_counter() - t0)
 
 
 def untrained_cnn(folder: Path) -> Path:
@@ -239,6 +253,7 @@ def main() -> None:
         runs.append((f"{cnn_name} +refl", "sift", None, replace(cnn_cfg, reflection_filter=True)))
         runs.append(("contrast", "sift", None, ShoreConfig(detector="contrast", tracker="sort")))
         runs.append(("fused", "sift", None, replace(cnn_cfg, detector="fused")))
+        runs.append(("change", "sift", None, ShoreConfig(detector="change", tracker="sort")))
         if a.only:
             runs = [r for r in runs if r[0] in a.only]
         for name, kp, model, cfg in runs:
@@ -248,6 +263,9 @@ def main() -> None:
                 f"{size[0]}x{size[1]:<8} {name:>16} {fps:>14.1f} {fps / PAPER_FPS:>8.2f}x"
                 f"   ms/frame: {ms}"
             )
+        if not a.only or "change" in a.only:
+            fps = mog2_fps(frames)
+            print(f"{size[0]}x{size[1]:<8} {'opencv MOG2 alone':>16} {fps:>14.1f}")
         ms = tracking_ms(frames, size)
         print(
             f"{size[0]}x{size[1]:<8} tracking alone, 5 boats: "

@@ -70,6 +70,8 @@ MODULES = [
     "usvfast.shore.annotate",
     "usvfast.shore.contrast",
     "usvfast.shore.fused",
+    "usvfast.shore.register",
+    "usvfast.shore.change",
     "usvfast.fusion.associate",
     "usvfast.fusion.rotation",
     "usvfast.fusion.visual",

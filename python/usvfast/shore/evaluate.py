@@ -22,7 +22,9 @@ round of :mod:`usvfast.shore.cnn_mining`, else `shore-cnn-without-VIDEO.onnx`; t
 card's confidence threshold (chosen on the training videos), detection and tracking rows.
 `--detector contrast` scores the training-free detector of :mod:`usvfast.shore.contrast`
 and `--detector fused` the fold's CNN rescored by it (:mod:`usvfast.shore.fused`, its
-default thresholds).
+default thresholds). `--detector change` scores the temporal change detector of
+:mod:`usvfast.shore.change` (online: each annotated frame against the registered median of
+the previous ones; default parameters).
 
 MarDCT boxes carry no identities: the ground-truth ids are derived by linking the boxes of
 consecutive annotated frames (optimal assignment on centre distance, gated at two box
@@ -168,7 +170,9 @@ def cue_row(
     held: str = "",
 ) -> dict:
     """Detection and tracking rows of the training-free contrast detector (`name`
-    'contrast', :mod:`usvfast.shore.contrast`, default parameters) or of the fused CNN +
+    'contrast', :mod:`usvfast.shore.contrast`, default parameters), of the temporal change
+    detector ('change', :mod:`usvfast.shore.change`, online, default parameters) or of the
+    fused CNN +
     contrast score ('fused', :mod:`usvfast.shore.fused`, its default thresholds; the CNN of
     `models` trained without `held`, see :func:`cnn_fold_model`). Adds the detections to
     `cache` under `name`."""
@@ -185,10 +189,16 @@ def cue_row(
         row["fused_model"] = path.name
     else:
         det = ContrastDetector()
-    cache.raw[name] = [
-        det.detect(read_image(f.path, cv2.IMREAD_COLOR), hz)  # pyright: ignore[reportAttributeAccessIssue]
-        for f, hz in zip(frames, cache.horizon, strict=True)
-    ]
+    if name == "change":
+        from usvfast.shore.change import ChangeDetector
+
+        images = [read_image(f.path, cv2.IMREAD_COLOR) for f in frames]
+        cache.raw[name] = ChangeDetector().detect_sequence(images, cache.horizon)
+    else:
+        cache.raw[name] = [
+            det.detect(read_image(f.path, cv2.IMREAD_COLOR), hz)  # pyright: ignore[reportAttributeAccessIssue]
+            for f, hz in zip(frames, cache.horizon, strict=True)
+        ]
     hcfg = HorizonConfig()
     for use_h in (False, True):
         c = count(frames, kept(frames, cache, name, use_h, hcfg))
@@ -211,10 +221,11 @@ def evaluate(
     """Leave-one-video-out results per video (module doc); a JSON-ready dict. With `cascade`,
     a Haar cascade is also trained on the three other videos and scored. `detectors`:
     'bayes' and/or 'cnn' (the latter needs `models`, see :func:`cnn_fold_model`)."""
-    unknown = set(detectors) - {"bayes", "cnn", "contrast", "fused"}
+    unknown = set(detectors) - {"bayes", "cnn", "contrast", "fused", "change"}
     if unknown or not detectors:
         raise ValueError(
-            f"detectors: expected 'bayes', 'cnn', 'contrast', 'fused', got {list(detectors)}"
+            "detectors: expected 'bayes', 'cnn', 'contrast', 'fused', 'change', got "
+            f"{list(detectors)}"
         )
     if {"cnn", "fused"} & set(detectors) and models is None:
         raise ValueError("models: the cnn detector needs the folder of its fold models")
@@ -232,7 +243,7 @@ def evaluate(
                 extra = cnn_row(frames, cache, models or Path(), v)
                 row["tracking"].update(extra.pop("tracking"))
                 row.update(extra)
-            for name in ("contrast", "fused"):
+            for name in ("contrast", "fused", "change"):
                 if name in detectors:
                     extra = cue_row(frames, cache, name, models, v)
                     row["tracking"].update(extra.pop("tracking"))
@@ -324,6 +335,8 @@ def print_tables(results: dict, console: Console | None = None) -> None:
             rows.append(("contrast", "contrast (training-free)"))
         if "fused_horizon" in r:
             rows.append(("fused", f"fused ({r['fused_model']} + contrast)"))
+        if "change_horizon" in r:
+            rows.append(("change", "change (online, registered median of the previous frames)"))
         for label, name in rows:
             for h in ("no_horizon", "horizon"):
                 s = r[f"{label}_{h}"]
@@ -392,7 +405,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         "--detector",
         nargs="+",
         default=["bayes"],
-        choices=["bayes", "cnn", "contrast", "fused"],
+        choices=["bayes", "cnn", "contrast", "fused", "change"],
         help="Detectors",
     )
     p.add_argument("--models", type=Path, default=None, help="CNN fold models (evaluate_det)")

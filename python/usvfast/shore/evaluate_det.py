@@ -3,7 +3,7 @@ frames, in the layout of Bloisi et al.'s Tables I–II (per video: horizon filte
 FAR, real and detection size).
 
     python -m usvfast.shore.evaluate_det [--data DIR]
-        [--detectors bayes cnn contrast fused cascade]
+        [--detectors bayes cnn contrast fused change cascade]
         [--models DIR] [--steps N] [--hard-negatives] [--json OUT.json]
 
 For each video, every trained part is fitted on the three other videos only:
@@ -25,6 +25,11 @@ For each video, every trained part is fitted on the three other videos only:
   cue (:mod:`usvfast.shore.fused`); the fused threshold and the share of each frame's best
   score are picked on the three other videos (:func:`pick`; the CNN has seen those frames,
   so this validation is optimistic), and a few grid values are scored beside.
+* change: the temporal change detector of :mod:`usvfast.shore.change` (nothing learnt):
+  each frame against the registered per-pixel median of its neighbouring annotated frames,
+  online (the previous frames only) and offline (previous and next); its change threshold,
+  share of the frame's best score and contrast fallback are picked on the three other
+  videos (:func:`pick`), for each of the two, and the default parameters scored beside.
 * cascade: the Haar cascade of :mod:`usvfast.shore.cascade` trained on the three other
   videos with 4 jittered copies of every boat as extra positives (slow: minutes per video),
   with and without the reflection filter.
@@ -68,6 +73,11 @@ CONTRAST_GRID: tuple[float, ...] = (2.5, 3.0, 4.0, 5.0)
 #: Fused (threshold, share of the frame's best score) pairs tried.
 FUSED_GRID: tuple[tuple[float, float], ...] = tuple(
     (t, r) for t in (0.1, 0.2, 0.3, 0.4) for r in (0.0, 0.5, 0.7, 0.8, 0.9)
+)
+
+#: Change detector (threshold, share of the frame's best score, contrast fallback) tried.
+CHANGE_GRID: tuple[tuple[float, float, bool], ...] = tuple(
+    (t, r, f) for t in (4.0, 5.0, 7.0) for r in (0.0, 0.8) for f in (True, False)
 )
 
 #: The FAR bound of the aim (Bloisi et al.'s EO range); :func:`pick` maximises TPR under it.
@@ -238,6 +248,56 @@ def fused_rows(
             }
         )
     return rows, {"fused_threshold": t, "fused_relative": r, "cnn_model": path.name}
+
+
+def change_rows(
+    videos: dict[str, VideoFrames], held: str, hcfg: HorizonConfig, cache: dict
+) -> list[dict]:
+    """The temporal change detector's rows for held-out video `held`: online and offline,
+    each with the grid setting picked on the other videos, then the default setting."""
+    from dataclasses import replace
+
+    from usvfast.shore.change import ChangeConfig, ChangeDetector
+    from usvfast.shore.contrast import ContrastConfig
+
+    base = ChangeConfig(contrast=ContrastConfig(horizon=hcfg))
+    rows = []
+    train = [v for v in videos if v != held]
+    for online in (True, False):
+        mode = "online" if online else "offline"
+        cfg0 = replace(base, online=online)
+        key = f"change maps {mode}"
+        if key not in cache:
+            cache[key] = {
+                v: ChangeDetector(cfg0).change_maps(vf.images) for v, vf in videos.items()
+            }
+
+        def dets(t: float, r: float, f: bool, cfg0=cfg0, key=key) -> dict:
+            name = f"{key} {t:g} {r:g} {f}"
+            if name not in cache:
+                det = ChangeDetector(replace(cfg0, threshold=t, relative=r, fallback=f))
+                cache[name] = {
+                    v: det.detect_maps(cache[key][v], vf.images, vf.horizons)
+                    for v, vf in videos.items()
+                }
+            return cache[name]
+
+        t, r, f = pick(CHANGE_GRID, lambda c: pooled_score(videos, train, dets(*c), hcfg))  # pyright: ignore[reportGeneralTypeIssues]
+        label = f"change {mode} z>{t:g}, ≥ {r:g} × best, fallback {'on' if f else 'off'}"
+        rows += [
+            {"detector": f"{label} (picked on the others)", **row}
+            for row in both_horizons(videos[held], dets(t, r, f)[held], hcfg)
+        ]
+        d = (base.threshold, base.relative, base.fallback)
+        rows.append(
+            {
+                "detector": f"change {mode} defaults (z>{d[0]:g}, ≥ {d[1]:g} × best, fallback)",
+                "horizon": True,
+                "filters": "",
+                **score(videos[held], dets(*d)[held], hcfg, True),
+            }
+        )
+    return rows
 
 
 def bayes_rows(
@@ -429,6 +489,8 @@ def evaluate(
             rows, info = fused_rows(data, videos, held, hcfg, models, steps, log, cache)
             entry["rows"] += rows
             entry.update(info)
+        if "change" in detectors:
+            entry["rows"] += change_rows(videos, held, hcfg, cache)
         if "cascade" in detectors:
             rows, info = cascade_rows(videos, mardct, held, hcfg)
             entry["rows"] += rows
@@ -480,7 +542,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     )
     p.add_argument("--json", type=Path, default=None, help="Write the results as JSON here")
     a = p.parse_args(argv)
-    unknown = set(a.detectors) - {"bayes", "cnn", "contrast", "fused", "cascade"}
+    unknown = set(a.detectors) - {"bayes", "cnn", "contrast", "fused", "change", "cascade"}
     if unknown:
         p.error(f"--detectors: unknown {sorted(unknown)}")
     results = evaluate(

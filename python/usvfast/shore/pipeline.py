@@ -24,6 +24,7 @@ from usvfast.shore.annotate import draw_frame
 from usvfast.shore.bayes import BayesDetector, BayesDetectorConfig
 from usvfast.shore.boxes import Detections
 from usvfast.shore.cascade import CascadeConfig, CascadeDetector
+from usvfast.shore.change import ChangeConfig, ChangeDetector
 from usvfast.shore.contrast import ContrastConfig, ContrastDetector
 from usvfast.shore.daynight import DayNightClassifier
 from usvfast.shore.filters import ReflectionFilter, WakeFilter
@@ -35,9 +36,9 @@ from usvfast.shore.particle import ParticleConfig, ParticleTracker
 from usvfast.shore.pixel_kalman import AdaptiveConfig, AdaptiveTracker
 from usvfast.shore.sort import SortConfig, SortTracker
 
-DetectorName = Literal["auto", "bayes", "cascade", "cnn", "contrast", "fused"]
+DetectorName = Literal["auto", "bayes", "cascade", "cnn", "contrast", "fused", "change"]
 TrackerName = Literal["sort", "adaptive", "particle"]
-DETECTORS: tuple[str, ...] = ("auto", "bayes", "cascade", "cnn", "contrast", "fused")
+DETECTORS: tuple[str, ...] = ("auto", "bayes", "cascade", "cnn", "contrast", "fused", "change")
 TRACKERS: tuple[str, ...] = ("sort", "adaptive", "particle")
 
 
@@ -50,7 +51,9 @@ class ShoreConfig:
     default :func:`usvfast.shore.cnn.default_model`; 'auto': 'cnn' when a CNN model is
     available, else 'bayes'; 'contrast': the training-free "object on the water" detector of
     :mod:`usvfast.shore.contrast`; 'fused': the CNN's boxes rescored by that contrast,
-    :class:`usvfast.shore.fused.FusedDetector`), `reflection_filter` (drop boxes with few ORB
+    :class:`usvfast.shore.fused.FusedDetector`; 'change': what moves against the registered
+    background of the previous frames, :class:`usvfast.shore.change.ChangeDetector`, online),
+    `reflection_filter` (drop boxes with few ORB
     keypoints), `wake_model` (a one-stage cascade XML from `WakeFilter`, drops wakes), `tracker`
     ('sort': Kalman + IoU assignment + colour re-identification; 'adaptive': the same paper's
     single-vessel adaptive Kalman tracker; 'particle': Bloisi et al.'s two-tier particle
@@ -71,6 +74,7 @@ class ShoreConfig:
     particle: ParticleConfig = field(default_factory=ParticleConfig)
     cascade: CascadeConfig = field(default_factory=CascadeConfig)
     contrast: ContrastConfig = field(default_factory=ContrastConfig)
+    change: ChangeConfig = field(default_factory=ChangeConfig)
     fused_threshold: float = FUSED_THRESHOLD
     fused_relative: float = FUSED_RELATIVE
 
@@ -143,6 +147,7 @@ class ShoreChain:
             self.contrast = FusedDetector(
                 cnn, cfg.contrast, cfg.fused_threshold, cfg.fused_relative
             )
+        self.change = ChangeDetector(cfg.change) if cfg.detector == "change" else None
         self.reflection = ReflectionFilter() if cfg.reflection_filter else None
         self.wake = None
         if cfg.wake_model is not None:
@@ -173,6 +178,11 @@ class ShoreChain:
             horizon = detect_horizon(image, infrared=frame_class == "ir", config=cfg.horizon)
             found = True
             raw = self.contrast.detect(image, horizon)
+        elif self.change is not None:
+            frame_class = self.classifier.classify(image)
+            horizon = detect_horizon(image, infrared=frame_class == "ir", config=cfg.horizon)
+            found = True
+            raw = self.change.step(image, horizon)
         elif self.cnn is not None:
             raw = self.cnn.detect(image)
             frame_class = self.classifier.classify(image)
