@@ -236,6 +236,16 @@ class TrackerCore:
 
 def confirmed_ids(core: TrackerCore) -> list[int]: ...
 def tentative_first_scan(core: TrackerCore) -> int | None: ...
+def stonesoup_step(
+    core: TrackerCore,
+    t: float,
+    detections: list[Any],
+    timestamp: Any,
+    known: dict[int, tuple[Any, ...]],
+    plain: set[type] | frozenset[type],
+    noises: list[npt.NDArray[np.float64]],
+    m: int,
+) -> tuple[list[int], npt.NDArray[np.float64], list[Any], bool] | None: ...
 
 class StoneSoupKit:
     def __init__(
@@ -261,6 +271,7 @@ class StoneSoupKit:
         transition_model: Any,
         mixture: bool,
         hypotheses: bool,
+        has_metadata: bool | None = None,
     ) -> tuple[bool, list[Any]]: ...
 
 def linear_sum_assignment(cost: npt.NDArray[np.float64]) -> npt.NDArray[np.int64]: ...

@@ -38,6 +38,10 @@ _NEWEST_LISTS = (
     "assoc_probability",
 )
 
+# A Track's own attributes without Stone Soup's `StateMutableSequence.__getattribute__` (a
+# Python function that falls back on the newest state; `__dict__` is the track's own).
+_attribute = object.__getattribute__
+
 # Scans whose "a detection carries metadata" answer is remembered.
 _MD_CACHE = 256
 
@@ -65,6 +69,7 @@ class StateBuilder:
     _scan_seconds: tuple[float, float]  # the last two scans' times, seconds since the first
     _phases: dict  # see `_phase`
     _hr: dict  # see `_linear_model`
+    _newest_md: tuple[int, bool]  # (scan, whether a detection of it carries metadata)
     initiator: Any
     data_associator: Any
     hypotheses: bool
@@ -301,7 +306,10 @@ class StateBuilder:
         time = self._scan_time[scan]
         t_prev, t_now = self._scan_seconds  # of the scans `scan` - 1 and `scan`
         dt = t_now - t_prev
-        priors = [list.__getitem__(f.track.__dict__["_property_states"], -1) for f in fillers]
+        get = list.__getitem__
+        lists = [_attribute(f.track, "__dict__") for f in fillers]
+        priors = [get(d["_property_states"], -1) for d in lists]
+        md_scan, md = self._newest_md
         md, states = kit.newest(
             self._raw,
             scan,
@@ -316,6 +324,7 @@ class StateBuilder:
             self._phase(False)[0],
             self._mixture,
             self.hypotheses,
+            md if md_scan == scan else None,
         )
         self._scan_md[scan] = md  # as `_has_metadata`
         if len(self._scan_md) > _MD_CACHE:
@@ -325,18 +334,20 @@ class StateBuilder:
         # `append_plain` written out on the lists' own methods (they are disarmed first: an
         # armed list would fill itself).
         plain = self._objects._fast_append
-        append, get, size = list.append, list.__getitem__, list.__len__
-        for f, state in zip(fillers, states, strict=True):
+        append, size = list.append, list.__len__
+        for f, d, state in zip(fillers, lists, states, strict=True):
             if state is None:
                 continue
-            d = f.track.__dict__
             sts, mds = d["_property_states"], d["metadatas"]
             sts._fill = mds._fill = None
             sd = state.__dict__
             if (md and "_property_hypothesis" in sd) or not plain:
                 Track.append(f.track, state)
             else:
-                append(mds, (get(mds, -1) if size(mds) else d["_property_init_metadata"]).copy())
+                if size(mds):
+                    append(mds, get(mds, -1).copy())
+                else:
+                    append(mds, d["_property_init_metadata"].copy())
                 append(sts, state)
             f.prev = (t_now, sd["_property_state_vector"], sd["_property_covar"])
             f.have += 1
@@ -529,16 +540,12 @@ class Filler:
         self.done = False  # built, and not alive any more
 
     def arm(self) -> None:
-        d = self.track.__dict__
-        d["_property_states"]._fill = self
-        d["metadatas"]._fill = self
-
-    def __call__(self) -> None:
-        self.force()
+        d = _attribute(self.track, "__dict__")
+        d["_property_states"]._fill = d["metadatas"]._fill = self
 
     def force(self) -> None:
         """Build now what is missing (the lists are plain lists meanwhile)."""
-        d = self.track.__dict__
+        d = _attribute(self.track, "__dict__")
         states, mds = d["_property_states"], d["metadatas"]
         states._fill = mds._fill = None
         before = (list.__len__(states), list.__len__(mds), self.have, self.prev, self.next_scan)
@@ -553,3 +560,5 @@ class Filler:
             raise
         if self.tid not in self.owner._tracks:
             self.done = True  # deleted: its history does not grow any more
+
+    __call__ = force
