@@ -70,6 +70,7 @@ class StateBuilder:
     _phases: dict  # see `_phase`
     _hr: dict  # see `_linear_model`
     _newest_md: tuple[int, bool]  # (scan, whether a detection of it carries metadata)
+    _fq: dict  # see `_transition`
     initiator: Any
     data_associator: Any
     hypotheses: bool
@@ -303,24 +304,24 @@ class StateBuilder:
         fillers = [f for f in self._fillers.values() if f.prev is not None and f.next_scan == scan]
         if not fillers:
             return
-        time = self._scan_time[scan]
         t_prev, t_now = self._scan_seconds  # of the scans `scan` - 1 and `scan`
         dt = t_now - t_prev
         get = list.__getitem__
         lists = [_attribute(f.track, "__dict__") for f in fillers]
-        priors = [get(d["_property_states"], -1) for d in lists]
         md_scan, md = self._newest_md
+        fq = self._fq.get((False, dt))
+        dets = self._scan_dets[scan]
         md, states = kit.newest(
             self._raw,
             scan,
             [f.tid for f in fillers],
-            priors,
+            [get(d["_property_states"], -1) for d in lists],
             dt,
-            self._transition(False, dt),
-            self._dets_of(scan),
+            fq if fq is not None else self._transition(False, dt),
+            dets if dets is not None else self._dets_of(scan),
             self._newest_models,
             self._newest_z,
-            time,
+            self._scan_time[scan],
             self._phase(False)[0],
             self._mixture,
             self.hypotheses,
@@ -330,28 +331,24 @@ class StateBuilder:
         if len(self._scan_md) > _MD_CACHE:
             self._scan_md.clear()
             self._scan_md[scan] = md
-        Track = self._track_cls
         # `append_plain` written out on the lists' own methods (they are disarmed first: an
         # armed list would fill itself).
-        plain = self._objects._fast_append
+        slow = not self._objects._fast_append
         append, size = list.append, list.__len__
+        nxt = scan + 1
         for f, d, state in zip(fillers, lists, states, strict=True):
             if state is None:
                 continue
             sts, mds = d["_property_states"], d["metadatas"]
             sts._fill = mds._fill = None
-            sd = state.__dict__
-            if (md and "_property_hypothesis" in sd) or not plain:
-                Track.append(f.track, state)
+            if slow or (md and hasattr(state, "_property_hypothesis")):
+                self._track_cls.append(f.track, state)
             else:
-                if size(mds):
-                    append(mds, get(mds, -1).copy())
-                else:
-                    append(mds, d["_property_init_metadata"].copy())
+                append(mds, (get(mds, -1) if size(mds) else d["_property_init_metadata"]).copy())
                 append(sts, state)
-            f.prev = (t_now, sd["_property_state_vector"], sd["_property_covar"])
+            f.prev = (t_now, state._property_state_vector, state._property_covar)
             f.have += 1
-            f.next_scan = scan + 1
+            f.next_scan = nxt
 
     def _build_newest_py(self, f: Filler) -> None:
         """`_build_newest` in Python, from the newest scan's snapshot (`_newest`)."""
@@ -549,8 +546,22 @@ class Filler:
         states, mds = d["_property_states"], d["metadatas"]
         states._fill = mds._fill = None
         before = (list.__len__(states), list.__len__(mds), self.have, self.prev, self.next_scan)
+        owner = self.owner
         try:
-            self.owner._build(self)
+            if (
+                owner._batch_scan != owner._scan
+                and self.next_scan == owner._scan - 1
+                and self.prev is not None
+                and owner._raw is not None
+                and self.tid in owner._tracks
+            ):
+                # The first read of the newest scan (the common case): the batch of
+                # `_build_newest`, without the calls on the way.
+                owner._batch_scan = owner._scan
+                owner._newest_batch()
+                if self.next_scan == owner._scan:
+                    return
+            owner._build(self)
         except BaseException:
             # Nothing half-built passes for the whole track: back to before, armed again.
             list.__delitem__(states, slice(before[0], None))
