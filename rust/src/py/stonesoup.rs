@@ -42,6 +42,13 @@ struct Builder {
     tp_new: Option<pyo3::ffi::newfunc>,
 }
 
+/// `key` interned (the attribute names of the objects Stone Soup's constructors make are: a
+/// store then finds its slot in the class's shared key table by identity, not by comparing
+/// the characters).
+fn interned(key: &Bound<'_, PyString>) -> PyResult<Py<PyString>> {
+    Ok(PyString::intern(key.py(), key.to_str()?).unbind())
+}
+
 enum Source {
     Arg(usize),
     Const(Py<PyAny>),
@@ -90,7 +97,7 @@ impl Builder {
                         Some(i) => Source::Arg(i),
                         None => Source::Const(v.unbind()),
                     };
-                    order.push((k.cast_into::<PyString>()?.unbind(), src));
+                    order.push((interned(&k.cast_into::<PyString>()?)?, src));
                 }
                 if order
                     .iter()
@@ -105,7 +112,7 @@ impl Builder {
             }
             None => {
                 for (i, k) in keys.iter().enumerate() {
-                    order.push((k.clone().unbind(), Source::Arg(i)));
+                    order.push((interned(k)?, Source::Arg(i)));
                 }
             }
         }
@@ -739,8 +746,7 @@ fn stonesoup_step<'py>(
         let Some(hit) = known.get_item(model.as_ptr() as usize)? else {
             return Ok(None);
         };
-        let Ok((idx, own, origin)) =
-            hit.extract::<(usize, Bound<'py, PyAny>, Bound<'py, PyAny>)>()
+        let Ok((idx, own, origin)) = hit.extract::<(usize, Bound<'py, PyAny>, Bound<'py, PyAny>)>()
         else {
             return Ok(None);
         };
@@ -758,9 +764,11 @@ fn stonesoup_step<'py>(
         }
         // SAFETY: a C-contiguous float64 array, read here while nothing writes to it (the GIL
         // is held).
-        z.extend_from_slice(unsafe { sv.as_slice() }.map_err(|_| {
-            PyValueError::new_err("detections: a state vector is not contiguous")
-        })?);
+        z.extend_from_slice(
+            unsafe { sv.as_slice() }.map_err(|_| {
+                PyValueError::new_err("detections: a state vector is not contiguous")
+            })?,
+        );
         let Some(md) = attr(&d, intern!(py, "_property_metadata"))? else {
             return Ok(None);
         };
@@ -787,9 +795,10 @@ fn stonesoup_step<'py>(
                 return Ok(None);
             }
             // SAFETY: as for the state vectors.
-            c.extend_from_slice(unsafe { r.as_slice() }.map_err(|_| {
-                PyValueError::new_err("noises: a covariance is not contiguous")
-            })?);
+            c.extend_from_slice(
+                unsafe { r.as_slice() }
+                    .map_err(|_| PyValueError::new_err("noises: a covariance is not contiguous"))?,
+            );
         }
         covs = Some(c);
     }
