@@ -273,6 +273,22 @@ class StoneSoupKit:
         hypotheses: bool,
         has_metadata: bool | None = None,
     ) -> tuple[bool, list[Any]]: ...
+    def entries(
+        self,
+        core: TrackerCore,
+        track_id: int,
+        first: int,
+        prior: Any,
+        dts: list[float],
+        transitions: list[tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]],
+        detections: list[list[Any]],
+        models: list[list[Any]],
+        zs: list[npt.NDArray[np.float64]],
+        timestamps: list[Any],
+        transition_model: Any,
+        mixture: bool,
+        hypotheses: bool,
+    ) -> list[Any]: ...
 
 def linear_sum_assignment(cost: npt.NDArray[np.float64]) -> npt.NDArray[np.int64]: ...
 def jpda_marginals(

@@ -71,6 +71,15 @@ class StateBuilder:
     _hr: dict  # see `_linear_model`
     _newest_md: tuple[int, bool]  # (scan, whether a detection of it carries metadata)
     _fq: dict  # see `_transition`
+    _inputs: dict  # see `_scan_inputs`
+
+    def _noise(self, idx: int) -> np.ndarray:
+        raise NotImplementedError
+
+    @staticmethod
+    def _measurements(dets: list, m: int) -> np.ndarray:
+        raise NotImplementedError
+
     initiator: Any
     data_associator: Any
     hypotheses: bool
@@ -146,13 +155,32 @@ class StateBuilder:
         assoc_det, assoc_p = hist["assoc_detection"].tolist(), hist["assoc_probability"].tolist()
         if not all(0 <= k < len(self._scan_time) for k in scans):
             raise RuntimeError(f"usvfast.stonesoup: history entry of track {f.tid} at unknown scan")
-        preds = self._predictions(f, xs, ps, times, scans, upds) if self.hypotheses else {}
-        svs, cms = ob.rows(xs, ps)
         fast = ob.append_plain
         states = track.__dict__["_property_states"]
         prior = list.__getitem__(states, -1) if list.__len__(states) else None
+        # The entries after the confirmation, natively (as far as the kit can build them).
+        j0 = next((j for j, k in enumerate(scans) if k > f.birth_scan), n)
+        if j0 == 0 and prior is None:
+            j0 = n
+        native: list = []
+        preds: dict = {}
+        svs: Any = None
+        cms: Any = None
         for j in range(n):
             scan = scans[j]
+            if j == j0:  # its prior is built now
+                native = self._native_entries(f, j0, prior, times, scans)
+            if j0 <= j < j0 + len(native):
+                state = native[j - j0]
+                if upds[j] and self._has_metadata(scan):
+                    Track.append(track, state)
+                else:
+                    fast(track, state)
+                prior = state
+                continue
+            if svs is None:  # the Python builders, from here on
+                preds = self._predictions(f, xs, ps, times, scans, upds) if self.hypotheses else {}
+                svs, cms = ob.rows(xs, ps)
             time = self._scan_time[scan]
             initiator = scan <= f.birth_scan
             hyp = None
@@ -188,6 +216,59 @@ class StateBuilder:
         f.prev = (times[-1], xs[-1], ps[-1])
         f.have += n
         f.next_scan = scans[-1] + 1
+
+    def _native_entries(self, f: Filler, j0: int, prior: Any, times: list, scans: list) -> list:
+        """The states of history entries `f.have` + j0.. of track `f` (all after its
+        confirmation; `times`, `scans` of the entries from `f.have`), built by the native kit
+        in one call as far as it can build them exactly (see `StoneSoupKit.entries`), `prior`
+        the state before the first."""
+        if self._raw is None:
+            return []
+        kit = self._kit if self._kit is not None else self._native_kit()
+        if not kit:
+            return []
+        dts, fqs, dets, models, zs, stamps = [], [], [], [], [], []
+        t_prev = times[j0 - 1] if j0 else f.prev[0] if f.prev is not None else None
+        if t_prev is None:
+            return []
+        for j in range(j0, len(times)):
+            dt = times[j] - t_prev
+            t_prev = times[j]
+            scan_dets, scan_models, z = self._scan_inputs(scans[j])
+            dts.append(dt)
+            fqs.append(self._transition(False, dt))
+            dets.append(scan_dets)
+            models.append(scan_models)
+            zs.append(z)
+            stamps.append(self._scan_time[scans[j]])
+        return kit.entries(
+            self._raw,
+            f.tid,
+            f.have + j0,
+            prior,
+            dts,
+            fqs,
+            dets,
+            models,
+            zs,
+            stamps,
+            self._phase(False)[0],
+            self._mixture,
+            self.hypotheses,
+        )
+
+    def _scan_inputs(self, scan: int) -> tuple[list, list, np.ndarray]:
+        """(detections, their measurement models, their measurements (k, m)) of a kept scan,
+        remembered for the scans of the last `_MD_CACHE` calls."""
+        hit = self._inputs.get(scan)
+        if hit is None:
+            dets = self._dets_of(scan)
+            m = self._noise(0).shape[0]
+            hit = (dets, [d.measurement_model for d in dets], self._measurements(dets, m))
+            if len(self._inputs) > _MD_CACHE:
+                self._inputs.clear()
+            self._inputs[scan] = hit
+        return hit
 
     def _predictions(self, f: Filler, xs, ps, times, scans, upds) -> dict:
         """{j: (mean, covariance)} predicted to history entry j (of those given, an update)

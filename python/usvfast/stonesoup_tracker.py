@@ -153,6 +153,7 @@ class _DropInTracker(StateBuilder):
         self._fast_step = getattr(_core, "stonesoup_step", None)
         self._plain: set[type] = set()
         self._noises: list[np.ndarray] = []  # the core sensors' noise covariances R
+        self._inputs: dict[int, tuple] = {}  # see `StateBuilder._scan_inputs`
         self._newest_md: tuple[int, bool] = (-1, False)  # (scan, a detection has metadata)
         self._tentative_first = getattr(_core, "tentative_first_scan", None)
         self._phases: dict = {}  # see `StateBuilder._phase`

@@ -460,22 +460,26 @@ impl StoneSoupKit {
         // Gather every number first (no object is made for a track that falls back).
         let mut rows: Vec<Option<Row>> = Vec::with_capacity(ids.len());
         for id in &ids {
-            rows.push(self.gather(
-                &models,
-                by_id.get(id).map(|&i| &inner.tracks[i]),
-                scan,
-                dt,
-                (&fm, &q),
-                (zs, zm),
-                mixture,
-                hypotheses,
-            )?);
+            let track = by_id.get(id).map(|&i| &inner.tracks[i]);
+            let newest = track.and_then(|t| {
+                let len = t.history.times.len();
+                (len > 0 && t.history.scan[len - 1] == scan).then_some((t, len - 1))
+            });
+            rows.push(match newest {
+                Some((t, last)) => self.gather(
+                    &models,
+                    t,
+                    last,
+                    dt,
+                    (&fm, &q),
+                    (zs, zm),
+                    mixture,
+                    hypotheses,
+                )?,
+                None => None,
+            });
         }
 
-        let arr = |cls: usize, rows: usize, cols: usize, data: &[f64]| {
-            self.array(py, cls, rows, cols, data)
-        };
-        let none = py.None().into_bound(py);
         // Whether a detection carries metadata (Stone Soup's `Track.append` then merges it).
         let has_metadata = match has_metadata {
             Some(md) => md,
@@ -491,109 +495,246 @@ impl StoneSoupKit {
             }
         };
         let out = PyList::empty(py);
-        let empty_md = || PyDict::new(py).into_any();
+        let ctx = Scan {
+            detections: &detections,
+            timestamp: &timestamp,
+            transition_model: &transition_model,
+            mixture,
+            hypotheses,
+        };
         for ((row, prior), id) in rows.iter().zip(&priors).zip(&ids) {
-            let Some(r) = row else {
-                out.append(&none)?;
-                continue;
-            };
-            let h = &inner.tracks[by_id[id]].history;
-            let sv = arr(0, n, 1, &h.states[r.last * n..(r.last + 1) * n])?;
-            let cm = arr(
-                1,
-                n,
-                n,
-                &h.covariances[r.last * n * n..(r.last + 1) * n * n],
-            )?;
-            if !r.update {
-                self.predicted_from(py, prior)?;
-                let st = if mixture {
-                    self.b[PRED].make(py, &[&sv, &cm, &timestamp])?
-                } else {
-                    self.b[PRED_OF].make(py, &[&sv, &cm, &timestamp, &transition_model, prior])?
-                };
-                out.append(st)?;
-                continue;
+            match row {
+                Some(r) => {
+                    let h = &inner.tracks[by_id[id]].history;
+                    out.append(self.state(py, r, h, prior, &ctx, (n, zm))?)?;
+                }
+                None => out.append(py.None())?,
             }
-            let mut hyp: Option<Bound<'py, PyAny>> = None;
-            if let (true, Some((xp, pp))) = (hypotheses, &r.pred) {
-                let (a, b) = (arr(0, n, 1, xp.as_slice())?, arr(1, n, n, &row_major(pp))?);
-                self.predicted_from(py, prior)?;
-                let pred =
-                    self.b[PRED_OF].make(py, &[&a, &b, &timestamp, &transition_model, prior])?;
-                let mut mp_objs = Vec::with_capacity(r.mps.len());
-                for MeasurementPrediction {
-                    z: zp,
-                    s: sp,
-                    c: cp,
-                    ..
-                } in &r.mps
-                {
-                    let (a, b, c) = (
-                        arr(0, zm, 1, zp.as_slice())?,
-                        arr(1, zm, zm, &row_major(sp))?,
-                        arr(2, n, zm, &row_major(cp))?,
-                    );
-                    mp_objs.push(self.b[MPRED].make(py, &[&a, &b, &timestamp, &c])?);
-                }
-                if mixture && r.missed.is_finite() {
-                    let miss = self.b[MISSED].make(py, &[&timestamp, &empty_md()])?;
-                    let pm = self.probability(py, r.missed)?;
-                    let hyps = PyList::empty(py);
-                    hyps.append(self.b[PROB].make(py, &[&pred, &miss, &pm, &none])?)?;
-                    for (j, &(d, p)) in r.assoc.iter().enumerate() {
-                        let det = detections.get_item(d)?;
-                        let pj = self.probability(py, p)?;
-                        let mp = &mp_objs[r.mp_of[j]];
-                        hyps.append(self.b[PROB].make(py, &[&pred, &det, &pj, mp])?)?;
-                    }
-                    hyp = Some(self.b[MULTI].make(py, &[&hyps.into_any()])?);
-                } else if r.det >= 0 {
-                    let d = r.det as usize;
-                    let det = detections.get_item(d)?;
-                    let dist = self.float64.bind(py).call1((r.distance,))?;
-                    hyp = Some(self.b[DIST].make(py, &[&pred, &det, &dist, &mp_objs[0]])?);
-                }
-            }
-            let hyp = match hyp {
-                Some(h) => h,
-                None => {
-                    let miss = self.b[MISSED].make(py, &[&timestamp, &empty_md()])?;
-                    self.b[SINGLE].make(py, &[&none, &miss])?
-                }
-            };
-            out.append(self.b[UPD].make(py, &[&sv, &cm, &hyp, &timestamp])?)?;
         }
         Ok((has_metadata, out))
+    }
+
+    /// The Stone Soup states of history entries `first`, `first` + 1, ... of track `track_id`
+    /// of `core` (alive or deleted), each after the tracker's confirmation (JPDA or GNN as in
+    /// `newest`), built one after the other: `prior` the state before entry `first`, then
+    /// each state the next one's prior. Per entry: `dts` seconds since the entry before,
+    /// `transitions` (F, Q) over it, its scan's `detections`, their `models` and measurements
+    /// `zs` (k, m), `timestamps` the scan's datetime. Stops before the first entry it cannot
+    /// build exactly (see the module docs): the list may be shorter than `dts`.
+    #[allow(clippy::too_many_arguments)]
+    #[pyo3(signature = (
+        core, track_id, first, prior, dts, transitions, detections, models, zs, timestamps,
+        transition_model, mixture, hypotheses
+    ))]
+    fn entries<'py>(
+        &mut self,
+        py: Python<'py>,
+        core: PyRef<'py, TrackerCore>,
+        track_id: u64,
+        first: usize,
+        prior: Bound<'py, PyAny>,
+        dts: Vec<f64>,
+        transitions: Vec<(PyReadonlyArray2<'py, f64>, PyReadonlyArray2<'py, f64>)>,
+        detections: Vec<Bound<'py, PyList>>,
+        models: Vec<Bound<'py, PyList>>,
+        zs: Vec<PyReadonlyArray2<'py, f64>>,
+        timestamps: Vec<Bound<'py, PyAny>>,
+        transition_model: Bound<'py, PyAny>,
+        mixture: bool,
+        hypotheses: bool,
+    ) -> PyResult<Bound<'py, PyList>> {
+        let k = dts.len();
+        if [
+            transitions.len(),
+            detections.len(),
+            models.len(),
+            zs.len(),
+            timestamps.len(),
+        ]
+        .iter()
+        .any(|&l| l != k)
+        {
+            return Err(PyValueError::new_err(
+                "transitions, detections, models, zs, timestamps: one per entry of dts",
+            ));
+        }
+        let inner = &core.inner;
+        let n = inner.config().motion_model.ndim();
+        let out = PyList::empty(py);
+        let Some(tr) = inner
+            .tracks
+            .iter()
+            .chain(inner.deleted.iter())
+            .find(|t| t.id == track_id)
+        else {
+            return Ok(out);
+        };
+        let mut prior = prior;
+        for i in 0..k {
+            let (fm, q) = (&transitions[i].0, &transitions[i].1);
+            if fm.shape() != [n, n] || q.shape() != [n, n] {
+                return Err(PyValueError::new_err(format!(
+                    "transitions: expected two ({n}, {n}) matrices"
+                )));
+            }
+            let (dets, mods, z) = (&detections[i], &models[i], &zs[i]);
+            if mods.len() != dets.len() || z.shape()[0] != dets.len() {
+                return Err(PyValueError::new_err(
+                    "models, zs: one per detection of the entry's scan",
+                ));
+            }
+            let fm = DMatrix::from_row_slice(n, n, super::slice("F", fm)?);
+            let q = DMatrix::from_row_slice(n, n, super::slice("Q", q)?);
+            let zm = z.shape()[1];
+            let zsl = super::slice("zs", z)?;
+            let last = first + i;
+            let Some(row) = self.gather(
+                mods,
+                tr,
+                last,
+                dts[i],
+                (&fm, &q),
+                (zsl, zm),
+                mixture,
+                hypotheses,
+            )?
+            else {
+                break;
+            };
+            let ctx = Scan {
+                detections: dets,
+                timestamp: &timestamps[i],
+                transition_model: &transition_model,
+                mixture,
+                hypotheses,
+            };
+            let state = self.state(py, &row, &tr.history, &prior, &ctx, (n, zm))?;
+            out.append(&state)?;
+            prior = state;
+        }
+        Ok(out)
+    }
+}
+
+/// What the states of one scan share: its Detection objects and datetime, the predictor's
+/// transition model, JPDA (else GNN) hypotheses, whether hypotheses are built at all.
+struct Scan<'a, 'py> {
+    detections: &'a Bound<'py, PyList>,
+    timestamp: &'a Bound<'py, PyAny>,
+    transition_model: &'a Bound<'py, PyAny>,
+    mixture: bool,
+    hypotheses: bool,
+}
+
+impl StoneSoupKit {
+    /// The Stone Soup state of history entry `r.last` of `h` (see `newest`), `prior` the
+    /// state before it; `dims` (n, m) the state and measurement dimensions.
+    fn state<'py>(
+        &self,
+        py: Python<'py>,
+        r: &Row,
+        h: &crate::tracking::track::History,
+        prior: &Bound<'py, PyAny>,
+        ctx: &Scan<'_, 'py>,
+        (n, zm): (usize, usize),
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let arr = |cls: usize, rows: usize, cols: usize, data: &[f64]| {
+            self.array(py, cls, rows, cols, data)
+        };
+        let none = py.None().into_bound(py);
+        let (timestamp, transition_model) = (ctx.timestamp, ctx.transition_model);
+        let empty_md = || PyDict::new(py).into_any();
+        let sv = arr(0, n, 1, &h.states[r.last * n..(r.last + 1) * n])?;
+        let cm = arr(
+            1,
+            n,
+            n,
+            &h.covariances[r.last * n * n..(r.last + 1) * n * n],
+        )?;
+        if !r.update {
+            self.predicted_from(py, prior)?;
+            return if ctx.mixture {
+                self.b[PRED].make(py, &[&sv, &cm, timestamp])
+            } else {
+                self.b[PRED_OF].make(py, &[&sv, &cm, timestamp, transition_model, prior])
+            };
+        }
+        let mut hyp: Option<Bound<'py, PyAny>> = None;
+        if let (true, Some((xp, pp))) = (ctx.hypotheses, &r.pred) {
+            let (a, b) = (arr(0, n, 1, xp.as_slice())?, arr(1, n, n, &row_major(pp))?);
+            self.predicted_from(py, prior)?;
+            let pred = self.b[PRED_OF].make(py, &[&a, &b, timestamp, transition_model, prior])?;
+            let mut mp_objs = Vec::with_capacity(r.mps.len());
+            for MeasurementPrediction {
+                z: zp,
+                s: sp,
+                c: cp,
+                ..
+            } in &r.mps
+            {
+                let (a, b, c) = (
+                    arr(0, zm, 1, zp.as_slice())?,
+                    arr(1, zm, zm, &row_major(sp))?,
+                    arr(2, n, zm, &row_major(cp))?,
+                );
+                mp_objs.push(self.b[MPRED].make(py, &[&a, &b, timestamp, &c])?);
+            }
+            if ctx.mixture && r.missed.is_finite() {
+                let miss = self.b[MISSED].make(py, &[timestamp, &empty_md()])?;
+                let pm = self.probability(py, r.missed)?;
+                let hyps = PyList::empty(py);
+                hyps.append(self.b[PROB].make(py, &[&pred, &miss, &pm, &none])?)?;
+                for (j, &(d, p)) in r.assoc.iter().enumerate() {
+                    let det = ctx.detections.get_item(d)?;
+                    let pj = self.probability(py, p)?;
+                    let mp = &mp_objs[r.mp_of[j]];
+                    hyps.append(self.b[PROB].make(py, &[&pred, &det, &pj, mp])?)?;
+                }
+                hyp = Some(self.b[MULTI].make(py, &[&hyps.into_any()])?);
+            } else if r.det >= 0 {
+                let d = r.det as usize;
+                let det = ctx.detections.get_item(d)?;
+                let dist = self.float64.bind(py).call1((r.distance,))?;
+                hyp = Some(self.b[DIST].make(py, &[&pred, &det, &dist, &mp_objs[0]])?);
+            }
+        }
+        let hyp = match hyp {
+            Some(h) => h,
+            None => {
+                let miss = self.b[MISSED].make(py, &[timestamp, &empty_md()])?;
+                self.b[SINGLE].make(py, &[&none, &miss])?
+            }
+        };
+        self.b[UPD].make(py, &[&sv, &cm, &hyp, timestamp])
     }
 }
 
 impl StoneSoupKit {
-    /// The numbers of one track's newest state, or None when it falls back (see `newest`).
+    /// The numbers of history entry `last` of a track (its state `dt` seconds after entry
+    /// `last` − 1, of the scan before), or None when it falls back (see `newest`).
     #[allow(clippy::too_many_arguments)]
     fn gather(
         &mut self,
         models: &Bound<'_, PyList>,
-        track: Option<&crate::tracking::track::Track>,
-        scan: i64,
+        tr: &crate::tracking::track::Track,
+        last: usize,
         dt: f64,
         (fm, q): (&DMatrix<f64>, &DMatrix<f64>),
         (zs, zm): (&[f64], usize),
         mixture: bool,
         hypotheses: bool,
     ) -> PyResult<Option<Row>> {
-        let Some(tr) = track else { return Ok(None) };
         let h = &tr.history;
         let len = h.times.len();
-        if len < 2
-            || h.scan[len - 1] != scan
-            || h.scan[len - 2] != scan - 1
-            || h.times[len - 1] - h.times[len - 2] != dt
+        if last < 1
+            || last >= len
+            || h.scan[last - 1] != h.scan[last] - 1
+            || h.times[last] - h.times[last - 1] != dt
             || h.assoc_offsets.len() != len + 1
         {
             return Ok(None);
         }
-        let (last, prev) = (len - 1, len - 2);
+        let prev = last - 1;
         let update = h.is_update[last];
         let (a, b) = (h.assoc_offsets[last], h.assoc_offsets[last + 1]);
         let mut row = Row {
