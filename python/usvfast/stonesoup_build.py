@@ -11,7 +11,10 @@ against Stone Soup's constructors when the kit is made); a track the kit cannot 
 (a non-linear measurement model, another GNN measure) is built in Python from one snapshot of
 the core per scan, with the predictions batched per time step. Anything older (a track read
 after several scans, a new track with its tentative history, a deleted track) comes from the
-core's history of that track, in Python. Either way the objects are
+core's history of that track: the entries after its confirmation in one native call per track
+(`StoneSoupKit.entries`, each state the next one's prior; the scans' detections, models and
+measurements remembered per scan), the tentative ones (the initiator's GNN) and whatever the
+kit cannot build exactly in Python. Either way the objects are
 the ones Stone Soup's tracker would have appended: Update or Prediction with the same mean,
 covariance and time; for updates their hypotheses — the prediction from the previous state
 by the tracker's (after confirmation) or the initiator's (before) transition model (with

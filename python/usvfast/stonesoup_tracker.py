@@ -1,8 +1,11 @@
 """The Stone Soup drop-in trackers (`usvfast.stonesoup.MultiTargetMixtureTracker` and
 `MultiTargetTracker`): Stone Soup's tracker protocol on the usvfast core.
 
-Per scan the drop-in hands the detections to the core in one call and reads the ids of the
-confirmed tracks; a new id gets a Stone Soup `Track`, a vanished one is dropped from the set.
+Per scan the drop-in hands the detections to the core and reads the ids of the confirmed
+tracks in one native call (`usvfast._core.stonesoup_step`: plain Stone Soup detections of
+known measurement models, read from their `__dict__`; any other scan goes through Python,
+which registers new models and reports bad detections); a new id gets a Stone Soup `Track`, a
+vanished one is dropped from the set.
 The tracks' states (and their association hypotheses and metadata) are built when a track is
 first read (`usvfast.stonesoup_lazy`, `usvfast.stonesoup_build`), exactly as Stone Soup would
 have appended them; a track nobody reads is built at the latest `_LAZY_HORIZON` scans later,
@@ -409,6 +412,7 @@ class _DropInTracker(StateBuilder):
             oldest = min(oldest, min(f.next_scan for f in pending.values()))
         for k in range(self._freed, max(oldest, self._freed)):
             self._scan_dets[k] = None
+            self._inputs.pop(k, None)
         self._freed = max(oldest, self._freed)
 
     def _collect(self, alive: list[int]) -> None:
