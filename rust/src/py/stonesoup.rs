@@ -274,7 +274,10 @@ impl StoneSoupKit {
         debug_assert_eq!(data.len(), rows * cols);
         let mut dims = [rows as npy_intp, cols as npy_intp];
         let sub = self.arrays[cls].bind(py).cast::<PyType>()?;
-        let obj = unsafe {
+        // SAFETY: numpy's constructor with a float64 descriptor, two dimensions, no strides
+        // and no data allocates a fresh C-contiguous (rows, cols) float64 array (of the
+        // subclass `sub`); nothing else sees it before its rows * cols values are written.
+        unsafe {
             let ptr = PY_ARRAY_API.PyArray_NewFromDescr(
                 py,
                 sub.as_type_ptr(),
@@ -286,15 +289,14 @@ impl StoneSoupKit {
                 0,
                 std::ptr::null_mut(),
             );
-            Bound::from_owned_ptr_or_err(py, ptr)?
-        };
-        let a = obj.cast::<PyArray2<f64>>()?;
-        if a.len() != data.len() || !a.is_c_contiguous() {
-            return Err(PyValueError::new_err("usvfast: unexpected array layout"));
+            let obj = Bound::from_owned_ptr_or_err(py, ptr)?;
+            let out = (*ptr.cast::<numpy::npyffi::PyArrayObject>())
+                .fields
+                .data
+                .cast::<f64>();
+            std::ptr::copy_nonoverlapping(data.as_ptr(), out, data.len());
+            Ok(obj)
         }
-        // SAFETY: a fresh C-contiguous array of data.len() float64 that nothing else sees yet.
-        unsafe { std::ptr::copy_nonoverlapping(data.as_ptr(), a.data(), data.len()) };
-        Ok(obj)
     }
 
     /// Stone Soup's `Prediction` constructor's change to its prior: the prior's hypothesis's
