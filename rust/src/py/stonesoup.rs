@@ -862,6 +862,8 @@ fn stonesoup_step<'py>(
     let models = PyList::empty(py);
     let mut metadata = false;
     let mut plain_type: Option<*mut pyo3::ffi::PyObject> = None;
+    // (id of a model, its core sensor, its own noise covariance)
+    let mut seen: Vec<(usize, usize, Option<Bound<'py, PyAny>>)> = Vec::new();
     let attr = |d: &Bound<'py, PyAny>, name: &Bound<'py, PyString>| -> PyResult<Option<_>> {
         match d.getattr(name) {
             Ok(v) => Ok(Some(v)),
@@ -886,16 +888,27 @@ fn stonesoup_step<'py>(
         let Some(model) = attr(&d, intern!(py, "_property_measurement_model"))? else {
             return Ok(None);
         };
-        let Some(hit) = known.get_item(model.as_ptr() as usize)? else {
-            return Ok(None);
+        // The scan's models, looked up in `known` once each (a scan has one or a few).
+        let key = model.as_ptr() as usize;
+        let (idx, own) = match seen.iter().find(|(k, _, _)| *k == key) {
+            Some((_, idx, own)) => (*idx, own.clone()),
+            None => {
+                let Some(hit) = known.get_item(key)? else {
+                    return Ok(None);
+                };
+                let Ok((idx, own, origin)) =
+                    hit.extract::<(usize, Bound<'py, PyAny>, Bound<'py, PyAny>)>()
+                else {
+                    return Ok(None);
+                };
+                if !origin.is_none() {
+                    return Ok(None);
+                }
+                let own = (!own.is_none()).then_some(own);
+                seen.push((key, idx, own.clone()));
+                (idx, own)
+            }
         };
-        let Ok((idx, own, origin)) = hit.extract::<(usize, Bound<'py, PyAny>, Bound<'py, PyAny>)>()
-        else {
-            return Ok(None);
-        };
-        if !origin.is_none() {
-            return Ok(None);
-        }
         let Some(sv) = attr(&d, intern!(py, "_property_state_vector"))? else {
             return Ok(None);
         };
@@ -917,7 +930,7 @@ fn stonesoup_step<'py>(
         };
         metadata = metadata || md.is_truthy()?;
         ids.push(idx);
-        own_noise.push((!own.is_none()).then_some(own));
+        own_noise.push(own);
         models.append(model)?;
     }
     let mut covs: Option<Vec<f64>> = None;
