@@ -134,3 +134,80 @@ def test_core_readers_equal_the_snapshot():
         assert _core.tentative_first_scan(raw) == want
         looked += want is not None
     assert looked > 10
+
+
+@pytest.mark.parametrize("associator", ["jpda", "gnn"])
+def test_whole_histories_built_natively_equal_python_and_stonesoup(associator, monkeypatch):
+    """Nothing read until the end: every state of every track (alive and deleted) is built
+    then, the entries after confirmation in one native call per track
+    (`StoneSoupKit.entries`), equal to the Python builders to 1e-12 and Stone Soup's tracks."""
+    scans = _scans(True)
+    cfg = H.Code57(associator=associator, **SHORT)
+    native_states = []
+    real = StateBuilder._native_entries
+
+    def counted(self, *args):
+        out = real(self, *args)
+        native_states.append(len(out))
+        return out
+
+    monkeypatch.setattr(StateBuilder, "_native_entries", counted)
+    runs = []
+    for native in (True, False):
+        tracker = dropin_for(H.build_stonesoup(cfg)[0], scans)
+        if not native:
+            tracker._kit = False
+        seen: dict = {}
+        for _, tracks in tracker:
+            for t in tracks:
+                seen[id(t)] = t
+        built = sum(len(t) for t in seen.values())  # builds every state
+        runs.append(list(seen.values()))
+        if native:
+            n_native = sum(native_states)
+            assert 50 < n_native < built  # the tentative histories: in Python
+    assert sum(native_states) == n_native  # the second run: Python only
+    compared = same_tracks_deeply(runs[0], runs[1], 1e-12)
+    assert compared == built
+    ref = H.run_tracker(H.build_stonesoup(cfg, detector=scans)[0])
+    tracker = dropin_for(H.build_stonesoup(cfg)[0], scans)
+    problems = H.compare_runs(H.run_tracker(tracker), ref)
+    assert problems == []
+
+
+def test_entries_rejects_bad_arguments():
+    scans = _scans(False)
+    tracker = dropin_for(H.build_stonesoup(H.Code57(**SHORT))[0], scans)
+    for _ in tracker:
+        pass
+    kit = tracker._native_kit()
+    args = dict(
+        core=tracker._raw,
+        track_id=0,
+        first=1,
+        prior=None,
+        dts=[1.0],
+        transitions=[],
+        detections=[],
+        models=[],
+        zs=[],
+        timestamps=[],
+        transition_model=None,
+        mixture=True,
+        hypotheses=True,
+    )
+    with pytest.raises(ValueError, match="transitions"):
+        kit.entries(**args)
+    scan = tracker._scan - 1
+    one = dict(
+        transitions=[(np.eye(3), np.eye(3))],
+        detections=[tracker._dets_of(scan)],
+        models=[tracker._newest_models],
+        zs=[tracker._newest_z],
+        timestamps=[tracker._scan_time[scan]],
+    )
+    tid = next(iter(tracker._fillers))
+    with pytest.raises(ValueError, match="transitions"):
+        kit.entries(**{**args, **one, "track_id": tid})
+    # A track the core does not have: nothing built (the Python builders then).
+    assert kit.entries(**{**args, **one, "track_id": 10**6}) == []

@@ -236,6 +236,16 @@ class TrackerCore:
 
 def confirmed_ids(core: TrackerCore) -> list[int]: ...
 def tentative_first_scan(core: TrackerCore) -> int | None: ...
+def stonesoup_step(
+    core: TrackerCore,
+    t: float,
+    detections: list[Any],
+    timestamp: Any,
+    known: dict[int, tuple[Any, ...]],
+    plain: set[type] | frozenset[type],
+    noises: list[npt.NDArray[np.float64]],
+    m: int,
+) -> tuple[list[int], npt.NDArray[np.float64], list[Any], bool] | None: ...
 
 class StoneSoupKit:
     def __init__(
@@ -261,7 +271,24 @@ class StoneSoupKit:
         transition_model: Any,
         mixture: bool,
         hypotheses: bool,
+        has_metadata: bool | None = None,
     ) -> tuple[bool, list[Any]]: ...
+    def entries(
+        self,
+        core: TrackerCore,
+        track_id: int,
+        first: int,
+        prior: Any,
+        dts: list[float],
+        transitions: list[tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]],
+        detections: list[list[Any]],
+        models: list[list[Any]],
+        zs: list[npt.NDArray[np.float64]],
+        timestamps: list[Any],
+        transition_model: Any,
+        mixture: bool,
+        hypotheses: bool,
+    ) -> list[Any]: ...
 
 def linear_sum_assignment(cost: npt.NDArray[np.float64]) -> npt.NDArray[np.int64]: ...
 def jpda_marginals(

@@ -11,7 +11,10 @@ against Stone Soup's constructors when the kit is made); a track the kit cannot 
 (a non-linear measurement model, another GNN measure) is built in Python from one snapshot of
 the core per scan, with the predictions batched per time step. Anything older (a track read
 after several scans, a new track with its tentative history, a deleted track) comes from the
-core's history of that track, in Python. Either way the objects are
+core's history of that track: the entries after its confirmation in one native call per track
+(`StoneSoupKit.entries`, each state the next one's prior; the scans' detections, models and
+measurements remembered per scan), the tentative ones (the initiator's GNN) and whatever the
+kit cannot build exactly in Python. Either way the objects are
 the ones Stone Soup's tracker would have appended: Update or Prediction with the same mean,
 covariance and time; for updates their hypotheses — the prediction from the previous state
 by the tracker's (after confirmation) or the initiator's (before) transition model (with
@@ -37,6 +40,10 @@ _NEWEST_LISTS = (
     "assoc_detection",
     "assoc_probability",
 )
+
+# A Track's own attributes without Stone Soup's `StateMutableSequence.__getattribute__` (a
+# Python function that falls back on the newest state; `__dict__` is the track's own).
+_attribute = object.__getattribute__
 
 # Scans whose "a detection carries metadata" answer is remembered.
 _MD_CACHE = 256
@@ -65,6 +72,17 @@ class StateBuilder:
     _scan_seconds: tuple[float, float]  # the last two scans' times, seconds since the first
     _phases: dict  # see `_phase`
     _hr: dict  # see `_linear_model`
+    _newest_md: tuple[int, bool]  # (scan, whether a detection of it carries metadata)
+    _fq: dict  # see `_transition`
+    _inputs: dict  # see `_scan_inputs`
+
+    def _noise(self, idx: int) -> np.ndarray:
+        raise NotImplementedError
+
+    @staticmethod
+    def _measurements(dets: list, m: int) -> np.ndarray:
+        raise NotImplementedError
+
     initiator: Any
     data_associator: Any
     hypotheses: bool
@@ -140,13 +158,32 @@ class StateBuilder:
         assoc_det, assoc_p = hist["assoc_detection"].tolist(), hist["assoc_probability"].tolist()
         if not all(0 <= k < len(self._scan_time) for k in scans):
             raise RuntimeError(f"usvfast.stonesoup: history entry of track {f.tid} at unknown scan")
-        preds = self._predictions(f, xs, ps, times, scans, upds) if self.hypotheses else {}
-        svs, cms = ob.rows(xs, ps)
         fast = ob.append_plain
         states = track.__dict__["_property_states"]
         prior = list.__getitem__(states, -1) if list.__len__(states) else None
+        # The entries after the confirmation, natively (as far as the kit can build them).
+        j0 = next((j for j, k in enumerate(scans) if k > f.birth_scan), n)
+        if j0 == 0 and prior is None:
+            j0 = n
+        native: list = []
+        preds: dict = {}
+        svs: Any = None
+        cms: Any = None
         for j in range(n):
             scan = scans[j]
+            if j == j0:  # its prior is built now
+                native = self._native_entries(f, j0, prior, times, scans)
+            if j0 <= j < j0 + len(native):
+                state = native[j - j0]
+                if upds[j] and self._has_metadata(scan):
+                    Track.append(track, state)
+                else:
+                    fast(track, state)
+                prior = state
+                continue
+            if svs is None:  # the Python builders, from here on
+                preds = self._predictions(f, xs, ps, times, scans, upds) if self.hypotheses else {}
+                svs, cms = ob.rows(xs, ps)
             time = self._scan_time[scan]
             initiator = scan <= f.birth_scan
             hyp = None
@@ -182,6 +219,59 @@ class StateBuilder:
         f.prev = (times[-1], xs[-1], ps[-1])
         f.have += n
         f.next_scan = scans[-1] + 1
+
+    def _native_entries(self, f: Filler, j0: int, prior: Any, times: list, scans: list) -> list:
+        """The states of history entries `f.have` + j0.. of track `f` (all after its
+        confirmation; `times`, `scans` of the entries from `f.have`), built by the native kit
+        in one call as far as it can build them exactly (see `StoneSoupKit.entries`), `prior`
+        the state before the first."""
+        if self._raw is None:
+            return []
+        kit = self._kit if self._kit is not None else self._native_kit()
+        if not kit:
+            return []
+        dts, fqs, dets, models, zs, stamps = [], [], [], [], [], []
+        t_prev = times[j0 - 1] if j0 else f.prev[0] if f.prev is not None else None
+        if t_prev is None:
+            return []
+        for j in range(j0, len(times)):
+            dt = times[j] - t_prev
+            t_prev = times[j]
+            scan_dets, scan_models, z = self._scan_inputs(scans[j])
+            dts.append(dt)
+            fqs.append(self._transition(False, dt))
+            dets.append(scan_dets)
+            models.append(scan_models)
+            zs.append(z)
+            stamps.append(self._scan_time[scans[j]])
+        return kit.entries(
+            self._raw,
+            f.tid,
+            f.have + j0,
+            prior,
+            dts,
+            fqs,
+            dets,
+            models,
+            zs,
+            stamps,
+            self._phase(False)[0],
+            self._mixture,
+            self.hypotheses,
+        )
+
+    def _scan_inputs(self, scan: int) -> tuple[list, list, np.ndarray]:
+        """(detections, their measurement models, their measurements (k, m)) of a kept scan,
+        remembered for the scans of the last `_MD_CACHE` calls."""
+        hit = self._inputs.get(scan)
+        if hit is None:
+            dets = self._dets_of(scan)
+            m = self._noise(0).shape[0]
+            hit = (dets, [d.measurement_model for d in dets], self._measurements(dets, m))
+            if len(self._inputs) > _MD_CACHE:
+                self._inputs.clear()
+            self._inputs[scan] = hit
+        return hit
 
     def _predictions(self, f: Filler, xs, ps, times, scans, upds) -> dict:
         """{j: (mean, covariance)} predicted to history entry j (of those given, an update)
@@ -298,49 +388,51 @@ class StateBuilder:
         fillers = [f for f in self._fillers.values() if f.prev is not None and f.next_scan == scan]
         if not fillers:
             return
-        time = self._scan_time[scan]
         t_prev, t_now = self._scan_seconds  # of the scans `scan` - 1 and `scan`
         dt = t_now - t_prev
-        priors = [list.__getitem__(f.track.__dict__["_property_states"], -1) for f in fillers]
+        get = list.__getitem__
+        lists = [_attribute(f.track, "__dict__") for f in fillers]
+        md_scan, md = self._newest_md
+        fq = self._fq.get((False, dt))
+        dets = self._scan_dets[scan]
         md, states = kit.newest(
             self._raw,
             scan,
             [f.tid for f in fillers],
-            priors,
+            [get(d["_property_states"], -1) for d in lists],
             dt,
-            self._transition(False, dt),
-            self._dets_of(scan),
+            fq if fq is not None else self._transition(False, dt),
+            dets if dets is not None else self._dets_of(scan),
             self._newest_models,
             self._newest_z,
-            time,
+            self._scan_time[scan],
             self._phase(False)[0],
             self._mixture,
             self.hypotheses,
+            md if md_scan == scan else None,
         )
         self._scan_md[scan] = md  # as `_has_metadata`
         if len(self._scan_md) > _MD_CACHE:
             self._scan_md.clear()
             self._scan_md[scan] = md
-        Track = self._track_cls
         # `append_plain` written out on the lists' own methods (they are disarmed first: an
         # armed list would fill itself).
-        plain = self._objects._fast_append
-        append, get, size = list.append, list.__getitem__, list.__len__
-        for f, state in zip(fillers, states, strict=True):
+        slow = not self._objects._fast_append
+        append, size = list.append, list.__len__
+        nxt = scan + 1
+        for f, d, state in zip(fillers, lists, states, strict=True):
             if state is None:
                 continue
-            d = f.track.__dict__
             sts, mds = d["_property_states"], d["metadatas"]
             sts._fill = mds._fill = None
-            sd = state.__dict__
-            if (md and "_property_hypothesis" in sd) or not plain:
-                Track.append(f.track, state)
+            if slow or (md and hasattr(state, "_property_hypothesis")):
+                self._track_cls.append(f.track, state)
             else:
                 append(mds, (get(mds, -1) if size(mds) else d["_property_init_metadata"]).copy())
                 append(sts, state)
-            f.prev = (t_now, sd["_property_state_vector"], sd["_property_covar"])
+            f.prev = (t_now, state._property_state_vector, state._property_covar)
             f.have += 1
-            f.next_scan = scan + 1
+            f.next_scan = nxt
 
     def _build_newest_py(self, f: Filler) -> None:
         """`_build_newest` in Python, from the newest scan's snapshot (`_newest`)."""
@@ -529,21 +621,31 @@ class Filler:
         self.done = False  # built, and not alive any more
 
     def arm(self) -> None:
-        d = self.track.__dict__
-        d["_property_states"]._fill = self
-        d["metadatas"]._fill = self
-
-    def __call__(self) -> None:
-        self.force()
+        d = _attribute(self.track, "__dict__")
+        d["_property_states"]._fill = d["metadatas"]._fill = self
 
     def force(self) -> None:
         """Build now what is missing (the lists are plain lists meanwhile)."""
-        d = self.track.__dict__
+        d = _attribute(self.track, "__dict__")
         states, mds = d["_property_states"], d["metadatas"]
         states._fill = mds._fill = None
         before = (list.__len__(states), list.__len__(mds), self.have, self.prev, self.next_scan)
+        owner = self.owner
         try:
-            self.owner._build(self)
+            if (
+                owner._batch_scan != owner._scan
+                and self.next_scan == owner._scan - 1
+                and self.prev is not None
+                and owner._raw is not None
+                and self.tid in owner._tracks
+            ):
+                # The first read of the newest scan (the common case): the batch of
+                # `_build_newest`, without the calls on the way.
+                owner._batch_scan = owner._scan
+                owner._newest_batch()
+                if self.next_scan == owner._scan:
+                    return
+            owner._build(self)
         except BaseException:
             # Nothing half-built passes for the whole track: back to before, armed again.
             list.__delitem__(states, slice(before[0], None))
@@ -553,3 +655,5 @@ class Filler:
             raise
         if self.tid not in self.owner._tracks:
             self.done = True  # deleted: its history does not grow any more
+
+    __call__ = force

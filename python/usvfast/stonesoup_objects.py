@@ -33,6 +33,10 @@ def _same(a: Any, b: Any) -> bool:
 
 _IMMUTABLE = (type(None), bool, int, float, str)
 
+# Outcomes of `StoneSoupObjects.kit`'s checks against Stone Soup's constructors, by the classes
+# and `__dict__` layouts checked (one check per process, not one per tracker).
+_KITS_CHECKED: dict[tuple, bool] = {}
+
 
 class _Builder:
     """One Stone Soup class built from positional `args` (property names) plus `constants`
@@ -249,16 +253,27 @@ class StoneSoupObjects:
             builders = self._builders()
             p = self._p
             specs = [b.spec() for b in builders] + [(p.__new__, p, ("_log_value",), None)]
-            kit = StoneSoupKit(specs, (self._sv, self._cm, self._mat), linear_model, measure)
-            for i, b in enumerate(builders):
-                if not b.matches(kit.make(i, list(b.sample)), b.sample):
-                    return None
-            got, ref = kit.make(len(builders), [-0.5]), p(-0.5, log_value=True)
-            if type(got) is not type(ref) or vars(got) != vars(ref):
-                return None
+            arrays = (self._sv, self._cm, self._mat)
+            kit = StoneSoupKit(specs, arrays, linear_model, measure)
+            # The same classes, keys and templates were checked before in this process.
+            key = (tuple((b.cls, b.keys, tuple(b.template.items())) for b in builders), arrays)
+            known = _KITS_CHECKED.get(key)
+            if known is None:
+                known = self._kit_matches(kit, builders)
+                _KITS_CHECKED[key] = known
         except Exception:  # any surprise (or an older core): the Python builders
             return None
-        return kit
+        return kit if known else None
+
+    def _kit_matches(self, kit: Any, builders: tuple) -> bool:
+        """Whether every object `kit` makes of the builders' samples is what the public
+        constructor makes (see `_Builder.matches`), `Probability` included."""
+        for i, b in enumerate(builders):
+            if not b.matches(kit.make(i, list(b.sample)), b.sample):
+                return False
+        p = self._p
+        got, ref = kit.make(len(builders), [-0.5]), p(-0.5, log_value=True)
+        return type(got) is type(ref) and vars(got) == vars(ref)
 
     def vector(self, x: np.ndarray) -> Any:
         """A StateVector (n, 1) on `x` (a view when x is float64: pass arrays nobody else

@@ -1,8 +1,11 @@
 """The Stone Soup drop-in trackers (`usvfast.stonesoup.MultiTargetMixtureTracker` and
 `MultiTargetTracker`): Stone Soup's tracker protocol on the usvfast core.
 
-Per scan the drop-in hands the detections to the core in one call and reads the ids of the
-confirmed tracks; a new id gets a Stone Soup `Track`, a vanished one is dropped from the set.
+Per scan the drop-in hands the detections to the core and reads the ids of the confirmed
+tracks in one native call (`usvfast._core.stonesoup_step`: plain Stone Soup detections of
+known measurement models, read from their `__dict__`; any other scan goes through Python,
+which registers new models and reports bad detections); a new id gets a Stone Soup `Track`, a
+vanished one is dropped from the set.
 The tracks' states (and their association hypotheses and metadata) are built when a track is
 first read (`usvfast.stonesoup_lazy`, `usvfast.stonesoup_build`), exactly as Stone Soup would
 have appended them; a track nobody reads is built at the latest `_LAZY_HORIZON` scans later,
@@ -24,7 +27,7 @@ from usvfast.stonesoup import (
     detection_model,
     read_components,
 )
-from usvfast.stonesoup_build import Filler, StateBuilder
+from usvfast.stonesoup_build import Filler, StateBuilder, _attribute
 from usvfast.stonesoup_lazy import LazyList
 from usvfast.stonesoup_objects import StoneSoupObjects
 
@@ -148,6 +151,13 @@ class _DropInTracker(StateBuilder):
 
         # Alive confirmed ids as a list (None: an older core; `track_ids` then).
         self._confirmed_ids = getattr(_core, "confirmed_ids", None)
+        # A scan in one native call (None: an older core; see `_step`), for the detection
+        # classes in `_plain` (see `_plain_detection_class`).
+        self._fast_step = getattr(_core, "stonesoup_step", None)
+        self._plain: set[type] = set()
+        self._noises: list[np.ndarray] = []  # the core sensors' noise covariances R
+        self._inputs: dict[int, tuple] = {}  # see `StateBuilder._scan_inputs`
+        self._newest_md: tuple[int, bool] = (-1, False)  # (scan, a detection has metadata)
         self._tentative_first = getattr(_core, "tentative_first_scan", None)
         self._phases: dict = {}  # see `StateBuilder._phase`
         self._hr: dict = {}  # see `StateBuilder._linear_model`
@@ -265,6 +275,25 @@ class _DropInTracker(StateBuilder):
 
     def _step(self, time: Any, detections: Any):
         dets = list(detections)
+        fast = self._fast_step
+        if fast is not None and self._raw is not None:
+            # Every detection of a known class, model and shape: read, stepped and the alive
+            # ids listed in one native call (else None, and the long way below).
+            t = (time - self._t0).total_seconds()
+            noises = self._noises
+            if len(noises) != len(self._sensor_specs):
+                noises[:] = [self._noise(i) for i in range(len(self._sensor_specs))]
+            m = noises[0].shape[0]
+            got = fast(self._raw, t, dets, time, self._sensor_of_model, self._plain, noises, m)
+            if got is not None:
+                alive, z, models, md = got
+                self._newest_models, self._newest_z = models, z
+                self._newest_md = (self._scan, md)
+                return self._stepped(time, t, dets, alive)
+        for d in dets:
+            cls = type(d)
+            if cls not in self._plain and _plain_detection_class(cls):
+                self._plain.add(cls)
         known = self._sensor_of_model
         found = []
         models = []
@@ -312,6 +341,11 @@ class _DropInTracker(StateBuilder):
             alive = self._core.step(t, z, sids, covs, origins).ids.tolist()
         else:
             self._replay.append((t, z, sids))
+        return self._stepped(time, t, dets, alive)
+
+    def _stepped(self, time: Any, t: float, dets: list, alive: list[int] | None):
+        """The bookkeeping after the core's step of scan `time` (`t` s since the first scan)
+        with detections `dets` and the alive confirmed ids `alive` (None: no core yet)."""
         self._scan_time.append(time)
         self._scan_seconds = (self._scan_seconds[1], t)
         self._scan_dets.append(dets)
@@ -320,7 +354,7 @@ class _DropInTracker(StateBuilder):
             self._collect(alive)
             if self._scan % _FREE_EVERY == 0:
                 self._free_scans()
-        return time, self.tracks
+        return time, set(self._tracks.values())
 
     @staticmethod
     def _measurements(dets: list, m: int) -> np.ndarray:
@@ -378,14 +412,13 @@ class _DropInTracker(StateBuilder):
             oldest = min(oldest, min(f.next_scan for f in pending.values()))
         for k in range(self._freed, max(oldest, self._freed)):
             self._scan_dets[k] = None
+            self._inputs.pop(k, None)
         self._freed = max(oldest, self._freed)
 
     def _collect(self, alive: list[int]) -> None:
         """Follow the confirmed tracks of the newest scan (core ids `alive`): new tracks get
         a lazy Track, deleted ones keep theirs (built when read) and every alive one is armed
         to build its newest state when read."""
-        from stonesoup.types.track import Track
-
         tracks = self._tracks
         if len(alive) != len(tracks) or not all(map(tracks.__contains__, alive)):
             alive_set = set(alive)
@@ -395,7 +428,7 @@ class _DropInTracker(StateBuilder):
                 self._fillers.pop(tid).arm()
             for tid in alive:
                 if tid not in tracks:
-                    tr = Track()
+                    tr = self._track_cls()
                     d: Any = tr.__dict__
                     states, mds = LazyList(), LazyList()
                     d["_property_states"], d["metadatas"] = states, mds
@@ -405,7 +438,29 @@ class _DropInTracker(StateBuilder):
                     self._pending[tid] = f
         fillers = self._fillers
         for tid in alive:
-            fillers[tid].arm()
+            f = fillers[tid]
+            d = _attribute(f.track, "__dict__")
+            d["_property_states"]._fill = d["metadatas"]._fill = f
+
+
+def _plain_detection_class(cls: type) -> bool:
+    """Whether the detections of class `cls` read `timestamp`, `measurement_model`,
+    `state_vector` and `metadata` as plain Stone Soup properties (the `__dict__` entries
+    `_property_<name>`, no getter of their own, no `__getattribute__` or `__getattr__` of the
+    class's), so that `usvfast._core.stonesoup_step` may read those entries."""
+    from stonesoup.base import Property
+
+    if cls.__getattribute__ is not object.__getattribute__ or hasattr(cls, "__getattr__"):
+        return False
+    for name in ("timestamp", "measurement_model", "state_vector", "metadata"):
+        desc = next((k.__dict__[name] for k in cls.__mro__ if name in k.__dict__), None)
+        if not (
+            type(desc) is Property
+            and desc._getter is None
+            and desc._property_name == f"_property_{name}"
+        ):
+            return False
+    return True
 
 
 class MultiTargetMixtureTracker(_DropInTracker):

@@ -42,6 +42,13 @@ struct Builder {
     tp_new: Option<pyo3::ffi::newfunc>,
 }
 
+/// `key` interned (the attribute names of the objects Stone Soup's constructors make are: a
+/// store then finds its slot in the class's shared key table by identity, not by comparing
+/// the characters).
+fn interned(key: &Bound<'_, PyString>) -> PyResult<Py<PyString>> {
+    Ok(PyString::intern(key.py(), key.to_str()?).unbind())
+}
+
 enum Source {
     Arg(usize),
     Const(Py<PyAny>),
@@ -90,7 +97,7 @@ impl Builder {
                         Some(i) => Source::Arg(i),
                         None => Source::Const(v.unbind()),
                     };
-                    order.push((k.cast_into::<PyString>()?.unbind(), src));
+                    order.push((interned(&k.cast_into::<PyString>()?)?, src));
                 }
                 if order
                     .iter()
@@ -105,7 +112,7 @@ impl Builder {
             }
             None => {
                 for (i, k) in keys.iter().enumerate() {
-                    order.push((k.clone().unbind(), Source::Arg(i)));
+                    order.push((interned(k)?, Source::Arg(i)));
                 }
             }
         }
@@ -267,7 +274,10 @@ impl StoneSoupKit {
         debug_assert_eq!(data.len(), rows * cols);
         let mut dims = [rows as npy_intp, cols as npy_intp];
         let sub = self.arrays[cls].bind(py).cast::<PyType>()?;
-        let obj = unsafe {
+        // SAFETY: numpy's constructor with a float64 descriptor, two dimensions, no strides
+        // and no data allocates a fresh C-contiguous (rows, cols) float64 array (of the
+        // subclass `sub`); nothing else sees it before its rows * cols values are written.
+        unsafe {
             let ptr = PY_ARRAY_API.PyArray_NewFromDescr(
                 py,
                 sub.as_type_ptr(),
@@ -279,15 +289,14 @@ impl StoneSoupKit {
                 0,
                 std::ptr::null_mut(),
             );
-            Bound::from_owned_ptr_or_err(py, ptr)?
-        };
-        let a = obj.cast::<PyArray2<f64>>()?;
-        if a.len() != data.len() || !a.is_c_contiguous() {
-            return Err(PyValueError::new_err("usvfast: unexpected array layout"));
+            let obj = Bound::from_owned_ptr_or_err(py, ptr)?;
+            let out = (*ptr.cast::<numpy::npyffi::PyArrayObject>())
+                .fields
+                .data
+                .cast::<f64>();
+            std::ptr::copy_nonoverlapping(data.as_ptr(), out, data.len());
+            Ok(obj)
         }
-        // SAFETY: a fresh C-contiguous array of data.len() float64 that nothing else sees yet.
-        unsafe { std::ptr::copy_nonoverlapping(data.as_ptr(), a.data(), data.len()) };
-        Ok(obj)
     }
 
     /// Stone Soup's `Prediction` constructor's change to its prior: the prior's hypothesis's
@@ -396,11 +405,13 @@ impl StoneSoupKit {
     /// `transition` (F, Q) over dt; `detections` the scan's Detection objects, `models` their
     /// measurement models, `z` (k, m) their measurements; `timestamp` the scan's datetime,
     /// `transition_model` the predictor's; `mixture`: JPDA hypotheses (else GNN);
-    /// `hypotheses` False: updates carry `SingleHypothesis(None, MissedDetection)`.
+    /// `hypotheses` False: updates carry `SingleHypothesis(None, MissedDetection)`;
+    /// `has_metadata` the caller's answer to whether a detection carries metadata (None: read
+    /// here).
     #[allow(clippy::too_many_arguments)]
     #[pyo3(signature = (
         core, scan, ids, priors, dt, transition, detections, models, z, timestamp,
-        transition_model, mixture, hypotheses
+        transition_model, mixture, hypotheses, has_metadata=None
     ))]
     fn newest<'py>(
         &mut self,
@@ -418,6 +429,7 @@ impl StoneSoupKit {
         transition_model: Bound<'py, PyAny>,
         mixture: bool,
         hypotheses: bool,
+        has_metadata: Option<bool>,
     ) -> PyResult<(bool, Bound<'py, PyList>)> {
         let inner = &core.inner;
         let n = inner.config().motion_model.ndim();
@@ -450,134 +462,281 @@ impl StoneSoupKit {
         // Gather every number first (no object is made for a track that falls back).
         let mut rows: Vec<Option<Row>> = Vec::with_capacity(ids.len());
         for id in &ids {
-            rows.push(self.gather(
-                &models,
-                by_id.get(id).map(|&i| &inner.tracks[i]),
-                scan,
-                dt,
-                (&fm, &q),
-                (zs, zm),
-                mixture,
-                hypotheses,
-            )?);
+            let track = by_id.get(id).map(|&i| &inner.tracks[i]);
+            let newest = track.and_then(|t| {
+                let len = t.history.times.len();
+                (len > 0 && t.history.scan[len - 1] == scan).then_some((t, len - 1))
+            });
+            rows.push(match newest {
+                Some((t, last)) => self.gather(
+                    &models,
+                    t,
+                    last,
+                    dt,
+                    (&fm, &q),
+                    (zs, zm),
+                    mixture,
+                    hypotheses,
+                )?,
+                None => None,
+            });
         }
 
+        // Whether a detection carries metadata (Stone Soup's `Track.append` then merges it).
+        let has_metadata = match has_metadata {
+            Some(md) => md,
+            None => {
+                let mut md = false;
+                for d in detections.iter() {
+                    if d.getattr(intern!(py, "metadata"))?.is_truthy()? {
+                        md = true;
+                        break;
+                    }
+                }
+                md
+            }
+        };
+        let out = PyList::empty(py);
+        let ctx = Scan {
+            detections: &detections,
+            timestamp: &timestamp,
+            transition_model: &transition_model,
+            mixture,
+            hypotheses,
+        };
+        for ((row, prior), id) in rows.iter().zip(&priors).zip(&ids) {
+            match row {
+                Some(r) => {
+                    let h = &inner.tracks[by_id[id]].history;
+                    out.append(self.state(py, r, h, prior, &ctx, (n, zm))?)?;
+                }
+                None => out.append(py.None())?,
+            }
+        }
+        Ok((has_metadata, out))
+    }
+
+    /// The Stone Soup states of history entries `first`, `first` + 1, ... of track `track_id`
+    /// of `core` (alive or deleted), each after the tracker's confirmation (JPDA or GNN as in
+    /// `newest`), built one after the other: `prior` the state before entry `first`, then
+    /// each state the next one's prior. Per entry: `dts` seconds since the entry before,
+    /// `transitions` (F, Q) over it, its scan's `detections`, their `models` and measurements
+    /// `zs` (k, m), `timestamps` the scan's datetime. Stops before the first entry it cannot
+    /// build exactly (see the module docs): the list may be shorter than `dts`.
+    #[allow(clippy::too_many_arguments)]
+    #[pyo3(signature = (
+        core, track_id, first, prior, dts, transitions, detections, models, zs, timestamps,
+        transition_model, mixture, hypotheses
+    ))]
+    fn entries<'py>(
+        &mut self,
+        py: Python<'py>,
+        core: PyRef<'py, TrackerCore>,
+        track_id: u64,
+        first: usize,
+        prior: Bound<'py, PyAny>,
+        dts: Vec<f64>,
+        transitions: Vec<(PyReadonlyArray2<'py, f64>, PyReadonlyArray2<'py, f64>)>,
+        detections: Vec<Bound<'py, PyList>>,
+        models: Vec<Bound<'py, PyList>>,
+        zs: Vec<PyReadonlyArray2<'py, f64>>,
+        timestamps: Vec<Bound<'py, PyAny>>,
+        transition_model: Bound<'py, PyAny>,
+        mixture: bool,
+        hypotheses: bool,
+    ) -> PyResult<Bound<'py, PyList>> {
+        let k = dts.len();
+        if [
+            transitions.len(),
+            detections.len(),
+            models.len(),
+            zs.len(),
+            timestamps.len(),
+        ]
+        .iter()
+        .any(|&l| l != k)
+        {
+            return Err(PyValueError::new_err(
+                "transitions, detections, models, zs, timestamps: one per entry of dts",
+            ));
+        }
+        let inner = &core.inner;
+        let n = inner.config().motion_model.ndim();
+        let out = PyList::empty(py);
+        let Some(tr) = inner
+            .tracks
+            .iter()
+            .chain(inner.deleted.iter())
+            .find(|t| t.id == track_id)
+        else {
+            return Ok(out);
+        };
+        let mut prior = prior;
+        for i in 0..k {
+            let (fm, q) = (&transitions[i].0, &transitions[i].1);
+            if fm.shape() != [n, n] || q.shape() != [n, n] {
+                return Err(PyValueError::new_err(format!(
+                    "transitions: expected two ({n}, {n}) matrices"
+                )));
+            }
+            let (dets, mods, z) = (&detections[i], &models[i], &zs[i]);
+            if mods.len() != dets.len() || z.shape()[0] != dets.len() {
+                return Err(PyValueError::new_err(
+                    "models, zs: one per detection of the entry's scan",
+                ));
+            }
+            let fm = DMatrix::from_row_slice(n, n, super::slice("F", fm)?);
+            let q = DMatrix::from_row_slice(n, n, super::slice("Q", q)?);
+            let zm = z.shape()[1];
+            let zsl = super::slice("zs", z)?;
+            let last = first + i;
+            let Some(row) = self.gather(
+                mods,
+                tr,
+                last,
+                dts[i],
+                (&fm, &q),
+                (zsl, zm),
+                mixture,
+                hypotheses,
+            )?
+            else {
+                break;
+            };
+            let ctx = Scan {
+                detections: dets,
+                timestamp: &timestamps[i],
+                transition_model: &transition_model,
+                mixture,
+                hypotheses,
+            };
+            let state = self.state(py, &row, &tr.history, &prior, &ctx, (n, zm))?;
+            out.append(&state)?;
+            prior = state;
+        }
+        Ok(out)
+    }
+}
+
+/// What the states of one scan share: its Detection objects and datetime, the predictor's
+/// transition model, JPDA (else GNN) hypotheses, whether hypotheses are built at all.
+struct Scan<'a, 'py> {
+    detections: &'a Bound<'py, PyList>,
+    timestamp: &'a Bound<'py, PyAny>,
+    transition_model: &'a Bound<'py, PyAny>,
+    mixture: bool,
+    hypotheses: bool,
+}
+
+impl StoneSoupKit {
+    /// The Stone Soup state of history entry `r.last` of `h` (see `newest`), `prior` the
+    /// state before it; `dims` (n, m) the state and measurement dimensions.
+    fn state<'py>(
+        &self,
+        py: Python<'py>,
+        r: &Row,
+        h: &crate::tracking::track::History,
+        prior: &Bound<'py, PyAny>,
+        ctx: &Scan<'_, 'py>,
+        (n, zm): (usize, usize),
+    ) -> PyResult<Bound<'py, PyAny>> {
         let arr = |cls: usize, rows: usize, cols: usize, data: &[f64]| {
             self.array(py, cls, rows, cols, data)
         };
         let none = py.None().into_bound(py);
-        // Whether a detection carries metadata (Stone Soup's `Track.append` then merges it).
-        let mut has_metadata = false;
-        for d in detections.iter() {
-            if d.getattr(intern!(py, "metadata"))?.is_truthy()? {
-                has_metadata = true;
-                break;
-            }
-        }
-        let out = PyList::empty(py);
+        let (timestamp, transition_model) = (ctx.timestamp, ctx.transition_model);
         let empty_md = || PyDict::new(py).into_any();
-        for ((row, prior), id) in rows.iter().zip(&priors).zip(&ids) {
-            let Some(r) = row else {
-                out.append(&none)?;
-                continue;
+        let sv = arr(0, n, 1, &h.states[r.last * n..(r.last + 1) * n])?;
+        let cm = arr(
+            1,
+            n,
+            n,
+            &h.covariances[r.last * n * n..(r.last + 1) * n * n],
+        )?;
+        if !r.update {
+            self.predicted_from(py, prior)?;
+            return if ctx.mixture {
+                self.b[PRED].make(py, &[&sv, &cm, timestamp])
+            } else {
+                self.b[PRED_OF].make(py, &[&sv, &cm, timestamp, transition_model, prior])
             };
-            let h = &inner.tracks[by_id[id]].history;
-            let sv = arr(0, n, 1, &h.states[r.last * n..(r.last + 1) * n])?;
-            let cm = arr(
-                1,
-                n,
-                n,
-                &h.covariances[r.last * n * n..(r.last + 1) * n * n],
-            )?;
-            if !r.update {
-                self.predicted_from(py, prior)?;
-                let st = if mixture {
-                    self.b[PRED].make(py, &[&sv, &cm, &timestamp])?
-                } else {
-                    self.b[PRED_OF].make(py, &[&sv, &cm, &timestamp, &transition_model, prior])?
-                };
-                out.append(st)?;
-                continue;
-            }
-            let mut hyp: Option<Bound<'py, PyAny>> = None;
-            if let (true, Some((xp, pp))) = (hypotheses, &r.pred) {
-                let (a, b) = (arr(0, n, 1, xp.as_slice())?, arr(1, n, n, &row_major(pp))?);
-                self.predicted_from(py, prior)?;
-                let pred =
-                    self.b[PRED_OF].make(py, &[&a, &b, &timestamp, &transition_model, prior])?;
-                let mut mp_objs = Vec::with_capacity(r.mps.len());
-                for MeasurementPrediction {
-                    z: zp,
-                    s: sp,
-                    c: cp,
-                    ..
-                } in &r.mps
-                {
-                    let (a, b, c) = (
-                        arr(0, zm, 1, zp.as_slice())?,
-                        arr(1, zm, zm, &row_major(sp))?,
-                        arr(2, n, zm, &row_major(cp))?,
-                    );
-                    mp_objs.push(self.b[MPRED].make(py, &[&a, &b, &timestamp, &c])?);
-                }
-                if mixture && r.missed.is_finite() {
-                    let miss = self.b[MISSED].make(py, &[&timestamp, &empty_md()])?;
-                    let pm = self.probability(py, r.missed)?;
-                    let hyps = PyList::empty(py);
-                    hyps.append(self.b[PROB].make(py, &[&pred, &miss, &pm, &none])?)?;
-                    for (j, &(d, p)) in r.assoc.iter().enumerate() {
-                        let det = detections.get_item(d)?;
-                        let pj = self.probability(py, p)?;
-                        let mp = &mp_objs[r.mp_of[j]];
-                        hyps.append(self.b[PROB].make(py, &[&pred, &det, &pj, mp])?)?;
-                    }
-                    hyp = Some(self.b[MULTI].make(py, &[&hyps.into_any()])?);
-                } else if r.det >= 0 {
-                    let d = r.det as usize;
-                    let det = detections.get_item(d)?;
-                    let dist = self.float64.bind(py).call1((r.distance,))?;
-                    hyp = Some(self.b[DIST].make(py, &[&pred, &det, &dist, &mp_objs[0]])?);
-                }
-            }
-            let hyp = match hyp {
-                Some(h) => h,
-                None => {
-                    let miss = self.b[MISSED].make(py, &[&timestamp, &empty_md()])?;
-                    self.b[SINGLE].make(py, &[&none, &miss])?
-                }
-            };
-            out.append(self.b[UPD].make(py, &[&sv, &cm, &hyp, &timestamp])?)?;
         }
-        Ok((has_metadata, out))
+        let mut hyp: Option<Bound<'py, PyAny>> = None;
+        if let (true, Some((xp, pp))) = (ctx.hypotheses, &r.pred) {
+            let (a, b) = (arr(0, n, 1, xp.as_slice())?, arr(1, n, n, &row_major(pp))?);
+            self.predicted_from(py, prior)?;
+            let pred = self.b[PRED_OF].make(py, &[&a, &b, timestamp, transition_model, prior])?;
+            let mut mp_objs = Vec::with_capacity(r.mps.len());
+            for MeasurementPrediction {
+                z: zp,
+                s: sp,
+                c: cp,
+                ..
+            } in &r.mps
+            {
+                let (a, b, c) = (
+                    arr(0, zm, 1, zp.as_slice())?,
+                    arr(1, zm, zm, &row_major(sp))?,
+                    arr(2, n, zm, &row_major(cp))?,
+                );
+                mp_objs.push(self.b[MPRED].make(py, &[&a, &b, timestamp, &c])?);
+            }
+            if ctx.mixture && r.missed.is_finite() {
+                let miss = self.b[MISSED].make(py, &[timestamp, &empty_md()])?;
+                let pm = self.probability(py, r.missed)?;
+                let hyps = PyList::empty(py);
+                hyps.append(self.b[PROB].make(py, &[&pred, &miss, &pm, &none])?)?;
+                for (j, &(d, p)) in r.assoc.iter().enumerate() {
+                    let det = ctx.detections.get_item(d)?;
+                    let pj = self.probability(py, p)?;
+                    let mp = &mp_objs[r.mp_of[j]];
+                    hyps.append(self.b[PROB].make(py, &[&pred, &det, &pj, mp])?)?;
+                }
+                hyp = Some(self.b[MULTI].make(py, &[&hyps.into_any()])?);
+            } else if r.det >= 0 {
+                let d = r.det as usize;
+                let det = ctx.detections.get_item(d)?;
+                let dist = self.float64.bind(py).call1((r.distance,))?;
+                hyp = Some(self.b[DIST].make(py, &[&pred, &det, &dist, &mp_objs[0]])?);
+            }
+        }
+        let hyp = match hyp {
+            Some(h) => h,
+            None => {
+                let miss = self.b[MISSED].make(py, &[timestamp, &empty_md()])?;
+                self.b[SINGLE].make(py, &[&none, &miss])?
+            }
+        };
+        self.b[UPD].make(py, &[&sv, &cm, &hyp, timestamp])
     }
 }
 
 impl StoneSoupKit {
-    /// The numbers of one track's newest state, or None when it falls back (see `newest`).
+    /// The numbers of history entry `last` of a track (its state `dt` seconds after entry
+    /// `last` − 1, of the scan before), or None when it falls back (see `newest`).
     #[allow(clippy::too_many_arguments)]
     fn gather(
         &mut self,
         models: &Bound<'_, PyList>,
-        track: Option<&crate::tracking::track::Track>,
-        scan: i64,
+        tr: &crate::tracking::track::Track,
+        last: usize,
         dt: f64,
         (fm, q): (&DMatrix<f64>, &DMatrix<f64>),
         (zs, zm): (&[f64], usize),
         mixture: bool,
         hypotheses: bool,
     ) -> PyResult<Option<Row>> {
-        let Some(tr) = track else { return Ok(None) };
         let h = &tr.history;
         let len = h.times.len();
-        if len < 2
-            || h.scan[len - 1] != scan
-            || h.scan[len - 2] != scan - 1
-            || h.times[len - 1] - h.times[len - 2] != dt
+        if last < 1
+            || last >= len
+            || h.scan[last - 1] != h.scan[last] - 1
+            || h.times[last] - h.times[last - 1] != dt
             || h.assoc_offsets.len() != len + 1
         {
             return Ok(None);
         }
-        let (last, prev) = (len - 1, len - 2);
+        let prev = last - 1;
         let update = h.is_update[last];
         let (a, b) = (h.assoc_offsets[last], h.assoc_offsets[last + 1]);
         let mut row = Row {
@@ -662,6 +821,149 @@ impl StoneSoupKit {
     }
 }
 
+/// One scan of a drop-in tracker in one call, when its detections allow the short way: every
+/// detection of a class in `plain` (classes whose `timestamp`, `measurement_model`,
+/// `state_vector` and `metadata` are plain Stone Soup properties, so their `__dict__` entries
+/// `_property_<name>` are what those attributes read), at `timestamp`, with a measurement
+/// model already in `known` (`id(model) -> (core sensor, its own noise covariance (m, m) or
+/// None for the sensor's, None)`: no sensor position) and a float64 `(m, 1)` state vector.
+/// Then the detections are stepped on `core` at `t` seconds (as `TrackerCore.step(t, z,
+/// sensor_ids, covariances)`, with the detections' own covariances, or those of their sensors
+/// `noises`, when one has its own) and the result is (the
+/// alive confirmed track ids in the core's order, z `(k, m)` the measurements, the
+/// detections' measurement models, whether a detection carries metadata). Otherwise nothing
+/// is stepped and the result is None (the caller takes the long way, which registers new
+/// models and reports bad detections).
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+#[allow(clippy::type_complexity)]
+fn stonesoup_step<'py>(
+    py: Python<'py>,
+    mut core: PyRefMut<'py, TrackerCore>,
+    t: f64,
+    detections: Bound<'py, PyList>,
+    timestamp: Bound<'py, PyAny>,
+    known: Bound<'py, PyDict>,
+    plain: Bound<'py, PyAny>,
+    noises: Bound<'py, PyList>,
+    m: usize,
+) -> PyResult<
+    Option<(
+        Bound<'py, PyList>,
+        Bound<'py, PyAny>,
+        Bound<'py, PyList>,
+        bool,
+    )>,
+> {
+    let k = detections.len();
+    let mut z = Vec::with_capacity(k * m);
+    let mut ids = Vec::with_capacity(k);
+    let mut own_noise: Vec<Option<Bound<'py, PyAny>>> = Vec::with_capacity(k);
+    let models = PyList::empty(py);
+    let mut metadata = false;
+    let mut plain_type: Option<*mut pyo3::ffi::PyObject> = None;
+    // (id of a model, its core sensor, its own noise covariance)
+    let mut seen: Vec<(usize, usize, Option<Bound<'py, PyAny>>)> = Vec::new();
+    let attr = |d: &Bound<'py, PyAny>, name: &Bound<'py, PyString>| -> PyResult<Option<_>> {
+        match d.getattr(name) {
+            Ok(v) => Ok(Some(v)),
+            Err(e) if e.is_instance_of::<pyo3::exceptions::PyAttributeError>(py) => Ok(None),
+            Err(e) => Err(e),
+        }
+    };
+    for d in detections.iter() {
+        let ty = d.get_type();
+        if plain_type != Some(ty.as_ptr()) {
+            if !plain.contains(&ty)? {
+                return Ok(None);
+            }
+            plain_type = Some(ty.as_ptr());
+        }
+        let Some(ts) = attr(&d, intern!(py, "_property_timestamp"))? else {
+            return Ok(None);
+        };
+        if !ts.eq(&timestamp)? {
+            return Ok(None);
+        }
+        let Some(model) = attr(&d, intern!(py, "_property_measurement_model"))? else {
+            return Ok(None);
+        };
+        // The scan's models, looked up in `known` once each (a scan has one or a few).
+        let key = model.as_ptr() as usize;
+        let (idx, own) = match seen.iter().find(|(k, _, _)| *k == key) {
+            Some((_, idx, own)) => (*idx, own.clone()),
+            None => {
+                let Some(hit) = known.get_item(key)? else {
+                    return Ok(None);
+                };
+                let Ok((idx, own, origin)) =
+                    hit.extract::<(usize, Bound<'py, PyAny>, Bound<'py, PyAny>)>()
+                else {
+                    return Ok(None);
+                };
+                if !origin.is_none() {
+                    return Ok(None);
+                }
+                let own = (!own.is_none()).then_some(own);
+                seen.push((key, idx, own.clone()));
+                (idx, own)
+            }
+        };
+        let Some(sv) = attr(&d, intern!(py, "_property_state_vector"))? else {
+            return Ok(None);
+        };
+        let Ok(sv) = sv.cast::<PyArray2<f64>>() else {
+            return Ok(None);
+        };
+        if sv.shape() != [m, 1] || !sv.is_c_contiguous() {
+            return Ok(None);
+        }
+        // SAFETY: a C-contiguous float64 array, read here while nothing writes to it (the GIL
+        // is held).
+        z.extend_from_slice(
+            unsafe { sv.as_slice() }.map_err(|_| {
+                PyValueError::new_err("detections: a state vector is not contiguous")
+            })?,
+        );
+        let Some(md) = attr(&d, intern!(py, "_property_metadata"))? else {
+            return Ok(None);
+        };
+        metadata = metadata || md.is_truthy()?;
+        ids.push(idx);
+        own_noise.push(own);
+        models.append(model)?;
+    }
+    let mut covs: Option<Vec<f64>> = None;
+    if own_noise.iter().any(Option::is_some) {
+        let mut c = Vec::with_capacity(k * m * m);
+        for (own, &idx) in own_noise.iter().zip(&ids) {
+            let r = match own {
+                Some(r) => r.clone(),
+                None => match noises.get_item(idx) {
+                    Ok(r) => r,
+                    Err(_) => return Ok(None),
+                },
+            };
+            let Ok(r) = r.cast_into::<PyArray2<f64>>() else {
+                return Ok(None);
+            };
+            if r.shape() != [m, m] || !r.is_c_contiguous() {
+                return Ok(None);
+            }
+            // SAFETY: as for the state vectors.
+            c.extend_from_slice(
+                unsafe { r.as_slice() }
+                    .map_err(|_| PyValueError::new_err("noises: a covariance is not contiguous"))?,
+            );
+        }
+        covs = Some(c);
+    }
+    core.step_slices(py, t, &z, &ids, covs.as_deref(), None)?;
+    let alive = PyList::new(py, core.inner.tracks.iter().map(|t| t.id))?;
+    let z = numpy::PyArray1::from_vec(py, z).reshape([k, m])?.into_any();
+    Ok(Some((alive, z, models, metadata)))
+}
+
 /// Ids of the alive confirmed tracks of `core`, in the core's order, as a list (what the
 /// drop-in reads every scan; `TrackerCore.track_ids` also lists the deleted ones).
 #[pyfunction]
@@ -686,6 +988,7 @@ fn tentative_first_scan(core: PyRef<'_, TrackerCore>) -> Option<i64> {
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<StoneSoupKit>()?;
     m.add_function(wrap_pyfunction!(confirmed_ids, m)?)?;
+    m.add_function(wrap_pyfunction!(stonesoup_step, m)?)?;
     m.add_function(wrap_pyfunction!(tentative_first_scan, m)?)?;
     Ok(())
 }

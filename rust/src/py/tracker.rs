@@ -144,6 +144,26 @@ pub struct TrackerCore {
     pub(crate) inner: Tracker,
 }
 
+impl TrackerCore {
+    /// `step` on validated slices (for the other bindings, e.g. the Stone Soup drop-in's
+    /// one-call scan): the core runs without the GIL, Ctrl-C between JPDA clusters raises.
+    pub(crate) fn step_slices(
+        &mut self,
+        py: Python<'_>,
+        t: f64,
+        z: &[f64],
+        ids: &[usize],
+        covs: Option<&[f64]>,
+        orig: Option<&[f64]>,
+    ) -> PyResult<crate::tracking::tracker::StepReport> {
+        let inner = &mut self.inner;
+        let mut signals = SignalCheck::new();
+        let res =
+            py.detach(|| inner.step_interruptible(t, z, ids, covs, orig, &mut || signals.poll()));
+        signals.result(res)
+    }
+}
+
 #[pymethods]
 impl TrackerCore {
     /// A tracker from the `usvfast.tracking` configuration objects, each read by attribute
@@ -243,11 +263,7 @@ impl TrackerCore {
             .map(|c| slice("covariances", c))
             .transpose()?;
         let orig = origins.as_ref().map(|o| slice("origins", o)).transpose()?;
-        let inner = &mut self.inner;
-        let mut signals = SignalCheck::new();
-        let res =
-            py.detach(|| inner.step_interruptible(t, z, &ids, covs, orig, &mut || signals.poll()));
-        let r = signals.result(res)?;
+        let r = self.step_slices(py, t, z, &ids, covs, orig)?;
         Ok((
             r.outcome == crate::tracking::tracker::StepOutcome::Processed,
             r.clusters,
