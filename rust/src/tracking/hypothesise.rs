@@ -353,6 +353,10 @@ where
     }
 }
 
+/// Up to this many (track, detection) pairs of one sensor, [`gate_pairs`] tests every pair
+/// instead of building the spatial grid.
+const SMALL_SCAN_PAIRS: usize = 64;
+
 /// Candidate pairs within `gate` (squared Mahalanobis) for predictions `preds[t] = (x⁻, P⁻)` and
 /// the detections `which` of `dets`, sorted by (track, detection). The per-(track, sensor)
 /// innovations of `innov` are filled lazily for linear sensors; a detection with its own noise
@@ -424,6 +428,58 @@ where
             Some(r) => inn.hph[(i, i)] + r[i],
             None => inn.s[(i, i)],
         };
+        let mut err: Option<Error> = None;
+        let Innovations { shared, own, .. } = innov;
+        // Tests detection `ids[k]` against the track whose innovation is `inn`.
+        let mut visit = |t: usize, inn: &Innovation<N, M>, k: usize, err: &mut Option<Error>| {
+            if err.is_some() {
+                return;
+            }
+            let d = ids[k];
+            let y = inn.residual(dets.row(d, md));
+            match covs {
+                None => {
+                    let d2 = y.dot(&inn.chol.solve(&y));
+                    if d2 <= gate {
+                        pairs.push(Pair {
+                            t,
+                            d,
+                            d2,
+                            own: NO_OWN,
+                        });
+                    }
+                }
+                Some(c) => match own_innovation(inn, &c[d]) {
+                    Ok(o) => {
+                        let d2 = y.dot(&o.chol.solve(&y));
+                        if d2 <= gate {
+                            pairs.push(Pair {
+                                t,
+                                d,
+                                d2,
+                                own: own.len() as u32,
+                            });
+                            own.push(o);
+                        }
+                    }
+                    Err(e) => *err = Some(e),
+                },
+            }
+        };
+        if preds.len() * ids.len() <= SMALL_SCAN_PAIRS {
+            // A small scan: every pair is tested (the grid below only skips pairs outside the
+            // gate boxes, which contain the gates; building it costs more than it saves).
+            for t in 0..preds.len() {
+                let inn = shared[t * ns + s].as_ref().ok_or_else(missing_innovation)?;
+                for k in 0..ids.len() {
+                    visit(t, inn, k, &mut err);
+                }
+                if let Some(e) = err.take() {
+                    return Err(e);
+                }
+            }
+            continue;
+        }
         let pts: Vec<f64> = ids
             .iter()
             .flat_map(|&d| dets.row(d, md).iter().copied())
@@ -431,9 +487,7 @@ where
         // Cell side: median gate box width over tracks.
         let mut widths: Vec<f64> = (0..preds.len())
             .map(|t| {
-                let inn = innov.shared[t * ns + s]
-                    .as_ref()
-                    .ok_or_else(missing_innovation)?;
+                let inn = shared[t * ns + s].as_ref().ok_or_else(missing_innovation)?;
                 let w = (0..md.min(2)).map(|i| var(inn, i)).fold(0.0, f64::max);
                 Ok(2.0 * (gate * w).sqrt())
             })
@@ -447,8 +501,6 @@ where
         let local: Vec<usize> = (0..ids.len()).collect();
         let grid = CandidateGrid::new(&pts, md, &local, cell);
         let mut half = vec![0.0; md];
-        let mut err: Option<Error> = None;
-        let Innovations { shared, own, .. } = innov;
         for t in 0..preds.len() {
             let inn = shared[t * ns + s].as_ref().ok_or_else(missing_innovation)?;
             for (i, h) in half.iter_mut().enumerate() {
@@ -457,41 +509,7 @@ where
                     *h = f64::INFINITY;
                 }
             }
-            grid.query(inn.zhat.as_slice(), &half, |k| {
-                if err.is_some() {
-                    return;
-                }
-                let d = ids[k];
-                let y = inn.residual(dets.row(d, md));
-                match covs {
-                    None => {
-                        let d2 = y.dot(&inn.chol.solve(&y));
-                        if d2 <= gate {
-                            pairs.push(Pair {
-                                t,
-                                d,
-                                d2,
-                                own: NO_OWN,
-                            });
-                        }
-                    }
-                    Some(c) => match own_innovation(inn, &c[d]) {
-                        Ok(o) => {
-                            let d2 = y.dot(&o.chol.solve(&y));
-                            if d2 <= gate {
-                                pairs.push(Pair {
-                                    t,
-                                    d,
-                                    d2,
-                                    own: own.len() as u32,
-                                });
-                                own.push(o);
-                            }
-                        }
-                        Err(e) => err = Some(e),
-                    },
-                }
-            });
+            grid.query(inn.zhat.as_slice(), &half, |k| visit(t, inn, k, &mut err));
             if let Some(e) = err.take() {
                 return Err(e);
             }

@@ -8,10 +8,69 @@ use super::hypothesise::{
 };
 use super::tracker::Tracker;
 use crate::error::{Error, Result};
-use crate::tracking::config::{Association, Confirmation, Measure};
+use crate::tracking::config::{Association, Confirmation, GnnParams, InitiatorConfig, Measure};
 use crate::tracking::gating::chi2_quantile;
-use crate::tracking::track::{Entry, Track};
+use crate::tracking::track::Deleter;
+use crate::tracking::track::{Entry, History, Track};
 use nalgebra::{DMatrix, DVector, DefaultAllocator, Dim, Dyn};
+
+/// An initiator configuration that allocates nothing, held in the tracker's configuration
+/// while [`Tracker::initiate`] uses the real one.
+fn placeholder() -> InitiatorConfig {
+    InitiatorConfig {
+        prior_state: DVector::zeros(0),
+        prior_covariance: DMatrix::zeros(0, 0),
+        diag_load: 0.0,
+        confirmation: Confirmation::MOfN { m: 0, n: 0 },
+        deleter: Deleter::StepsSinceUpdate(0),
+        gnn: GnnParams {
+            measure: Measure::Mahalanobis,
+            missed_distance: 0.0,
+            include_all: false,
+        },
+        motion_model: None,
+        use_joseph_cov: false,
+        symmetric_covariance: false,
+        max_new_tentative: None,
+    }
+}
+
+/// A sensor's initiation model: its `H`, `R` and what the initiator derives from them.
+#[derive(Debug, Clone)]
+pub(crate) struct InitModel {
+    h: DMatrix<f64>,
+    r: DMatrix<f64>,
+    /// `H⁺`.
+    pinv: DMatrix<f64>,
+    /// `H⁺ R H⁺ᵀ`.
+    cov: DMatrix<f64>,
+    /// State axes that `H` maps.
+    mapped: Vec<bool>,
+}
+
+/// Work of the tracker's scans kept between scans.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct Scratch {
+    /// Initiation model per sensor (`None` until a detection of it starts a track).
+    init_models: Vec<Option<InitModel>>,
+    /// Histories of dropped tentative tracks, emptied and reused by new ones (at most
+    /// [`SPARE_HISTORIES`]).
+    spare_histories: Vec<History>,
+    /// An empty buffer for the next scan's surviving tentative tracks.
+    spare_tentative: Vec<Track>,
+}
+
+/// Most histories of dropped tentative tracks kept for reuse.
+const SPARE_HISTORIES: usize = 64;
+
+impl Scratch {
+    /// Keeps `tr`'s history buffers for a later tentative track.
+    fn recycle(&mut self, tr: Track) {
+        if self.spare_histories.len() < SPARE_HISTORIES {
+            self.spare_histories.push(tr.history);
+        }
+    }
+}
 
 impl Tracker {
     /// The initiator's scan (Stone Soup `MultiMeasurementInitiator`): GNN-associates the
@@ -28,12 +87,30 @@ impl Tracker {
     where
         DefaultAllocator: Alloc<N, M>,
     {
+        // The initiator's configuration is moved out for the scan (instead of cloned) and put
+        // back on every path; nothing below reads `self.cfg.initiator`.
+        let init = std::mem::replace(&mut self.cfg.initiator, placeholder());
+        let out = self.initiate_with(&init, t, dets, free, sensors, dims);
+        self.cfg.initiator = init;
+        out
+    }
+
+    /// [`Tracker::initiate`] with the initiator's configuration `init` (moved out of
+    /// `self.cfg`).
+    fn initiate_with<N: Dim, M: Dim>(
+        &mut self,
+        init: &InitiatorConfig,
+        t: f64,
+        dets: &Dets<'_, M>,
+        free: &[usize],
+        sensors: &[SensorT<N, M>],
+        dims: (N, M),
+    ) -> Result<()>
+    where
+        DefaultAllocator: Alloc<N, M>,
+    {
+        let model = init.motion_model.as_ref().unwrap_or(&self.cfg.motion_model);
         let m = self.m;
-        let init = self.cfg.initiator.clone();
-        let model = init
-            .motion_model
-            .clone()
-            .unwrap_or_else(|| self.cfg.motion_model.clone());
         let det_sensor = dets.sensor;
         let covs = dets.covs;
         let mut used = vec![false; det_sensor.len()];
@@ -75,9 +152,13 @@ impl Tracker {
             for d in assoc.into_iter().flatten() {
                 used[d] = true;
             }
-            let mut keep = Vec::with_capacity(self.tentative.len());
+            // The surviving tracks go to the spare buffer, which then holds the tentative
+            // tracks (the old buffer becomes the spare: no allocation per scan).
+            let mut old = std::mem::take(&mut self.tentative);
+            let mut keep = std::mem::take(&mut self.scratch.spare_tentative);
+            keep.clear();
             let mut confirmed = Vec::new();
-            for tr in std::mem::take(&mut self.tentative) {
+            for tr in old.drain(..) {
                 let (confirm, drop) = match init.confirmation {
                     Confirmation::MinPoints {
                         min_points,
@@ -104,8 +185,14 @@ impl Tracker {
                 };
                 if confirm {
                     confirmed.push(tr);
-                } else if !drop {
+                } else if !drop
+                    && !(matches!(init.confirmation, Confirmation::MinPoints { .. })
+                        && init.deleter.check(&tr))
+                {
+                    // (Under min points the initiator's deleter ends unconfirmed tracks.)
                     keep.push(tr);
+                } else {
+                    self.scratch.recycle(tr);
                 }
             }
             if !self.cfg.initiate_in_gates {
@@ -117,16 +204,15 @@ impl Tracker {
                 tr.confirmed_time = t;
                 self.tracks.push(tr);
             }
-            if matches!(init.confirmation, Confirmation::MinPoints { .. }) {
-                keep.retain(|tr| !init.deleter.check(tr));
-            }
             self.tentative = keep;
+            self.scratch.spare_tentative = old;
         }
-        // New tentative tracks from every detection left. Per sensor (computed once):
-        // H⁺, H⁺ R H⁺ᵀ and the mapped state axes; H⁺ R_d H⁺ᵀ per detection with its own
-        // covariance R_d (unless the sensor has its own initiation noise).
-        type InitModel = (DMatrix<f64>, DMatrix<f64>, Vec<bool>);
-        let mut init_of: Vec<Option<InitModel>> = vec![None; self.cfg.sensors.len()];
+        // New tentative tracks from every detection left. Per sensor (computed once, kept
+        // across scans while the sensor's initiation model is the same): H⁺, H⁺ R H⁺ᵀ and the
+        // mapped state axes; H⁺ R_d H⁺ᵀ per detection with its own covariance R_d (unless the
+        // sensor has its own initiation noise).
+        let ns = self.cfg.sensors.len();
+        self.scratch.init_models.resize_with(ns, || None);
         let mut started = 0usize;
         for &d in free {
             if used[d] {
@@ -172,8 +258,9 @@ impl Tracker {
                 self.push_tentative(t, x, p, s, d);
                 continue;
             }
-            if init_of[s].is_none() {
-                let (hi, ri) = &self.cfg.sensors[s].init;
+            let (hi, ri) = &self.cfg.sensors[s].init;
+            let cached = &mut self.scratch.init_models[s];
+            if !cached.as_ref().is_some_and(|c| c.h == *hi && c.r == *ri) {
                 let pinv = hi
                     .clone()
                     .pseudo_inverse(1e-15)
@@ -182,9 +269,21 @@ impl Tracker {
                 let mapped = (0..hi.ncols())
                     .map(|c| (0..hi.nrows()).any(|r| hi[(r, c)] != 0.0))
                     .collect();
-                init_of[s] = Some((pinv, cov, mapped));
+                *cached = Some(InitModel {
+                    h: hi.clone(),
+                    r: ri.clone(),
+                    pinv,
+                    cov,
+                    mapped,
+                });
             }
-            let Some((pinv, pcov, mapped)) = init_of[s].as_ref() else {
+            let Some(InitModel {
+                pinv,
+                cov: pcov,
+                mapped,
+                ..
+            }) = cached.as_ref()
+            else {
                 return Err(Error::param(
                     "tracker",
                     "internal error: no initiation model",
@@ -223,7 +322,8 @@ impl Tracker {
     fn push_tentative(&mut self, t: f64, x: DVector<f64>, p: DMatrix<f64>, s: usize, d: usize) {
         let id = self.next_tentative_id;
         self.next_tentative_id += 1;
-        self.tentative.push(Track::new(
+        let history = self.scratch.spare_histories.pop().unwrap_or_default();
+        self.tentative.push(Track::new_in(
             id,
             x,
             p,
@@ -237,6 +337,7 @@ impl Tracker {
                 missed_probability: f64::NAN,
                 assoc: vec![(d as i64, 1.0)],
             },
+            history,
         ));
     }
 

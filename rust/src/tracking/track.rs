@@ -96,6 +96,22 @@ impl History {
         self.assoc_offsets.push(self.assoc_detection.len());
     }
 
+    /// Removes every entry, keeping the buffers' capacity.
+    pub fn clear(&mut self) {
+        self.times.clear();
+        self.states.clear();
+        self.covariances.clear();
+        self.is_update.clear();
+        self.scan.clear();
+        self.sensor.clear();
+        self.detection.clear();
+        self.nis.clear();
+        self.missed_probability.clear();
+        self.assoc_offsets.clear();
+        self.assoc_detection.clear();
+        self.assoc_probability.clear();
+    }
+
     fn pop(&mut self, n: usize) {
         if self.times.pop().is_none() {
             return;
@@ -144,12 +160,24 @@ pub struct Track {
 impl Track {
     /// A track whose first entry is `(x, p)` at `entry.time`.
     pub fn new(id: u64, x: DVector<f64>, p: DMatrix<f64>, entry: Entry) -> Self {
+        Self::new_in(id, x, p, entry, History::default())
+    }
+
+    /// [`Track::new`] reusing the buffers of `history` (emptied first; its capacity is kept).
+    pub fn new_in(
+        id: u64,
+        x: DVector<f64>,
+        p: DMatrix<f64>,
+        entry: Entry,
+        mut history: History,
+    ) -> Self {
+        history.clear();
         let mut t = Track {
             id,
             t: entry.time,
-            x: x.clone(),
-            p: p.clone(),
-            history: History::default(),
+            x,
+            p,
+            history,
             confirmed_time: f64::NAN,
             deleted_time: f64::NAN,
             imm: None,
@@ -157,8 +185,8 @@ impl Track {
         };
         // Room for a few scans up front: growing 12 vectors one by one dominated the cost of
         // appending.
-        t.history.reserve(8, x.len());
-        t.history.push(&entry, &x, &p);
+        t.history.reserve(8, t.x.len());
+        t.history.push(&entry, &t.x, &t.p);
         t
     }
 

@@ -104,6 +104,9 @@ pub struct Tracker {
     /// JPDA clusters approximated so far (see [`StepReport::approximated_clusters`]).
     pub approximated_clusters: usize,
     pub(super) gate: f64,
+    /// Per-scan work kept between scans (not saved: rebuilt on demand).
+    #[serde(skip)]
+    pub(super) scratch: crate::tracking::initiator::Scratch,
 }
 
 impl Tracker {
@@ -129,6 +132,7 @@ impl Tracker {
             capped_detections: 0,
             approximated_clusters: 0,
             gate,
+            scratch: Default::default(),
         })
     }
 
