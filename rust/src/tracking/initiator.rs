@@ -118,7 +118,7 @@ impl Tracker {
             let mut ln_pdf = Vec::new();
             let assoc = gnn_step(
                 &mut self.tentative,
-                &model,
+                model,
                 sensors,
                 &init.gnn,
                 CovForm {
@@ -185,14 +185,15 @@ impl Tracker {
                 };
                 if confirm {
                     confirmed.push(tr);
-                } else if !drop
-                    && !(matches!(init.confirmation, Confirmation::MinPoints { .. })
-                        && init.deleter.check(&tr))
-                {
-                    // (Under min points the initiator's deleter ends unconfirmed tracks.)
-                    keep.push(tr);
                 } else {
-                    self.scratch.recycle(tr);
+                    // Under min points the initiator's deleter ends unconfirmed tracks.
+                    let deleted = matches!(init.confirmation, Confirmation::MinPoints { .. })
+                        && init.deleter.check(&tr);
+                    if drop || deleted {
+                        self.scratch.recycle(tr);
+                    } else {
+                        keep.push(tr);
+                    }
                 }
             }
             if !self.cfg.initiate_in_gates {
