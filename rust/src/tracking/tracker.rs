@@ -491,8 +491,10 @@ impl Tracker {
         let pairs = gate_pairs(&preds, sensors, md, dets, which, gate, &mut innov)?;
         // Log weights per track: missed, then gated detections.
         let ln_missed = (1.0 - j.prob_detect * j.prob_gate).ln();
-        // (det, ln w, d2, index into pairs)
-        let mut hyps: Vec<Vec<(usize, f64, f64, usize)>> = vec![Vec::new(); preds.len()];
+        // (det, ln w, d2, index into pairs), flat in the order of the pairs (sorted by track):
+        // track `t`'s hypotheses are `hyps[offs[t]..offs[t + 1]]`.
+        let mut hyps: Vec<(usize, f64, f64, usize)> = Vec::with_capacity(pairs.len());
+        let mut offs = vec![0usize; preds.len() + 1];
         for (pi, p) in pairs.iter().enumerate() {
             let inn = innov.of(p, det_sensor[p.d])?;
             let logpdf = -0.5 * (p.d2 + inn.ln_det + m as f64 * LN_2PI);
@@ -500,10 +502,16 @@ impl Tracker {
             if let Some(l) = j.clutter_density {
                 lw -= l.ln();
             }
-            hyps[p.t].push((p.d, lw, p.d2, pi));
+            hyps.push((p.d, lw, p.d2, pi));
+            offs[p.t + 1] += 1;
         }
+        for t in 0..preds.len() {
+            offs[t + 1] += offs[t];
+        }
+        let range = |t: usize| offs[t]..offs[t + 1];
         if j.clutter_density.is_none() {
-            for h in hyps.iter_mut() {
+            for t in 0..preds.len() {
+                let h = &mut hyps[range(t)];
                 let n_valid = h.iter().filter(|x| x.2 <= self.gate).count() as f64;
                 for e in h.iter_mut() {
                     let p = &pairs[e.3];
@@ -513,9 +521,9 @@ impl Tracker {
                 }
             }
         }
-        let th: Vec<TrackHypotheses> = hyps
-            .iter()
-            .map(|h| {
+        let th: Vec<TrackHypotheses> = (0..preds.len())
+            .map(|t| {
+                let h = &hyps[range(t)];
                 let mx = h.iter().map(|e| e.1).fold(ln_missed, f64::max);
                 TrackHypotheses {
                     missed: (ln_missed - mx).exp(),
@@ -523,7 +531,9 @@ impl Tracker {
                 }
             })
             .collect();
-        let mut marg = vec![crate::tracking::jpda::Marginals::default(); th.len()];
+        // Marginals: missed per track, detections flat as `hyps`.
+        let mut marg_missed = vec![0.0; th.len()];
+        let mut marg_det = vec![0.0; hyps.len()];
         let mut stats = ClusterStats::default();
         for c in clusters(&th, k) {
             stats.clusters += 1;
@@ -534,10 +544,10 @@ impl Tracker {
             if c.len() == 1 {
                 let h = &th[c[0]];
                 let tot = h.missed + h.detections.iter().map(|d| d.1).sum::<f64>();
-                marg[c[0]] = crate::tracking::jpda::Marginals {
-                    missed: h.missed / tot,
-                    detections: h.detections.iter().map(|d| d.1 / tot).collect(),
-                };
+                marg_missed[c[0]] = h.missed / tot;
+                for (dst, d) in marg_det[range(c[0])].iter_mut().zip(&h.detections) {
+                    *dst = d.1 / tot;
+                }
                 continue;
             }
             let mut ordered = order_cluster(&c, &preds);
@@ -559,7 +569,10 @@ impl Tracker {
                 stats.approximated += 1;
             }
             for (i, mm) in ordered.into_iter().zip(r) {
-                marg[i] = mm;
+                marg_missed[i] = mm.missed;
+                for (dst, &b) in marg_det[range(i)].iter_mut().zip(&mm.detections) {
+                    *dst = b;
+                }
             }
         }
         let mut associated = vec![false; k];
@@ -583,14 +596,14 @@ impl Tracker {
         let mut comps: Vec<(f64, OVector<f64, N>, usize)> = Vec::new();
         let mut post_by_sensor: Vec<Option<OMatrix<f64, N, N>>> = (0..ns).map(|_| None).collect();
         for (ti, ((xp, pp), tr)) in preds.into_iter().zip(self.tracks.iter_mut()).enumerate() {
-            let mg = &marg[ti];
-            let h = &hyps[ti];
-            let b0 = mg.missed;
-            let tot: f64 = b0 + mg.detections.iter().sum::<f64>();
+            let h = &hyps[range(ti)];
+            let mg = &marg_det[range(ti)];
+            let b0 = marg_missed[ti];
+            let tot: f64 = b0 + mg.iter().sum::<f64>();
             // Components: prediction, then one Kalman update per gated detection.
             let mut mean = &xp * (b0 / tot);
             comps.clear();
-            for (e, &b) in h.iter().zip(&mg.detections) {
+            for (e, &b) in h.iter().zip(mg) {
                 let inn = innov.of(&pairs[e.3], det_sensor[e.0])?;
                 let y = inn.residual(dets.row(e.0, m));
                 let xu = &xp + &inn.k * y;
@@ -626,10 +639,10 @@ impl Tracker {
                 tr.existence = Some(ex.update(rv, ln_l));
             }
             let mut best: Option<usize> = None;
-            for (i, &b) in mg.detections.iter().enumerate() {
+            for (i, &b) in mg.iter().enumerate() {
                 if b > b0 {
                     associated[h[i].0] = true;
-                    if best.is_none_or(|bi| b > mg.detections[bi]) {
+                    if best.is_none_or(|bi| b > mg[bi]) {
                         best = Some(i);
                     }
                 }
@@ -640,17 +653,15 @@ impl Tracker {
             entry.nis = best.map_or(f64::NAN, |i| h[i].2);
             entry.missed_probability = b0 / tot;
             entry.assoc.clear();
-            entry.assoc.extend(
-                h.iter()
-                    .zip(&mg.detections)
-                    .map(|(e, &b)| (e.0 as i64, b / tot)),
-            );
+            entry
+                .assoc
+                .extend(h.iter().zip(mg).map(|(e, &b)| (e.0 as i64, b / tot)));
             if let Some(ip) = &imm_preds {
                 // Mode-conditioned PDA with the track's association weights; the clutter term
                 // ln(P_D/λ) of each detection is the one of its combined weight.
                 let hy: Vec<(usize, f64, f64)> = h
                     .iter()
-                    .zip(&mg.detections)
+                    .zip(mg)
                     .map(|(e, &b)| {
                         let p = &pairs[e.3];
                         let inn = innov.of(p, det_sensor[p.d])?;
