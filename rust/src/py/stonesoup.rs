@@ -178,7 +178,7 @@ const PROBABILITY: usize = 9; // Probability: `_log_value`
 const N_BUILDERS: usize = 10;
 
 /// A linear measurement model's H (m, n) and R (m, m), None for any other model.
-type Linear = Option<(DMatrix<f64>, DMatrix<f64>)>;
+type Linear = Option<std::sync::Arc<(DMatrix<f64>, DMatrix<f64>)>>;
 
 /// At most this many measurement models remembered (one per detection for a moving radar).
 const MODEL_CACHE: usize = 4096;
@@ -251,7 +251,7 @@ impl StoneSoupKit {
             let (hs, rs) = (h.shape(), r.shape());
             let h = DMatrix::from_row_slice(hs[0], hs[1], super::slice("H", &h)?);
             let r = DMatrix::from_row_slice(rs[0], rs[1], super::slice("R", &r)?);
-            Some((h, r))
+            Some(std::sync::Arc::new((h, r)))
         };
         if self.models.len() >= MODEL_CACHE {
             self.models.clear();
@@ -452,17 +452,19 @@ impl StoneSoupKit {
         let q = DMatrix::from_row_slice(n, n, super::slice("Q", q)?);
         let zm = z.shape()[1];
         let zs = super::slice("z", &z)?;
-        let by_id: HashMap<u64, usize> = inner
-            .tracks
-            .iter()
-            .enumerate()
-            .map(|(i, t)| (t.id, i))
-            .collect();
+        // Index of a confirmed track by id: the core keeps them in order of id (binary
+        // search), with a scan as the fallback should that order ever not hold.
+        let index_of = |id: u64| {
+            let ts = &inner.tracks;
+            ts.binary_search_by_key(&id, |t| t.id)
+                .ok()
+                .or_else(|| ts.iter().position(|t| t.id == id))
+        };
 
         // Gather every number first (no object is made for a track that falls back).
         let mut rows: Vec<Option<Row>> = Vec::with_capacity(ids.len());
         for id in &ids {
-            let track = by_id.get(id).map(|&i| &inner.tracks[i]);
+            let track = index_of(*id).map(|i| &inner.tracks[i]);
             let newest = track.and_then(|t| {
                 let len = t.history.times.len();
                 (len > 0 && t.history.scan[len - 1] == scan).then_some((t, len - 1))
@@ -505,12 +507,12 @@ impl StoneSoupKit {
             hypotheses,
         };
         for ((row, prior), id) in rows.iter().zip(&priors).zip(&ids) {
-            match row {
-                Some(r) => {
-                    let h = &inner.tracks[by_id[id]].history;
+            match (row, index_of(*id)) {
+                (Some(r), Some(i)) => {
+                    let h = &inner.tracks[i].history;
                     out.append(self.state(py, r, h, prior, &ctx, (n, zm))?)?;
                 }
-                None => out.append(py.None())?,
+                _ => out.append(py.None())?,
             }
         }
         Ok((has_metadata, out))
@@ -789,14 +791,15 @@ impl StoneSoupKit {
                 row.mp_of.push(i);
                 continue;
             }
-            let Some((hm, r)) = self.linear(&model)? else {
+            let Some(hr) = self.linear(&model)? else {
                 return Ok(None);
             };
+            let (hm, r) = (&hr.0, &hr.1);
             if hm.nrows() != zm || hm.ncols() != n || r.nrows() != zm || r.ncols() != zm {
                 return Ok(None);
             }
             let cross = &pp * hm.transpose();
-            let (zp, s) = (&hm * &xp, &hm * &cross + r);
+            let (zp, s) = (hm * &xp, hm * &cross + r);
             row.mp_of.push(row.mps.len());
             row.mps.push(MeasurementPrediction {
                 model: key,
