@@ -353,8 +353,8 @@ where
     }
 }
 
-/// Up to this many (track, detection) pairs of one sensor, [`gate_pairs`] tests every pair
-/// instead of building the spatial grid.
+/// Up to this many (track, detection) pairs of one sensor, [`gate_pairs`] tests every pair's
+/// gate box directly instead of building the spatial grid.
 const SMALL_SCAN_PAIRS: usize = 64;
 
 /// Candidate pairs within `gate` (squared Mahalanobis) for predictions `preds[t] = (x⁻, P⁻)` and
@@ -467,12 +467,23 @@ where
             }
         };
         if preds.len() * ids.len() <= SMALL_SCAN_PAIRS {
-            // A small scan: every pair is tested (the grid below only skips pairs outside the
-            // gate boxes, which contain the gates; building it costs more than it saves).
+            // A small scan: every detection inside the track's gate box is tested, as the grid
+            // below finds them (building the grid costs more than it saves here).
+            let half = |inn: &Innovation<N, M>, i: usize| {
+                let h = (gate * var(inn, i)).sqrt();
+                if h.is_nan() {
+                    f64::INFINITY
+                } else {
+                    h
+                }
+            };
             for t in 0..preds.len() {
                 let inn = shared[t * ns + s].as_ref().ok_or_else(missing_innovation)?;
-                for k in 0..ids.len() {
-                    visit(t, inn, k, &mut err);
+                for (k, &d) in ids.iter().enumerate() {
+                    let z = dets.row(d, md);
+                    if (0..md).all(|i| (z[i] - inn.zhat[i]).abs() <= half(inn, i)) {
+                        visit(t, inn, k, &mut err);
+                    }
                 }
                 if let Some(e) = err.take() {
                     return Err(e);
