@@ -12,6 +12,7 @@ mod kalman;
 mod lidar;
 mod particle;
 mod stonesoup;
+mod stonesoup_scan;
 mod tracker;
 mod tracker_config;
 
@@ -45,5 +46,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     tracker::register(m)?;
     particle::register(m)?;
     stonesoup::register(m)?;
+    stonesoup_scan::register(m)?;
     Ok(())
 }
