@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from usvfast import kalman
+from usvfast import _core, kalman
 from usvfast.stonesoup import (
     PolarSensor,
     UnsupportedComponentError,
@@ -147,18 +147,13 @@ class _DropInTracker(StateBuilder):
         from stonesoup.types.track import Track
 
         self._track_cls = Track
-        from usvfast import _core
-
-        # Alive confirmed ids as a list (None: an older core; `track_ids` then).
-        self._confirmed_ids = getattr(_core, "confirmed_ids", None)
-        # A scan in one native call (None: an older core; see `_step`), for the detection
-        # classes in `_plain` (see `_plain_detection_class`).
-        self._fast_step = getattr(_core, "stonesoup_step", None)
+        # A scan in one native call (see `_step`), for the detection classes in `_plain`
+        # (see `_plain_detection_class`).
+        self._fast_step = _core.stonesoup_step
         self._plain: set[type] = set()
         self._noises: list[np.ndarray] = []  # the core sensors' noise covariances R
         self._inputs: dict[int, tuple] = {}  # see `StateBuilder._scan_inputs`
         self._newest_md: tuple[int, bool] = (-1, False)  # (scan, a detection has metadata)
-        self._tentative_first = getattr(_core, "tentative_first_scan", None)
         self._phases: dict = {}  # see `StateBuilder._phase`
         self._hr: dict = {}  # see `StateBuilder._linear_model`
 
@@ -275,8 +270,7 @@ class _DropInTracker(StateBuilder):
 
     def _step(self, time: Any, detections: Any):
         dets = list(detections)
-        fast = self._fast_step
-        if fast is not None and self._raw is not None:
+        if self._raw is not None:
             # Every detection of a known class, model and shape: read, stepped and the alive
             # ids listed in one native call (else None, and the long way below).
             t = (time - self._t0).total_seconds()
@@ -284,7 +278,9 @@ class _DropInTracker(StateBuilder):
             if len(noises) != len(self._sensor_specs):
                 noises[:] = [self._noise(i) for i in range(len(self._sensor_specs))]
             m = noises[0].shape[0]
-            got = fast(self._raw, t, dets, time, self._sensor_of_model, self._plain, noises, m)
+            got = self._fast_step(
+                self._raw, t, dets, time, self._sensor_of_model, self._plain, noises, m
+            )
             if got is not None:
                 alive, z, models, md = got
                 self._newest_models, self._newest_z = models, z
@@ -335,8 +331,7 @@ class _DropInTracker(StateBuilder):
         if self._raw is not None:
             # The core's own validation applies (NaN, sensor ids, covariances).
             self._raw.step(t, z, sids, covs, origins)
-            ids = self._confirmed_ids
-            alive = ids(self._raw) if ids is not None else self._raw.track_ids()[0].tolist()
+            alive = _core.confirmed_ids(self._raw)
         elif self._core is not None:
             alive = self._core.step(t, z, sids, covs, origins).ids.tolist()
         else:
@@ -393,14 +388,11 @@ class _DropInTracker(StateBuilder):
         # tentative tracks (a track confirmed later brings its whole tentative history). A
         # track confirmed since the last look was tentative then or started later: its first
         # scan is at least the boundary of that look (`_freed`).
-        if self._raw is not None and self._tentative_first is not None:
-            first = self._tentative_first(self._raw)
+        if self._raw is not None:
+            first = _core.tentative_first_scan(self._raw)
             oldest = min(self._scan if first is None else first, self._scan - 1)
         else:
-            if self._raw is not None:
-                firsts = self._raw.snapshot(tentative=True)["first_scan"]
-            else:
-                firsts = self._core.tentative_tracks.first_scan
+            firsts = self._core.tentative_tracks.first_scan
             oldest = min(int(firsts.min()) if len(firsts) else self._scan, self._scan - 1)
         pending = self._pending
         stale = [f for f in pending.values() if f.next_scan < self._scan - _LAZY_HORIZON]
