@@ -13,7 +13,10 @@ returns `metrics.json`'s content:
 - "detectors": Table 6.1 scores per sensor and object, and their totals, over the frames in
   which the object lies within the sensor's range and field of view;
 - "walls": tracks whose median position lies within `wall_distance` m of a harbour wall or
-  inside a pier polygon, and of a moored boat's outline (needs the scene).
+  inside a pier polygon, and of a moored boat's outline (needs the scene);
+- "groups": the thesis's run figures again for each group of target kinds (`GROUPS`):
+  "floats", the floating objects (every kind but the vessels), and "vessels", the boats under
+  way (`group_metrics`). "thesis" stays the pooled figure over every target.
 """
 
 from __future__ import annotations
@@ -25,7 +28,10 @@ from matplotlib.path import Path as MplPath
 
 from usvfast.metrics import (
     EXCLUDED_KINDS,
+    Consistency,
     FrameSequence,
+    ThesisMetrics,
+    average_consistency,
     detector_scores,
     gospa_metrics,
     hota_metrics,
@@ -35,6 +41,86 @@ from usvfast.metrics import (
     truth_at,
 )
 from usvfast.metrics.tables import Detections, Innovations, Nav, Tracks, Truth
+
+#: Truth kinds of the "vessels" group (boats under way); every other target kind is a
+#: floating object ("floats").
+VESSEL_KINDS = ("vessel",)
+#: The groups of target kinds reported apart: key -> label.
+GROUPS = {"floats": "floating objects", "vessels": "vessels"}
+
+
+def kind_group(kind: str) -> str:
+    """The group key (`GROUPS`) of a truth kind: "vessels" for `VESSEL_KINDS`, else "floats"."""
+    return "vessels" if kind in VESSEL_KINDS else "floats"
+
+
+def _dict(c: Consistency | None) -> dict[str, Any] | None:
+    return c.as_dict() if c is not None else None
+
+
+def track_groups(
+    th: ThesisMetrics, exclude_kinds: tuple[str, ...] = EXCLUDED_KINDS
+) -> dict[int, str]:
+    """Group key of every track matched to a truth object: the group of the kind of the object
+    it is matched to in most of its matched rows (ties: the lower object id). Tracks never
+    matched, and tracks matched mostly to an excluded kind (moored boats), are in no group."""
+    kinds = {o.object_id: o.kind for o in th.objects}
+    m = th.matches
+    out: dict[int, str] = {}
+    for tid in np.unique(m.track_id):
+        ids, counts = np.unique(m.object_id[m.track_id == tid], return_counts=True)
+        kind = kinds[int(ids[np.argmax(counts)])]
+        if kind not in exclude_kinds:
+            out[int(tid)] = kind_group(kind)
+    return out
+
+
+def group_metrics(
+    th: ThesisMetrics,
+    innovations: Innovations | None = None,
+    confidence: float = 0.95,
+    exclude_kinds: tuple[str, ...] = EXCLUDED_KINDS,
+) -> dict[str, dict[str, Any]]:
+    """The run's figures per group of target kinds (`GROUPS`), from the pooled `th` of
+    `thesis_metrics`: targets (the group's target objects) and how many are tracked, TPD,
+    TRF mean / max over the tracked ones, RMSE (m) and ANEES (χ² band) over the matched rows
+    of the group's targets, and ANIS (its own χ² band, also per sensor) over the innovations
+    of the group's tracks (`track_groups`: a track belongs to the group of the object it is
+    matched to most). Every group is listed, empty or not (NaN figures, None bands)."""
+    m = th.matches
+    by_track = track_groups(th, exclude_kinds)
+    out: dict[str, dict[str, Any]] = {}
+    for key, label in GROUPS.items():
+        targets = [o for o in th.objects if o.target and kind_group(o.kind) == key]
+        tracked = [o for o in targets if o.n_matches]
+        rows = np.isin(m.object_id, [o.object_id for o in targets])
+        good = rows & np.isfinite(m.nees)
+        err = m.error[rows]
+        g: dict[str, Any] = {
+            "label": label,
+            "n_targets": len(targets),
+            "targets_tracked": len(tracked),
+            "tpd": len(tracked) / len(targets) if targets else float("nan"),
+            "mean_trf": float(np.mean([o.trf for o in tracked])) if tracked else float("nan"),
+            "max_trf": max((o.trf for o in tracked), default=0),
+            "rmse": float(np.sqrt(np.mean(np.sum(err**2, axis=1)))) if len(err) else float("nan"),
+            "anees": _dict(average_consistency(m.nees[good], 2, confidence)),
+            "tracks": sorted(t for t, k in by_track.items() if k == key),
+            "anis": None,
+            "anis_by_sensor": {},
+        }
+        if innovations is not None and len(innovations.nis):
+            mine = np.isin(innovations.track_id, g["tracks"])
+            g["anis"] = _dict(
+                average_consistency(innovations.nis[mine], innovations.dof[mine], confidence)
+            )
+            for s in np.unique(innovations.sensor[mine]):
+                k = mine & (innovations.sensor == s)
+                g["anis_by_sensor"][str(s)] = _dict(
+                    average_consistency(innovations.nis[k], innovations.dof[k], confidence)
+                )
+        out[key] = g
+    return out
 
 
 def _frame_rows(times: np.ndarray, ids: np.ndarray, t0: float, period: float) -> np.ndarray:
@@ -228,8 +314,10 @@ def evaluate_run(
             "hota_zero_distance_m": hota_zero_distance,
             "confidence": confidence,
             "excluded_kinds": list(EXCLUDED_KINDS),
+            "groups": {"vessels": list(VESSEL_KINDS), "floats": "every other target kind"},
         },
         "thesis": th.as_dict(),
+        "groups": group_metrics(th, innovations, confidence),
     }
     if len(allt):
         seq = frame_sequence(

@@ -1,11 +1,13 @@
-"""The printed summary of a run's metrics (rich tables): the run's figures, then one row per
-truth object."""
+"""The printed summary of a run's metrics (rich tables): the run's figures, the figures by
+group of targets (every target pooled, the floating objects, the vessels: one row each), then
+one row per truth object."""
 
 from __future__ import annotations
 
 import math
 from typing import Any
 
+from rich import box
 from rich.console import Console
 from rich.table import Table
 
@@ -25,8 +27,47 @@ def _band(c: dict[str, Any] | None) -> str:
     return f"{c['mean']:.3f}  [{c['lower']:.3f}, {c['upper']:.3f}] {mark} (n={c['n']})"
 
 
+def _short(c: dict[str, Any] | None, fmt: str = "{:.2f}") -> str:
+    """ "mean [lower,upper]" of a χ² band, in red when the mean lies outside it."""
+    if not c:
+        return "–"
+    text = f"{fmt.format(c['mean'])} [{fmt.format(c['lower'])},{fmt.format(c['upper'])}]"
+    return text if c["inside"] else f"[red]{text}[/red]"
+
+
+def group_table(metrics: dict[str, Any]) -> Table | None:
+    """One row per group of targets: every target pooled (the "thesis" figures), then each
+    group of `metrics["groups"]` (`usvfast.report.evaluate.group_metrics`): targets tracked /
+    targets, TRF mean / max, RMSE m, ANIS and ANEES with their 95 % χ² bands (red: outside).
+    None when the metrics have no groups."""
+    groups = metrics.get("groups")
+    if not groups:
+        return None
+    th = metrics.get("thesis", {})
+    t = Table(
+        title="By group of targets (RMSE m; ANIS of the group's tracks; 95 % bands, red: out)",
+        box=box.SIMPLE_HEAD,
+        show_edge=False,
+        pad_edge=False,
+    )
+    for col in ("group", "tracked", "TRF", "RMSE", "ANIS", "ANEES"):
+        t.add_column(col, justify="left" if col == "group" else "right", no_wrap=True)
+    rows = [("all (pooled)", th)] + [(g.get("label", k), g) for k, g in groups.items()]
+    for name, g in rows:
+        t.add_row(
+            name,
+            f"{g.get('targets_tracked', '–')}/{g.get('n_targets', '–')}",
+            f"{_f(g.get('mean_trf'), '{:.2f}')}/{g.get('max_trf', '–')}",
+            _f(g.get("rmse")),
+            _short(g.get("anis")),
+            _short(g.get("anees"), "{:.1f}"),
+        )
+    return t
+
+
 def summary_tables(metrics: dict[str, Any]) -> list[Table]:
-    """The run table and the per-object table of a `metrics.json` dict."""
+    """The run table, the by-group table (when the metrics have groups) and the per-object
+    table of a `metrics.json` dict."""
     instance("metrics", metrics, dict)
     th = metrics.get("thesis", {})
     run = Table(title="Tracking metrics (thesis §4.3, matching §7.3.1)", show_lines=False)
@@ -104,7 +145,8 @@ def summary_tables(metrics: dict[str, Any]) -> list[Table]:
             _f(o["rmse"]),
             _f(a["mean"] if a else None, "{:.2f}"),
         )
-    return [run, per]
+    groups = group_table(metrics)
+    return [run, per] if groups is None else [run, groups, per]
 
 
 def print_summary(metrics: dict[str, Any], console: Console | None = None) -> None:
