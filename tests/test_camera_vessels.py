@@ -174,3 +174,34 @@ def test_vessel_tracker_stonesoup_backend_gives_the_same_track():
         b = soup.step(t, z, np.zeros(1, np.int64), cov)
         np.testing.assert_allclose(a.states, b.states, atol=1e-6)
     assert len(a.ids) == 1
+
+
+def test_low_boat_class_boxes_go_to_the_float_path():
+    from usvfast.camera.detect import Detections
+    from usvfast.pipeline import load_config
+    from usvfast.pipeline.camera_chain import CameraChain
+    from usvfast.pipeline.pose import VesselPose
+    from usvfast.pipeline.timing import StageTimer
+
+    path = Path(usvfast.__file__).parent / "data" / "harbour" / "recording.toml"
+    # a float-sized box (10 px, about 0.3 m at 10 m) and a hull-sized one (65 px), both
+    # called class 4 by the network
+    boxes = np.array([[300, 185, 330, 195], [480, 130, 560, 195]], float)
+
+    def detector(images):
+        return [Detections(boxes, np.array([0.8, 0.7]), np.array([4, 4]))]
+
+    pose = VesselPose(1000.0, 0.0, 0.0, 0.0)
+    results = {}
+    for low in (None, [4]):
+        over = {"camera.moving_classes": [4, 5], "camera.low_boat_classes": low}
+        cfg = load_config(path, {k: v for k, v in over.items() if v is not None})
+        chain = CameraChain(cfg.camera, detector, cfg.streams_of("camera")[0].mount, StageTimer())
+        results[str(low)] = chain.finish(chain.detect(np.zeros((360, 640, 3), np.uint8)), pose)
+    off, on = results["None"], results["[4]"]
+    # without the key both are boat boxes (the hull still has no history: nothing passes)
+    assert len(off.positions) == 0 and off.rejected.get("not_moving", 0) == 1
+    # with it the low box is a float detection in front of the camera, the hull stays a boat
+    assert len(on.positions) == 1 and on.vessel is not None and not on.vessel.any()
+    assert on.boxes[0].tolist() == boxes[0].tolist() and on.positions[0, 0] > 3.0
+    assert on.rejected.get("not_moving", 0) == 1

@@ -144,6 +144,8 @@ class CameraChain:
         self.depth_table = _depth_table(settings)
         moving = settings.get("moving_classes")
         self.moving_classes = None if moving is None else [int(c) for c in moving]
+        low = settings.get("low_boat_classes")
+        self.low_boat_classes = [] if low is None else [int(c) for c in low]
         self.boats = MovingBoats(
             history_s=float(settings.get("vessel_history_s", 2.0)),
             min_speed=float(settings.get("vessel_min_speed", 1.0)),
@@ -188,6 +190,9 @@ class CameraChain:
         boat = np.zeros(len(det.boxes), bool)
         if self.moving_classes is not None:
             boat = np.isin(det.classes, self.moving_classes)
+            if self.low_boat_classes and boat.any():
+                with tm("camera.vessels"):
+                    boat &= ~self._low_boats(det, ok, pose)
             reason[boat] = np.where(ok[boat], -1, reason[boat])
             ok &= ~boat
         positions = np.zeros((0, 2))
@@ -222,6 +227,25 @@ class CameraChain:
                 rejected["not_moving"] = still
             vessel = np.r_[np.zeros(len(positions) - len(vp), bool), np.ones(len(vp), bool)]
         return CameraResult(positions, covs, scores, boxes, len(det.boxes), rejected, vessel)
+
+    def _low_boats(self, det: Any, ok: np.ndarray, pose: VesselPose) -> np.ndarray:
+        """Mask (k,) of the boxes of camera.low_boat_classes that passed the filters and span
+        less than camera.vessel_min_height m above the water: too low for a hull and cabin,
+        they are floating objects that the network called boats (the float path takes them,
+        as it does without camera.moving_classes)."""
+        cand = ok & np.isin(det.classes, self.low_boat_classes)
+        low = np.zeros(len(det.boxes), bool)
+        if not cand.any():
+            return low
+        boxes = det.boxes[cand]
+        g = self._georeference(boxes, pose)
+        height = np.full(len(boxes), np.nan)
+        good = g.reason == OK
+        if good.any():
+            height[good] = self._box_height(boxes[good], g.positions[good], pose)
+        min_height = float(self.settings.get("vessel_min_height", 1.2))
+        low[np.flatnonzero(cand)] = good & (height < min_height)
+        return low
 
     def _vessels(
         self, boxes: np.ndarray, scores: np.ndarray, pose: VesselPose

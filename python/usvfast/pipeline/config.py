@@ -126,6 +126,9 @@ _CAMERA = {
     "vessel_history_s": ("float", 2.0),
     "vessel_min_frames": ("int", 5),
     "vessel_min_height": ("float", 1.2),
+    # Boxes of these moving classes that span less than vessel_min_height m above the water
+    # are floating objects the network called boats: the float path takes them.
+    "low_boat_classes": ("floats:0", None),
     "vessel_edge_margin_px": ("float", 16.0),
     "vessel_length": ("float", 6.0),
     "vessel_beam": ("float", 2.2),
