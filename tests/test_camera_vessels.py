@@ -193,12 +193,12 @@ def test_low_boat_class_boxes_go_to_the_float_path():
 
     pose = VesselPose(1000.0, 0.0, 0.0, 0.0)
     results = {}
-    for low in ([], [4]):
+    for low in ([3], [4]):  # [3]: no box of that class, as without the key
         cfg = load_config(path, {"camera.moving_classes": [4, 5], "camera.low_boat_classes": low})
         chain = CameraChain(cfg.camera, detector, cfg.streams_of("camera")[0].mount, StageTimer())
         results[str(low)] = chain.finish(chain.detect(np.zeros((360, 640, 3), np.uint8)), pose)
-    off, on = results["[]"], results["[4]"]
-    # without the key both are boat boxes (the hull still has no history: nothing passes)
+    off, on = results["[3]"], results["[4]"]
+    # with no low class both are boat boxes (the hull has no history yet: nothing passes)
     assert len(off.positions) == 0 and off.rejected.get("not_moving", 0) == 1
     # with it the low box is a float detection in front of the camera, the hull stays a boat
     assert len(on.positions) == 1 and on.vessel is not None and not on.vessel.any()
