@@ -126,3 +126,18 @@ def test_empty_group_and_the_printed_table(tmp_path):
     assert "all (pooled)" in rows and "floating objects" in rows and "vessels" in rows
     assert "2/2" in rows["all (pooled)"] and "0.100" in rows["floating objects"]
     assert f"{math.sqrt(2.5):.3f}" in rows["vessels"] and "2.00/2" in rows["vessels"]
+
+
+def test_bad_input_names_the_argument():
+    from usvfast.report.table import group_table
+
+    with pytest.raises(TypeError, match="metrics"):
+        group_table(0.0)  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match="th"):
+        group_metrics({"rmse": 0.1})  # type: ignore[arg-type]
+    th = thesis_metrics(_truth(), _tracks())
+    with pytest.raises(TypeError, match="innovations"):
+        group_metrics(th, innovations=[1.0])  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match="kind"):
+        kind_group(4)  # type: ignore[arg-type]
+    assert group_table({"thesis": {}}) is None

@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 from matplotlib.path import Path as MplPath
 
+from usvfast._validate import instance
 from usvfast.metrics import (
     EXCLUDED_KINDS,
     Consistency,
@@ -51,6 +52,7 @@ GROUPS = {"floats": "floating objects", "vessels": "vessels"}
 
 def kind_group(kind: str) -> str:
     """The group key (`GROUPS`) of a truth kind: "vessels" for `VESSEL_KINDS`, else "floats"."""
+    instance("kind", kind, str)
     return "vessels" if kind in VESSEL_KINDS else "floats"
 
 
@@ -64,6 +66,7 @@ def track_groups(
     """Group key of every track matched to a truth object: the group of the kind of the object
     it is matched to in most of its matched rows (ties: the lower object id). Tracks never
     matched, and tracks matched mostly to an excluded kind (moored boats), are in no group."""
+    instance("th", th, ThesisMetrics)
     kinds = {o.object_id: o.kind for o in th.objects}
     m = th.matches
     out: dict[int, str] = {}
@@ -87,6 +90,9 @@ def group_metrics(
     of the group's targets, and ANIS (its own χ² band, also per sensor) over the innovations
     of the group's tracks (`track_groups`: a track belongs to the group of the object it is
     matched to most). Every group is listed, empty or not (NaN figures, None bands)."""
+    instance("th", th, ThesisMetrics)
+    if innovations is not None:
+        instance("innovations", innovations, Innovations)
     m = th.matches
     by_track = track_groups(th, exclude_kinds)
     out: dict[str, dict[str, Any]] = {}

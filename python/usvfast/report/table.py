@@ -40,6 +40,7 @@ def group_table(metrics: dict[str, Any]) -> Table | None:
     group of `metrics["groups"]` (`usvfast.report.evaluate.group_metrics`): targets tracked /
     targets, TRF mean / max, RMSE m, ANIS and ANEES with their 95 % χ² bands (red: outside).
     None when the metrics have no groups."""
+    instance("metrics", metrics, dict)
     groups = metrics.get("groups")
     if not groups:
         return None
