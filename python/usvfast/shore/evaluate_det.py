@@ -55,6 +55,7 @@ from rich.table import Table
 from usvfast.shore.bayes import BayesDetector, BayesDetectorConfig
 from usvfast.shore.boxes import Detections
 from usvfast.shore.daynight import DayNightClassifier
+from usvfast.shore.errors import ErrorBreakdown
 from usvfast.shore.filters import ReflectionFilter, WakeFilter
 from usvfast.shore.horizon import HorizonConfig, HorizonLine, detect_horizon, horizon_keep
 from usvfast.shore.mardct import AnnotatedFrame, load_mardct
@@ -118,15 +119,18 @@ def score(
     extra: Callable[[np.ndarray, Detections], np.ndarray] | None = None,
 ) -> dict:
     """TPR, FAR, TP, FP, FN of per-frame detections after the horizon filter (when
-    `use_horizon`) and an extra filter `extra(image, detections) -> keep mask`."""
+    `use_horizon`) and an extra filter `extra(image, detections) -> keep mask`, and the
+    errors' causes (`errors`: :meth:`usvfast.shore.errors.ErrorBreakdown.summary`)."""
     c = DetectionCounts()
+    e = ErrorBreakdown()
     for f, im, hz, d in zip(video.frames, video.images, video.horizons, dets, strict=True):
         if use_horizon:
             d = d.subset(horizon_keep(d, hz, im.shape[0], hcfg))
         if extra is not None and len(d):
             d = d.subset(extra(im, d))
         c.add(f.boxes, d.boxes)
-    return {"tpr": c.tpr, "far": c.far, "tp": c.tp, "fp": c.fp, "fn": c.fn}
+        e.add(f.boxes, d.boxes)
+    return {"tpr": c.tpr, "far": c.far, "tp": c.tp, "fp": c.fp, "fn": c.fn, "errors": e.summary()}
 
 
 def f1(s: dict) -> float:
@@ -523,6 +527,44 @@ def print_tables(results: dict, console: Console | None = None) -> None:
     console.print(t)
 
 
+def print_breakdown(results: dict, console: Console | None = None) -> None:
+    """Where each row's errors are (:mod:`usvfast.shore.errors`): FP mislocalised (IoU
+    0.1–0.5 with an annotated box), duplicate, pure false; FN mislocalised, covered by a
+    box claimed elsewhere, missed; median area ratio (detection / annotated) and IoU of the
+    mislocalised pairs."""
+    console = console or Console(width=160)
+    t = Table(
+        title="Errors by cause (FP = mislocalised + duplicate + false; FN = mis + cov + missed)"
+    )
+    cols = ("video", "detector", "filters", "hz", "TP", "FP mis", "FP dup", "FP false")
+    for col in cols + ("FN mis", "FN cov", "FN missed", "area ×", "IoU"):
+        t.add_column(col)
+    for v, e in results.items():
+        for r in e["rows"]:
+            b = r["errors"]
+            t.add_row(
+                v,
+                r["detector"],
+                r["filters"] or "-",
+                "YES" if r["horizon"] else "NO",
+                *(
+                    str(b[k])
+                    for k in (
+                        "tp",
+                        "fp_mislocalised",
+                        "fp_duplicate",
+                        "fp_false",
+                        "fn_mislocalised",
+                        "fn_covered",
+                        "fn_missed",
+                    )
+                ),
+                f"{b['mislocalised_area_ratio']:.2f}",
+                f"{b['mislocalised_iou']:.2f}",
+            )
+    console.print(t)
+
+
 def main(argv: Sequence[str] | None = None) -> None:
     """Command-line entry point (module doc)."""
     from usvfast.shore.evaluate import default_data
@@ -541,6 +583,9 @@ def main(argv: Sequence[str] | None = None) -> None:
         help="CNN: second training round on the first model's false alarms",
     )
     p.add_argument("--json", type=Path, default=None, help="Write the results as JSON here")
+    p.add_argument(
+        "--breakdown", action="store_true", help="Also print where each row's errors are"
+    )
     a = p.parse_args(argv)
     unknown = set(a.detectors) - {"bayes", "cnn", "contrast", "fused", "change", "cascade"}
     if unknown:
@@ -554,6 +599,8 @@ def main(argv: Sequence[str] | None = None) -> None:
         hard_negatives=a.hard_negatives,
     )
     print_tables(results)
+    if a.breakdown:
+        print_breakdown(results)
     if a.json:
         a.json.write_text(json.dumps(results, indent=2, default=float), encoding="utf-8")
 
