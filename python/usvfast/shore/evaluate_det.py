@@ -3,7 +3,7 @@ frames, in the layout of Bloisi et al.'s Tables I–II (per video: horizon filte
 FAR, real and detection size).
 
     python -m usvfast.shore.evaluate_det [--data DIR]
-        [--detectors bayes cnn contrast fused change cascade]
+        [--detectors bayes cnn contrast fused change verified verified-contrast cascade]
         [--models DIR] [--steps N] [--hard-negatives] [--json OUT.json]
 
 For each video, every trained part is fitted on the three other videos only:
@@ -30,6 +30,12 @@ For each video, every trained part is fitted on the three other videos only:
   online (the previous frames only) and offline (previous and next); its change threshold,
   share of the frame's best score and contrast fallback are picked on the three other
   videos (:func:`pick`), for each of the two, and the default parameters scored beside.
+* verified / verified-contrast: every detector's candidates (the fold's CNN and contrast, or
+  contrast alone), each also re-fitted to the boat by the frame's contrast, rescored by a
+  boosted box verifier fitted on the three other videos, NMS across detectors; selection
+  picked by inner leave-one-video-out on those three (:mod:`usvfast.shore.verify_eval`).
+* cnn and fused, also after the overlap and containment suppression of
+  :mod:`usvfast.shore.suppress` (its pair picked on the three other videos).
 * cascade: the Haar cascade of :mod:`usvfast.shore.cascade` trained on the three other
   videos with 4 jittered copies of every boat as extra positives (slow: minutes per video),
   with and without the reflection filter.
@@ -79,6 +85,19 @@ FUSED_GRID: tuple[tuple[float, float], ...] = tuple(
 #: Change detector (threshold, share of the frame's best score, contrast fallback) tried.
 CHANGE_GRID: tuple[tuple[float, float, bool], ...] = tuple(
     (t, r, f) for t in (4.0, 5.0, 7.0) for r in (0.0, 0.8) for f in (True, False)
+)
+
+#: Overlap suppression (IoU, share of the smaller box inside the other) pairs tried; a
+#: containment above 1 never fires (plain NMS).
+SUPPRESS_GRID: tuple[tuple[float, float], ...] = (
+    (1.0, 1.01),
+    (0.45, 1.01),
+    (0.3, 1.01),
+    (0.2, 1.01),
+    (0.45, 0.7),
+    (0.3, 0.7),
+    (0.3, 0.5),
+    (0.2, 0.5),
 )
 
 #: The FAR bound of the aim (Bloisi et al.'s EO range); :func:`pick` maximises TPR under it.
@@ -147,10 +166,12 @@ def both_horizons(video, dets, hcfg, extra=None, label: str = "") -> list[dict]:
     ]
 
 
-def pick(candidates: Sequence, pooled: Callable[[object], dict]) -> object:
+def pick(
+    candidates: Sequence, pooled: Callable[[object], dict], low_far_ties: bool = False
+) -> object:
     """The candidate whose pooled scores on the training videos (`pooled(c)`: TP, FP, FN)
     have the highest TPR with FAR ≤ :data:`FAR_AIM`; when none reaches that FAR, the best
-    F1 (ties: the first)."""
+    F1 (ties: the first; with `low_far_ties`, among equal TPRs the lowest FAR)."""
     scored = [(c, pooled(c)) for c in candidates]
 
     def rate(s: dict) -> tuple[float, float]:
@@ -160,6 +181,8 @@ def pick(candidates: Sequence, pooled: Callable[[object], dict]) -> object:
 
     ok = [(c, s) for c, s in scored if rate(s)[1] <= FAR_AIM and s["tp"] > 0]
     if ok:
+        if low_far_ties:
+            return max(ok, key=lambda cs: (rate(cs[1])[0], -rate(cs[1])[1]))[0]
         return max(ok, key=lambda cs: rate(cs[1])[0])[0]
     return max(scored, key=lambda cs: f1(cs[1]))[0]
 
@@ -242,6 +265,9 @@ def fused_rows(
         {"detector": f"fused ≥ {t:g}, ≥ {r:g} × best (picked on the others)", **row}
         for row in both_horizons(videos[held], kept(t, r)[held], hcfg)
     ]
+    fused_t = {v: kept(t, r)[v] for v in videos}
+    sup, sup_rows = suppression_rows(videos, held, fused_t, hcfg, f"fused ≥ {t:g}, ≥ {r:g} × best")
+    rows += sup_rows
     for tt, rr in ((0.2, 0.0), (0.3, 0.0), (0.1, 0.9), (0.2, 0.8), (0.2, 0.9)):
         rows.append(
             {
@@ -251,7 +277,51 @@ def fused_rows(
                 **score(videos[held], kept(tt, rr)[held], hcfg, True),
             }
         )
-    return rows, {"fused_threshold": t, "fused_relative": r, "cnn_model": path.name}
+    return rows, {
+        "fused_threshold": t,
+        "fused_relative": r,
+        "fused_suppression": list(sup),
+        "cnn_model": path.name,
+    }
+
+
+def suppression_rows(
+    videos: dict[str, VideoFrames],
+    held: str,
+    dets: dict,
+    hcfg: HorizonConfig,
+    label: str,
+) -> tuple[tuple[float, float], list[dict]]:
+    """Rows of per-video detections `dets[v]` after the overlap and containment suppression
+    of :mod:`usvfast.shore.suppress`, its (IoU, containment) pair picked on the three other
+    videos (:func:`pick`, equal TPRs: lowest FAR), with both horizon settings; then the
+    shipped pair."""
+    from usvfast.shore.suppress import SUPPRESS_CONTAIN, SUPPRESS_NMS, suppress
+
+    cache: dict = {}
+
+    def sup(nc: tuple[float, float]) -> dict:
+        if nc not in cache:
+            cache[nc] = {v: [suppress(d, *nc) for d in ds] for v, ds in dets.items()}
+        return cache[nc]
+
+    train = [v for v in videos if v != held]
+    nc = pick(SUPPRESS_GRID, lambda c: pooled_score(videos, train, sup(c), hcfg), True)  # pyright: ignore[reportArgumentType]
+    n, c = nc  # pyright: ignore[reportGeneralTypeIssues]
+    rows = [
+        {"detector": f"{label} + suppression IoU {n:g}, inside {c:g} (picked)", **row}
+        for row in both_horizons(videos[held], sup((n, c))[held], hcfg)
+    ]
+    shipped = (SUPPRESS_NMS, SUPPRESS_CONTAIN)
+    rows.append(
+        {
+            "detector": f"{label} + suppression IoU {shipped[0]:g}, inside {shipped[1]:g}",
+            "horizon": True,
+            "filters": "",
+            **score(videos[held], sup(shipped)[held], hcfg, True),
+        }
+    )
+    return (n, c), rows
 
 
 def change_rows(
@@ -409,6 +479,12 @@ def cnn_rows(
             {"detector": f"cnn (confidence {conf:g})", **r}
             for r in both_horizons(videos[held], dets, hcfg, extra, label)
         ]
+    per_video = {
+        v: (dets if v == held else [d.subset(d.scores >= conf) for d in map(low.detect, vf.images)])
+        for v, vf in videos.items()
+    }
+    sup, sup_rows = suppression_rows(videos, held, per_video, hcfg, f"cnn (confidence {conf:g})")
+    rows += sup_rows
     for c in CNN_SWEEP:
         if c != conf:
             sub = [d.subset(d.scores >= c) for d in swept]
@@ -425,6 +501,7 @@ def cnn_rows(
         "cnn_conf": conf,
         "cnn_train_s": card.get("train_seconds"),
         "wake_train_s": round(wake_s, 1),
+        "cnn_suppression": list(sup),
     }
     return rows, info
 
@@ -495,6 +572,15 @@ def evaluate(
             entry.update(info)
         if "change" in detectors:
             entry["rows"] += change_rows(videos, held, hcfg, cache)
+        if "verified" in detectors or "verified-contrast" in detectors:
+            from usvfast.shore.verify_eval import verified_rows
+
+            for kind in ("verified", "verified-contrast"):
+                if kind in detectors:
+                    path = cnn_model(data, held, models, steps, log) if kind == "verified" else None
+                    rows, info = verified_rows(videos, held, hcfg, path, score, both_horizons, pick)
+                    entry["rows"] += rows
+                    entry.update(info)
         if "cascade" in detectors:
             rows, info = cascade_rows(videos, mardct, held, hcfg)
             entry["rows"] += rows
@@ -537,7 +623,7 @@ def print_breakdown(results: dict, console: Console | None = None) -> None:
         title="Errors by cause (FP = mislocalised + duplicate + false; FN = mis + cov + missed)"
     )
     cols = ("video", "detector", "filters", "hz", "TP", "FP mis", "FP dup", "FP false")
-    for col in cols + ("FN mis", "FN cov", "FN missed", "area ×", "IoU"):
+    for col in (*cols, "FN mis", "FN cov", "FN missed", "area ×", "IoU"):
         t.add_column(col)
     for v, e in results.items():
         for r in e["rows"]:
@@ -587,7 +673,16 @@ def main(argv: Sequence[str] | None = None) -> None:
         "--breakdown", action="store_true", help="Also print where each row's errors are"
     )
     a = p.parse_args(argv)
-    unknown = set(a.detectors) - {"bayes", "cnn", "contrast", "fused", "change", "cascade"}
+    unknown = set(a.detectors) - {
+        "bayes",
+        "cnn",
+        "contrast",
+        "fused",
+        "change",
+        "cascade",
+        "verified",
+        "verified-contrast",
+    }
     if unknown:
         p.error(f"--detectors: unknown {sorted(unknown)}")
     results = evaluate(
