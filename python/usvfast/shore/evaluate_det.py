@@ -49,23 +49,24 @@ from __future__ import annotations
 import argparse
 import json
 import time
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from collections.abc import Sequence
 from pathlib import Path
 
-import cv2
-import numpy as np
-from rich.console import Console
-from rich.table import Table
-
 from usvfast.shore.bayes import BayesDetector, BayesDetectorConfig
-from usvfast.shore.boxes import Detections
-from usvfast.shore.daynight import DayNightClassifier
-from usvfast.shore.errors import ErrorBreakdown
+from usvfast.shore.det_scoring import (  # noqa: F401  (re-exported)
+    FAR_AIM,
+    VideoFrames,
+    both_horizons,
+    f1,
+    load_video,
+    pick,
+    pooled_score,
+    score,
+)
+from usvfast.shore.det_tables import print_breakdown, print_tables
 from usvfast.shore.filters import ReflectionFilter, WakeFilter
-from usvfast.shore.horizon import HorizonConfig, HorizonLine, detect_horizon, horizon_keep
+from usvfast.shore.horizon import HorizonConfig
 from usvfast.shore.mardct import AnnotatedFrame, load_mardct
-from usvfast.shore.scores import DetectionCounts
 
 #: CNN confidence thresholds also scored (horizon on, no filter) beside the card's own.
 CNN_SWEEP: tuple[float, ...] = (0.2, 0.3, 0.4)
@@ -100,102 +101,9 @@ SUPPRESS_GRID: tuple[tuple[float, float], ...] = (
     (0.2, 0.5),
 )
 
-#: The FAR bound of the aim (Bloisi et al.'s EO range); :func:`pick` maximises TPR under it.
-FAR_AIM = 0.15
 
 #: EO thresholds tried when fitting the Bayes detector's level on the training videos.
 THRESHOLD_GRID: tuple[float, ...] = (40, 60, 80, 100, 120, 140, 160, 180, 200, 220)
-
-
-@dataclass
-class VideoFrames:
-    """The frames of one video in memory with their horizons (None: no valid line)."""
-
-    frames: list[AnnotatedFrame]
-    images: list[np.ndarray]
-    horizons: list[HorizonLine | None]
-
-
-def load_video(frames: Sequence[AnnotatedFrame], hcfg: HorizonConfig) -> VideoFrames:
-    """Read a video's frames and find each frame's horizon (IR frames normalised first)."""
-    classifier = DayNightClassifier.default()
-    images, horizons = [], []
-    for f in frames:
-        image = cv2.imread(str(f.path), cv2.IMREAD_COLOR)
-        if image is None:
-            raise ValueError(f"data: cannot read {f.path}")
-        images.append(image)
-        ir = classifier.classify(image) == "ir"
-        horizons.append(detect_horizon(image, infrared=ir, config=hcfg))
-    return VideoFrames(list(frames), images, horizons)
-
-
-def score(
-    video: VideoFrames,
-    dets: Sequence[Detections],
-    hcfg: HorizonConfig,
-    use_horizon: bool,
-    extra: Callable[[np.ndarray, Detections], np.ndarray] | None = None,
-) -> dict:
-    """TPR, FAR, TP, FP, FN of per-frame detections after the horizon filter (when
-    `use_horizon`) and an extra filter `extra(image, detections) -> keep mask`, and the
-    errors' causes (`errors`: :meth:`usvfast.shore.errors.ErrorBreakdown.summary`)."""
-    c = DetectionCounts()
-    e = ErrorBreakdown()
-    for f, im, hz, d in zip(video.frames, video.images, video.horizons, dets, strict=True):
-        if use_horizon:
-            d = d.subset(horizon_keep(d, hz, im.shape[0], hcfg))
-        if extra is not None and len(d):
-            d = d.subset(extra(im, d))
-        c.add(f.boxes, d.boxes)
-        e.add(f.boxes, d.boxes)
-    return {"tpr": c.tpr, "far": c.far, "tp": c.tp, "fp": c.fp, "fn": c.fn, "errors": e.summary()}
-
-
-def f1(s: dict) -> float:
-    """2 TP / (2 TP + FP + FN) (0 without any box)."""
-    n = 2 * s["tp"] + s["fp"] + s["fn"]
-    return 2 * s["tp"] / n if n else 0.0
-
-
-def both_horizons(video, dets, hcfg, extra=None, label: str = "") -> list[dict]:
-    """Rows with the horizon filter off and on."""
-    return [
-        {"horizon": h, "filters": label, **score(video, dets, hcfg, h, extra)}
-        for h in (False, True)
-    ]
-
-
-def pick(
-    candidates: Sequence, pooled: Callable[[object], dict], low_far_ties: bool = False
-) -> object:
-    """The candidate whose pooled scores on the training videos (`pooled(c)`: TP, FP, FN)
-    have the highest TPR with FAR ≤ :data:`FAR_AIM`; when none reaches that FAR, the best
-    F1 (ties: the first; with `low_far_ties`, among equal TPRs the lowest FAR)."""
-    scored = [(c, pooled(c)) for c in candidates]
-
-    def rate(s: dict) -> tuple[float, float]:
-        tpr = s["tp"] / max(s["tp"] + s["fn"], 1)
-        far = s["fp"] / max(s["tp"] + s["fp"], 1)
-        return tpr, far
-
-    ok = [(c, s) for c, s in scored if rate(s)[1] <= FAR_AIM and s["tp"] > 0]
-    if ok:
-        if low_far_ties:
-            return max(ok, key=lambda cs: (rate(cs[1])[0], -rate(cs[1])[1]))[0]
-        return max(ok, key=lambda cs: rate(cs[1])[0])[0]
-    return max(scored, key=lambda cs: f1(cs[1]))[0]
-
-
-def pooled_score(
-    videos: dict[str, VideoFrames], names: Sequence[str], dets: dict, hcfg: HorizonConfig
-) -> dict:
-    """TP, FP, FN summed over videos `names` of per-video detections `dets[v]` (horizon on)."""
-    tot = {"tp": 0, "fp": 0, "fn": 0}
-    for v in names:
-        s = score(videos[v], dets[v], hcfg, True)
-        tot = {k: tot[k] + s[k] for k in tot}
-    return tot
 
 
 def contrast_rows(
@@ -578,7 +486,7 @@ def evaluate(
             for kind in ("verified", "verified-contrast"):
                 if kind in detectors:
                     path = cnn_model(data, held, models, steps, log) if kind == "verified" else None
-                    rows, info = verified_rows(videos, held, hcfg, path, score, both_horizons, pick)
+                    rows, info = verified_rows(videos, held, hcfg, path)
                     entry["rows"] += rows
                     entry.update(info)
         if "cascade" in detectors:
@@ -588,67 +496,6 @@ def evaluate(
         out[held] = entry
         log(f"{held}: done")
     return out
-
-
-def print_tables(results: dict, console: Console | None = None) -> None:
-    """Tables I–II layout: video, detector, filters, horizon, TPR, FAR, counts, size."""
-    console = console or Console(width=140)
-    t = Table(title="Detection, MarDCT leave one video out (IoU ≥ 0.5)")
-    for col in ("video", "detector", "filters", "horizon", "TPR", "FAR", "TP", "FP", "FN", "size"):
-        t.add_column(col)
-    for v, e in results.items():
-        for r in e["rows"]:
-            t.add_row(
-                v,
-                r["detector"],
-                r["filters"] or "-",
-                "YES" if r["horizon"] else "NO",
-                f"{r['tpr']:.3f}",
-                f"{r['far']:.3f}",
-                str(r["tp"]),
-                str(r["fp"]),
-                str(r["fn"]),
-                f"{e['size'][0]}×{e['size'][1]}",
-            )
-    console.print(t)
-
-
-def print_breakdown(results: dict, console: Console | None = None) -> None:
-    """Where each row's errors are (:mod:`usvfast.shore.errors`): FP mislocalised (IoU
-    0.1–0.5 with an annotated box), duplicate, pure false; FN mislocalised, covered by a
-    box claimed elsewhere, missed; median area ratio (detection / annotated) and IoU of the
-    mislocalised pairs."""
-    console = console or Console(width=160)
-    t = Table(
-        title="Errors by cause (FP = mislocalised + duplicate + false; FN = mis + cov + missed)"
-    )
-    cols = ("video", "detector", "filters", "hz", "TP", "FP mis", "FP dup", "FP false")
-    for col in (*cols, "FN mis", "FN cov", "FN missed", "area ×", "IoU"):
-        t.add_column(col)
-    for v, e in results.items():
-        for r in e["rows"]:
-            b = r["errors"]
-            t.add_row(
-                v,
-                r["detector"],
-                r["filters"] or "-",
-                "YES" if r["horizon"] else "NO",
-                *(
-                    str(b[k])
-                    for k in (
-                        "tp",
-                        "fp_mislocalised",
-                        "fp_duplicate",
-                        "fp_false",
-                        "fn_mislocalised",
-                        "fn_covered",
-                        "fn_missed",
-                    )
-                ),
-                f"{b['mislocalised_area_ratio']:.2f}",
-                f"{b['mislocalised_iou']:.2f}",
-            )
-    console.print(t)
 
 
 def main(argv: Sequence[str] | None = None) -> None:

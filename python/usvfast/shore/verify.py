@@ -89,7 +89,8 @@ def refit_boxes(
         if x1 - x0 < 2 or y1 - y0 < 2:
             continue
         m = (z[y0:y1, x0:x1] > threshold).astype(np.uint8)
-        k = (max(1, round(bw * 0.15)), max(1, round(bh * 0.15)))
+        # odd kernel sizes: an even one shifts the closed mask by a pixel
+        k = (2 * round(bw * 0.075) + 1, 2 * round(bh * 0.075) + 1)
         m = cv2.morphologyEx(m, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_RECT, k))
         n, labels, stats, _ = cv2.connectedComponentsWithStats(m, connectivity=8)
         if n <= 1:
@@ -97,10 +98,10 @@ def refit_boxes(
         cx0, cy0 = int(x + bw / 4) - x0, int(y + bh / 4) - y0
         cx1, cy1 = int(np.ceil(x + 3 * bw / 4)) - x0, int(np.ceil(y + 3 * bh / 4)) - y0
         core = labels[max(cy0, 0) : max(cy1, cy0 + 1), max(cx0, 0) : max(cx1, cx0 + 1)]
-        ids = np.unique(core[core > 0])
+        ids = np.unique(core[core > 0]).astype(np.intp)
         if len(ids) == 0:
             continue
-        st = stats[ids]
+        st = np.asarray(stats)[ids]
         ex0, ey0 = st[:, 0].min(), st[:, 1].min()
         ex1, ey1 = (st[:, 0] + st[:, 2]).max(), (st[:, 1] + st[:, 3]).max()
         out[i] = np.array([x0 + ex0, y0 + ey0, ex1 - ex0, ey1 - ey0], float) / scale

@@ -20,12 +20,16 @@ import numpy as np
 
 from usvfast.shore.boxes import Detections
 from usvfast.shore.contrast import ContrastConfig
+from usvfast.shore.det_scoring import both_horizons, pick, score
 from usvfast.shore.horizon import HorizonConfig
 from usvfast.shore.verify import BoxVerifier, Candidates, best_iou, candidates, select
 
 #: Selection settings (score threshold, share of the frame's best score, NMS IoU) tried.
 SELECT_GRID: tuple[tuple[float, float, float], ...] = tuple(
-    (t, r, n) for t in (0.2, 0.3, 0.4, 0.5, 0.6) for r in (0.0, 0.5, 0.8) for n in (0.2, 0.4)
+    (t, r, n)
+    for t in (0.05, 0.1, 0.15, 0.2, 0.3, 0.4, 0.5)
+    for r in (0.0, 0.5, 0.7, 0.9)
+    for n in (0.2, 0.4)
 )
 
 #: CNN proposals' confidence floor and NMS IoU.
@@ -74,17 +78,11 @@ def _dets(cands: list[Candidates], scores: list[np.ndarray], setting) -> list[De
 
 
 def verified_rows(
-    videos: dict,
-    held: str,
-    hcfg: HorizonConfig,
-    cnn_path: Path | None,
-    score,
-    both_horizons,
-    pooled_pick,
+    videos: dict, held: str, hcfg: HorizonConfig, cnn_path: Path | None
 ) -> tuple[list[dict], dict]:
-    """Rows for held-out video `held` (module doc). `cnn_path`: the fold's ONNX model (None:
-    contrast proposals only); `score`, `both_horizons` and `pooled_pick(grid, pooled)` are
-    :mod:`usvfast.shore.evaluate_det`'s scorers and :func:`pick`."""
+    """Rows for held-out video `held` (module doc). `videos`: every video's
+    :class:`usvfast.shore.det_scoring.VideoFrames`; `cnn_path`: the fold's ONNX model (None:
+    contrast proposals only)."""
     from usvfast.shore.cnn import CnnDetector
 
     cnn = (
@@ -106,7 +104,7 @@ def verified_rows(
             tot = {k: tot[k] + s[k] for k in tot}
         return tot
 
-    setting = pooled_pick(SELECT_GRID, pooled)
+    setting: tuple[float, float, float] = pick(SELECT_GRID, pooled)  # pyright: ignore[reportAssignmentType]
     model = _fit(videos, cands, train)
     held_scores = [model.predict(c.features) for c in cands[held]]
     src = "cnn+contrast" if cnn is not None else "contrast only"
