@@ -167,3 +167,31 @@ def test_candidates_features_and_a_verifier_that_learns_the_boat():
     assert box_features(
         img, None, np.zeros((240, 320)), 1.0, np.zeros((0, 4)), *[np.zeros(0)] * 2, cnn, cnn, 3.0
     ).shape == (0, n_features())
+
+
+def test_suppression_pair_is_picked_on_the_other_videos_and_breakdown_prints():
+    from io import StringIO
+
+    from rich.console import Console
+
+    from usvfast.shore.det_scoring import VideoFrames
+    from usvfast.shore.det_tables import print_breakdown
+    from usvfast.shore.evaluate_det import suppression_rows
+    from usvfast.shore.horizon import HorizonConfig
+    from usvfast.shore.mardct import AnnotatedFrame
+
+    ship = np.array([[100.0, 100, 200, 40]])
+    part = np.array([[110.0, 105, 50, 30]])  # a bow box inside the ship
+    img = np.zeros((240, 400, 3), np.uint8)
+    videos, dets = {}, {}
+    for v in ("a", "b", "c"):
+        frames = [AnnotatedFrame(v, k, __file__, ship) for k in range(3)]  # pyright: ignore[reportArgumentType]
+        videos[v] = VideoFrames(frames, [img] * 3, [None] * 3)
+        d = Detections(np.concatenate([ship, part]), np.array([0.9, 0.8]), np.full(2, -1))
+        dets[v] = [d] * 3
+    (_, c), rows = suppression_rows(videos, "a", dets, HorizonConfig(), "toy")
+    assert c <= 0.7  # only containment removes the bow box; equal TPR, lowest FAR wins
+    assert rows[0]["tp"] == 3 and rows[0]["fp"] == 0
+    out = StringIO()
+    print_breakdown({"a": {"rows": rows}}, Console(file=out, width=200))
+    assert "toy" in out.getvalue()
