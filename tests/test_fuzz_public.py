@@ -72,6 +72,7 @@ MODULES = [
     "usvfast.shore.fused",
     "usvfast.shore.register",
     "usvfast.shore.change",
+    "usvfast.shore.suppress",
     "usvfast.fusion.associate",
     "usvfast.fusion.rotation",
     "usvfast.fusion.visual",

@@ -22,7 +22,8 @@ round of :mod:`usvfast.shore.cnn_mining`, else `shore-cnn-without-VIDEO.onnx`; t
 card's confidence threshold (chosen on the training videos), detection and tracking rows.
 `--detector contrast` scores the training-free detector of :mod:`usvfast.shore.contrast`
 and `--detector fused` the fold's CNN rescored by it (:mod:`usvfast.shore.fused`, its
-default thresholds). `--detector change` scores the temporal change detector of
+default thresholds; `fused-nms` then also the overlap and containment suppression of
+:mod:`usvfast.shore.suppress`). `--detector change` scores the temporal change detector of
 :mod:`usvfast.shore.change` (online: each annotated frame against the registered median of
 the previous ones; default parameters).
 
@@ -162,6 +163,19 @@ def cnn_row(frames: Sequence[AnnotatedFrame], cache: FrameCache, models: Path, h
     return row
 
 
+class _Suppressed:
+    """A detector's boxes after the overlap and containment suppression of
+    :mod:`usvfast.shore.suppress` (its shipped IoU and containment)."""
+
+    def __init__(self, det) -> None:
+        self.det = det
+
+    def detect(self, image, horizon=None) -> Detections:
+        from usvfast.shore.suppress import suppress
+
+        return suppress(self.det.detect(image, horizon))
+
+
 def cue_row(
     frames: Sequence[AnnotatedFrame],
     cache: FrameCache,
@@ -180,13 +194,15 @@ def cue_row(
 
     det: object
     row: dict = {}
-    if name == "fused":
+    if name in ("fused", "fused-nms"):
         from usvfast.shore.cnn import CnnDetector
         from usvfast.shore.fused import FUSED_CNN_FLOOR, FusedDetector
 
         path = cnn_fold_model(models or Path(), held)
         det = FusedDetector(CnnDetector(path, conf_threshold=FUSED_CNN_FLOOR))
         row["fused_model"] = path.name
+        if name == "fused-nms":
+            det = _Suppressed(det)
     else:
         det = ContrastDetector()
     if name == "change":
@@ -221,13 +237,13 @@ def evaluate(
     """Leave-one-video-out results per video (module doc); a JSON-ready dict. With `cascade`,
     a Haar cascade is also trained on the three other videos and scored. `detectors`:
     'bayes' and/or 'cnn' (the latter needs `models`, see :func:`cnn_fold_model`)."""
-    unknown = set(detectors) - {"bayes", "cnn", "contrast", "fused", "change"}
+    unknown = set(detectors) - {"bayes", "cnn", "contrast", "fused", "fused-nms", "change"}
     if unknown or not detectors:
         raise ValueError(
-            "detectors: expected 'bayes', 'cnn', 'contrast', 'fused', 'change', got "
+            "detectors: expected 'bayes', 'cnn', 'contrast', 'fused', 'fused-nms', 'change', got "
             f"{list(detectors)}"
         )
-    if {"cnn", "fused"} & set(detectors) and models is None:
+    if {"cnn", "fused", "fused-nms"} & set(detectors) and models is None:
         raise ValueError("models: the cnn detector needs the folder of its fold models")
     all_videos = load_mardct(data)
     names = list(videos) if videos else list(all_videos)
@@ -243,7 +259,7 @@ def evaluate(
                 extra = cnn_row(frames, cache, models or Path(), v)
                 row["tracking"].update(extra.pop("tracking"))
                 row.update(extra)
-            for name in ("contrast", "fused", "change"):
+            for name in ("contrast", "fused", "fused-nms", "change"):
                 if name in detectors:
                     extra = cue_row(frames, cache, name, models, v)
                     row["tracking"].update(extra.pop("tracking"))
@@ -335,6 +351,8 @@ def print_tables(results: dict, console: Console | None = None) -> None:
             rows.append(("contrast", "contrast (training-free)"))
         if "fused_horizon" in r:
             rows.append(("fused", f"fused ({r['fused_model']} + contrast)"))
+        if "fused-nms_horizon" in r:
+            rows.append(("fused-nms", f"fused ({r['fused_model']} + contrast) + suppression"))
         if "change_horizon" in r:
             rows.append(("change", "change (online, registered median of the previous frames)"))
         for label, name in rows:
@@ -405,12 +423,12 @@ def main(argv: Sequence[str] | None = None) -> None:
         "--detector",
         nargs="+",
         default=["bayes"],
-        choices=["bayes", "cnn", "contrast", "fused", "change"],
+        choices=["bayes", "cnn", "contrast", "fused", "fused-nms", "change"],
         help="Detectors",
     )
     p.add_argument("--models", type=Path, default=None, help="CNN fold models (evaluate_det)")
     a = p.parse_args(argv)
-    if {"cnn", "fused"} & set(a.detector) and a.models is None:
+    if {"cnn", "fused", "fused-nms"} & set(a.detector) and a.models is None:
         p.error("--models: the cnn and fused detectors need the folder of its fold models")
     cascade = None if a.no_cascade or "bayes" not in a.detector else CascadeConfig()
     results = evaluate(

@@ -3,7 +3,7 @@ frames, in the layout of Bloisi et al.'s Tables I–II (per video: horizon filte
 FAR, real and detection size).
 
     python -m usvfast.shore.evaluate_det [--data DIR]
-        [--detectors bayes cnn contrast fused change cascade]
+        [--detectors bayes cnn contrast fused change verified verified-contrast cascade]
         [--models DIR] [--steps N] [--hard-negatives] [--json OUT.json]
 
 For each video, every trained part is fitted on the three other videos only:
@@ -30,6 +30,12 @@ For each video, every trained part is fitted on the three other videos only:
   online (the previous frames only) and offline (previous and next); its change threshold,
   share of the frame's best score and contrast fallback are picked on the three other
   videos (:func:`pick`), for each of the two, and the default parameters scored beside.
+* verified / verified-contrast: every detector's candidates (the fold's CNN and contrast, or
+  contrast alone), each also re-fitted to the boat by the frame's contrast, rescored by a
+  boosted box verifier fitted on the three other videos, NMS across detectors; selection
+  picked by inner leave-one-video-out on those three (:mod:`usvfast.shore.verify_eval`).
+* cnn and fused, also after the overlap and containment suppression of
+  :mod:`usvfast.shore.suppress` (its pair picked on the three other videos).
 * cascade: the Haar cascade of :mod:`usvfast.shore.cascade` trained on the three other
   videos with 4 jittered copies of every boat as extra positives (slow: minutes per video),
   with and without the reflection filter.
@@ -43,22 +49,24 @@ from __future__ import annotations
 import argparse
 import json
 import time
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from collections.abc import Sequence
 from pathlib import Path
 
-import cv2
-import numpy as np
-from rich.console import Console
-from rich.table import Table
-
 from usvfast.shore.bayes import BayesDetector, BayesDetectorConfig
-from usvfast.shore.boxes import Detections
-from usvfast.shore.daynight import DayNightClassifier
+from usvfast.shore.det_scoring import (  # noqa: F401  (re-exported)
+    FAR_AIM,
+    VideoFrames,
+    both_horizons,
+    f1,
+    load_video,
+    pick,
+    pooled_score,
+    score,
+)
+from usvfast.shore.det_tables import print_breakdown, print_tables
 from usvfast.shore.filters import ReflectionFilter, WakeFilter
-from usvfast.shore.horizon import HorizonConfig, HorizonLine, detect_horizon, horizon_keep
+from usvfast.shore.horizon import HorizonConfig
 from usvfast.shore.mardct import AnnotatedFrame, load_mardct
-from usvfast.shore.scores import DetectionCounts
 
 #: CNN confidence thresholds also scored (horizon on, no filter) beside the card's own.
 CNN_SWEEP: tuple[float, ...] = (0.2, 0.3, 0.4)
@@ -80,95 +88,22 @@ CHANGE_GRID: tuple[tuple[float, float, bool], ...] = tuple(
     (t, r, f) for t in (4.0, 5.0, 7.0) for r in (0.0, 0.8) for f in (True, False)
 )
 
-#: The FAR bound of the aim (Bloisi et al.'s EO range); :func:`pick` maximises TPR under it.
-FAR_AIM = 0.15
+#: Overlap suppression (IoU, share of the smaller box inside the other) pairs tried; a
+#: containment above 1 never fires (plain NMS).
+SUPPRESS_GRID: tuple[tuple[float, float], ...] = (
+    (1.0, 1.01),
+    (0.45, 1.01),
+    (0.3, 1.01),
+    (0.2, 1.01),
+    (0.45, 0.7),
+    (0.3, 0.7),
+    (0.3, 0.5),
+    (0.2, 0.5),
+)
+
 
 #: EO thresholds tried when fitting the Bayes detector's level on the training videos.
 THRESHOLD_GRID: tuple[float, ...] = (40, 60, 80, 100, 120, 140, 160, 180, 200, 220)
-
-
-@dataclass
-class VideoFrames:
-    """The frames of one video in memory with their horizons (None: no valid line)."""
-
-    frames: list[AnnotatedFrame]
-    images: list[np.ndarray]
-    horizons: list[HorizonLine | None]
-
-
-def load_video(frames: Sequence[AnnotatedFrame], hcfg: HorizonConfig) -> VideoFrames:
-    """Read a video's frames and find each frame's horizon (IR frames normalised first)."""
-    classifier = DayNightClassifier.default()
-    images, horizons = [], []
-    for f in frames:
-        image = cv2.imread(str(f.path), cv2.IMREAD_COLOR)
-        if image is None:
-            raise ValueError(f"data: cannot read {f.path}")
-        images.append(image)
-        ir = classifier.classify(image) == "ir"
-        horizons.append(detect_horizon(image, infrared=ir, config=hcfg))
-    return VideoFrames(list(frames), images, horizons)
-
-
-def score(
-    video: VideoFrames,
-    dets: Sequence[Detections],
-    hcfg: HorizonConfig,
-    use_horizon: bool,
-    extra: Callable[[np.ndarray, Detections], np.ndarray] | None = None,
-) -> dict:
-    """TPR, FAR, TP, FP, FN of per-frame detections after the horizon filter (when
-    `use_horizon`) and an extra filter `extra(image, detections) -> keep mask`."""
-    c = DetectionCounts()
-    for f, im, hz, d in zip(video.frames, video.images, video.horizons, dets, strict=True):
-        if use_horizon:
-            d = d.subset(horizon_keep(d, hz, im.shape[0], hcfg))
-        if extra is not None and len(d):
-            d = d.subset(extra(im, d))
-        c.add(f.boxes, d.boxes)
-    return {"tpr": c.tpr, "far": c.far, "tp": c.tp, "fp": c.fp, "fn": c.fn}
-
-
-def f1(s: dict) -> float:
-    """2 TP / (2 TP + FP + FN) (0 without any box)."""
-    n = 2 * s["tp"] + s["fp"] + s["fn"]
-    return 2 * s["tp"] / n if n else 0.0
-
-
-def both_horizons(video, dets, hcfg, extra=None, label: str = "") -> list[dict]:
-    """Rows with the horizon filter off and on."""
-    return [
-        {"horizon": h, "filters": label, **score(video, dets, hcfg, h, extra)}
-        for h in (False, True)
-    ]
-
-
-def pick(candidates: Sequence, pooled: Callable[[object], dict]) -> object:
-    """The candidate whose pooled scores on the training videos (`pooled(c)`: TP, FP, FN)
-    have the highest TPR with FAR ≤ :data:`FAR_AIM`; when none reaches that FAR, the best
-    F1 (ties: the first)."""
-    scored = [(c, pooled(c)) for c in candidates]
-
-    def rate(s: dict) -> tuple[float, float]:
-        tpr = s["tp"] / max(s["tp"] + s["fn"], 1)
-        far = s["fp"] / max(s["tp"] + s["fp"], 1)
-        return tpr, far
-
-    ok = [(c, s) for c, s in scored if rate(s)[1] <= FAR_AIM and s["tp"] > 0]
-    if ok:
-        return max(ok, key=lambda cs: rate(cs[1])[0])[0]
-    return max(scored, key=lambda cs: f1(cs[1]))[0]
-
-
-def pooled_score(
-    videos: dict[str, VideoFrames], names: Sequence[str], dets: dict, hcfg: HorizonConfig
-) -> dict:
-    """TP, FP, FN summed over videos `names` of per-video detections `dets[v]` (horizon on)."""
-    tot = {"tp": 0, "fp": 0, "fn": 0}
-    for v in names:
-        s = score(videos[v], dets[v], hcfg, True)
-        tot = {k: tot[k] + s[k] for k in tot}
-    return tot
 
 
 def contrast_rows(
@@ -238,6 +173,9 @@ def fused_rows(
         {"detector": f"fused ≥ {t:g}, ≥ {r:g} × best (picked on the others)", **row}
         for row in both_horizons(videos[held], kept(t, r)[held], hcfg)
     ]
+    fused_t = {v: kept(t, r)[v] for v in videos}
+    sup, sup_rows = suppression_rows(videos, held, fused_t, hcfg, f"fused ≥ {t:g}, ≥ {r:g} × best")
+    rows += sup_rows
     for tt, rr in ((0.2, 0.0), (0.3, 0.0), (0.1, 0.9), (0.2, 0.8), (0.2, 0.9)):
         rows.append(
             {
@@ -247,7 +185,51 @@ def fused_rows(
                 **score(videos[held], kept(tt, rr)[held], hcfg, True),
             }
         )
-    return rows, {"fused_threshold": t, "fused_relative": r, "cnn_model": path.name}
+    return rows, {
+        "fused_threshold": t,
+        "fused_relative": r,
+        "fused_suppression": list(sup),
+        "cnn_model": path.name,
+    }
+
+
+def suppression_rows(
+    videos: dict[str, VideoFrames],
+    held: str,
+    dets: dict,
+    hcfg: HorizonConfig,
+    label: str,
+) -> tuple[tuple[float, float], list[dict]]:
+    """Rows of per-video detections `dets[v]` after the overlap and containment suppression
+    of :mod:`usvfast.shore.suppress`, its (IoU, containment) pair picked on the three other
+    videos (:func:`pick`, equal TPRs: lowest FAR), with both horizon settings; then the
+    shipped pair."""
+    from usvfast.shore.suppress import SUPPRESS_CONTAIN, SUPPRESS_NMS, suppress
+
+    cache: dict = {}
+
+    def sup(nc: tuple[float, float]) -> dict:
+        if nc not in cache:
+            cache[nc] = {v: [suppress(d, *nc) for d in ds] for v, ds in dets.items()}
+        return cache[nc]
+
+    train = [v for v in videos if v != held]
+    nc = pick(SUPPRESS_GRID, lambda c: pooled_score(videos, train, sup(c), hcfg), True)  # pyright: ignore[reportArgumentType]
+    n, c = nc  # pyright: ignore[reportGeneralTypeIssues]
+    rows = [
+        {"detector": f"{label} + suppression IoU {n:g}, inside {c:g} (picked)", **row}
+        for row in both_horizons(videos[held], sup((n, c))[held], hcfg)
+    ]
+    shipped = (SUPPRESS_NMS, SUPPRESS_CONTAIN)
+    rows.append(
+        {
+            "detector": f"{label} + suppression IoU {shipped[0]:g}, inside {shipped[1]:g}",
+            "horizon": True,
+            "filters": "",
+            **score(videos[held], sup(shipped)[held], hcfg, True),
+        }
+    )
+    return (n, c), rows
 
 
 def change_rows(
@@ -405,6 +387,12 @@ def cnn_rows(
             {"detector": f"cnn (confidence {conf:g})", **r}
             for r in both_horizons(videos[held], dets, hcfg, extra, label)
         ]
+    per_video = {
+        v: (dets if v == held else [d.subset(d.scores >= conf) for d in map(low.detect, vf.images)])
+        for v, vf in videos.items()
+    }
+    sup, sup_rows = suppression_rows(videos, held, per_video, hcfg, f"cnn (confidence {conf:g})")
+    rows += sup_rows
     for c in CNN_SWEEP:
         if c != conf:
             sub = [d.subset(d.scores >= c) for d in swept]
@@ -421,6 +409,7 @@ def cnn_rows(
         "cnn_conf": conf,
         "cnn_train_s": card.get("train_seconds"),
         "wake_train_s": round(wake_s, 1),
+        "cnn_suppression": list(sup),
     }
     return rows, info
 
@@ -491,6 +480,15 @@ def evaluate(
             entry.update(info)
         if "change" in detectors:
             entry["rows"] += change_rows(videos, held, hcfg, cache)
+        if "verified" in detectors or "verified-contrast" in detectors:
+            from usvfast.shore.verify_eval import verified_rows
+
+            for kind in ("verified", "verified-contrast"):
+                if kind in detectors:
+                    path = cnn_model(data, held, models, steps, log) if kind == "verified" else None
+                    rows, info = verified_rows(videos, held, hcfg, path)
+                    entry["rows"] += rows
+                    entry.update(info)
         if "cascade" in detectors:
             rows, info = cascade_rows(videos, mardct, held, hcfg)
             entry["rows"] += rows
@@ -498,29 +496,6 @@ def evaluate(
         out[held] = entry
         log(f"{held}: done")
     return out
-
-
-def print_tables(results: dict, console: Console | None = None) -> None:
-    """Tables I–II layout: video, detector, filters, horizon, TPR, FAR, counts, size."""
-    console = console or Console(width=140)
-    t = Table(title="Detection, MarDCT leave one video out (IoU ≥ 0.5)")
-    for col in ("video", "detector", "filters", "horizon", "TPR", "FAR", "TP", "FP", "FN", "size"):
-        t.add_column(col)
-    for v, e in results.items():
-        for r in e["rows"]:
-            t.add_row(
-                v,
-                r["detector"],
-                r["filters"] or "-",
-                "YES" if r["horizon"] else "NO",
-                f"{r['tpr']:.3f}",
-                f"{r['far']:.3f}",
-                str(r["tp"]),
-                str(r["fp"]),
-                str(r["fn"]),
-                f"{e['size'][0]}×{e['size'][1]}",
-            )
-    console.print(t)
 
 
 def main(argv: Sequence[str] | None = None) -> None:
@@ -541,8 +516,20 @@ def main(argv: Sequence[str] | None = None) -> None:
         help="CNN: second training round on the first model's false alarms",
     )
     p.add_argument("--json", type=Path, default=None, help="Write the results as JSON here")
+    p.add_argument(
+        "--breakdown", action="store_true", help="Also print where each row's errors are"
+    )
     a = p.parse_args(argv)
-    unknown = set(a.detectors) - {"bayes", "cnn", "contrast", "fused", "change", "cascade"}
+    unknown = set(a.detectors) - {
+        "bayes",
+        "cnn",
+        "contrast",
+        "fused",
+        "change",
+        "cascade",
+        "verified",
+        "verified-contrast",
+    }
     if unknown:
         p.error(f"--detectors: unknown {sorted(unknown)}")
     results = evaluate(
@@ -554,6 +541,8 @@ def main(argv: Sequence[str] | None = None) -> None:
         hard_negatives=a.hard_negatives,
     )
     print_tables(results)
+    if a.breakdown:
+        print_breakdown(results)
     if a.json:
         a.json.write_text(json.dumps(results, indent=2, default=float), encoding="utf-8")
 
