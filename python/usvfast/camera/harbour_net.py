@@ -15,6 +15,12 @@ whose centres lie within the box's central region (radius `radius` cells around 
 centre, clipped to the box, always including the centre cell) are positives. Loss = focal
 binary cross-entropy of the class scores over all cells (normalised by the positives) +
 L1 of the centre offsets and log sizes at the positives + (1 - GIoU) at the positives.
+
+Two options for objects of a few pixels (both off by default): `tiny_px` makes every
+stride-8 cell whose centre lies within one stride of a box's centre (in x and in y) a
+positive when the box's longer side is under `tiny_px` (up to four cells instead of the one
+cell a 2 px box covers), and `balance` gives every box the same total weight in the loss
+(its cells share it), so that a 2 px float counts as much as a 60 px hull with 20 cells.
 """
 
 from __future__ import annotations
@@ -110,17 +116,24 @@ def assign(
     classes: list[torch.Tensor],
     split_px: float = 48.0,
     radius: float = 1.5,
-) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    tiny_px: float = 0.0,
+    balance: bool = False,
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
     """Training targets for a batch: per image `boxes` (k, 4) xyxy input px and `classes` (k,).
 
     Returns (class targets (N, nc, A) in {0, 1}, box targets (N, 4, A) xyxy px, positive mask
-    (N, A) bool). A cell claimed by two boxes keeps the smaller box.
+    (N, A) bool, positive weights (N, A): 1 at every positive, or with `balance` 1 / (the
+    number of cells of the cell's box) scaled to a mean of 1 over the positives). A cell
+    claimed by two boxes keeps the smaller box. Boxes whose longer side is under `tiny_px` px
+    take every stride-8 cell within one stride of their centre (see the module's doc).
     """
     centres, strides = net.grids()
     n, a = len(boxes), centres.shape[1]
     cls_t = torch.zeros(n, net.num_classes, a)
     box_t = torch.zeros(n, 4, a)
     pos = torch.zeros(n, a, dtype=torch.bool)
+    owner = torch.full((n, a), -1, dtype=torch.int64)  # box index (over the batch) per cell
+    n_boxes = 0
     for i, (b, c) in enumerate(zip(boxes, classes, strict=True)):
         if len(b) == 0:
             continue
@@ -131,13 +144,20 @@ def assign(
             cx, cy = (x1 + x2) / 2, (y1 + y2) / 2
             level = 8.0 if max(x2 - x1, y2 - y1) < split_px else 16.0
             r = radius * level
-            inside = (
-                (strides == level)
-                & (centres[0] >= max(x1, cx - r))
-                & (centres[0] <= min(x2, cx + r))
-                & (centres[1] >= max(y1, cy - r))
-                & (centres[1] <= min(y2, cy + r))
-            )
+            if max(x2 - x1, y2 - y1) < tiny_px:
+                inside = (
+                    (strides == 8.0)
+                    & ((centres[0] - cx).abs() < 8.0)
+                    & ((centres[1] - cy).abs() < 8.0)
+                )
+            else:
+                inside = (
+                    (strides == level)
+                    & (centres[0] >= max(x1, cx - r))
+                    & (centres[0] <= min(x2, cx + r))
+                    & (centres[1] >= max(y1, cy - r))
+                    & (centres[1] <= min(y2, cy + r))
+                )
             # The cell containing the centre is always positive (tiny boxes).
             d = (centres[0] - cx).abs().maximum((centres[1] - cy).abs())
             d = torch.where(strides == level, d, torch.full_like(d, float("inf")))
@@ -145,10 +165,17 @@ def assign(
             take = inside & (area[j] <= best)
             best[take] = area[j]
             pos[i, take] = True
+            owner[i, take] = n_boxes + j
             box_t[i, :, take] = b[j][:, None]
             cls_t[i, :, take] = 0.0
             cls_t[i, int(c[j]), take] = 1.0
-    return cls_t, box_t, pos
+        n_boxes += len(b)
+    weight = pos.float()
+    if balance and pos.any():
+        cells = torch.bincount(owner[pos], minlength=n_boxes).float()  # cells each box kept
+        w = 1.0 / cells[owner[pos]]
+        weight[pos] = w * (len(w) / w.sum())
+    return cls_t, box_t, pos, weight
 
 
 def _giou(p: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
@@ -165,20 +192,27 @@ def _giou(p: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
 
 
 def loss(
-    net: HarbourNet, x: torch.Tensor, boxes: list[torch.Tensor], classes: list[torch.Tensor]
+    net: HarbourNet,
+    x: torch.Tensor,
+    boxes: list[torch.Tensor],
+    classes: list[torch.Tensor],
+    tiny_px: float = 0.0,
+    balance: bool = False,
 ) -> tuple[torch.Tensor, dict[str, float]]:
-    """Training loss of a batch `x` (N, 3, h, w) with per-image targets (see :func:`assign`);
-    returns (scalar loss, its parts as floats)."""
+    """Training loss of a batch `x` (N, 3, h, w) with per-image targets (see :func:`assign`,
+    which also takes `tiny_px` and `balance`); returns (scalar loss, its parts as floats)."""
     raw, centres = net.raw(x)
-    cls_t, box_t, pos = assign(net, boxes, classes)
+    cls_t, box_t, pos, weight = assign(net, boxes, classes, tiny_px=tiny_px, balance=balance)
     npos = max(1.0, float(pos.sum()))
     logits = raw[:, 4:]
     p = torch.sigmoid(logits)
     ce = F.binary_cross_entropy_with_logits(logits, cls_t, reduction="none")
     pt = p * cls_t + (1 - p) * (1 - cls_t)
     alpha = 0.25 * cls_t + 0.75 * (1 - cls_t)
-    l_cls = (alpha * (1 - pt) ** 2 * ce).sum() / npos
+    cell_w = torch.where(pos, weight, torch.ones_like(weight))[:, None]  # (N, 1, A)
+    l_cls = (cell_w * alpha * (1 - pt) ** 2 * ce).sum() / npos
     if pos.any():
+        wk = weight[pos]  # (k,) positive weights, mean 1
         _, strides = net.grids()
         s = strides[None].expand_as(pos)[pos]  # (k,)
         cxy = centres[None].expand(len(x), -1, -1).permute(0, 2, 1)[pos].T  # (2, k)
@@ -186,11 +220,11 @@ def loss(
         txy = ((t[:2] + t[2:]) / 2 - cxy) / s
         twh = torch.log(((t[2:] - t[:2]) / s).clamp(min=1e-3))
         r = raw.permute(0, 2, 1)[pos].T  # (4 + nc, k)
-        l_l1 = (r[:2] - txy).abs().mean() + (r[2:4] - twh).abs().mean()
+        l_l1 = ((r[:2] - txy).abs() * wk).mean() + ((r[2:4] - twh).abs() * wk).mean()
         pxy = cxy + r[:2] * s
         pwh = torch.exp(r[2:4].clamp(-6.0, 6.0)) * s
         pb = torch.cat([pxy - pwh / 2, pxy + pwh / 2])
-        l_iou = (1 - _giou(pb, t)).mean()
+        l_iou = ((1 - _giou(pb, t)) * wk).mean()
     else:
         l_l1 = l_iou = raw.sum() * 0.0
     total = l_cls + l_l1 + 2.0 * l_iou
@@ -210,12 +244,14 @@ def fit(
     batch: Callable[[np.random.Generator], list[tuple[np.ndarray, np.ndarray, np.ndarray]]],
     log: Callable[[str], None],
     log_every: int,
+    tiny_px: float = 0.0,
+    balance: bool = False,
 ) -> HarbourNet:
     """Train a HarbourNet of `input_size` on crops of `crop_size` (same weights, grids sized
     for the crops): AdamW + one-cycle learning rate over `steps`, seeded by `seed` (torch and
     the numpy generator handed to `batch`). `batch(rng)` returns the step's samples, each
-    (image (h, w, 3) float32 RGB in [0, 1], boxes (k, 4) px, classes (k,)). Returns the
-    `input_size` network in eval mode."""
+    (image (h, w, 3) float32 RGB in [0, 1], boxes (k, 4) px, classes (k,)); `tiny_px` and
+    `balance` are :func:`assign`'s. Returns the `input_size` network in eval mode."""
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
     net = HarbourNet(n_classes, input_size, width)
@@ -230,7 +266,7 @@ def fit(
         x = torch.from_numpy(np.stack([s[0] for s in samples]).transpose(0, 3, 1, 2).copy())
         boxes = [torch.from_numpy(s[1].astype(np.float32)) for s in samples]
         classes = [torch.from_numpy(s[2].astype(np.int64)) for s in samples]
-        total, parts = loss(crop_net, x.float(), boxes, classes)
+        total, parts = loss(crop_net, x.float(), boxes, classes, tiny_px, balance)
         opt.zero_grad()
         total.backward()
         opt.step()
