@@ -70,12 +70,11 @@ def test_breakdown_totals_equal_the_scores_on_random_frames():
     assert e.fp_mislocalised > 0 and e.fp_false > 0 and e.fn_missed >= 0
 
 
-def test_breakdown_of_a_real_detector_adds_up():
+def test_breakdown_of_a_real_detector_adds_up(mardct_annotations):
     from usvfast.shore.contrast import ContrastDetector
-    from usvfast.shore.evaluate import default_data
     from usvfast.shore.mardct import load_mardct
 
-    frames = load_mardct(default_data())["2"]
+    frames = load_mardct(mardct_annotations)["2"]
     det = ContrastDetector()
     e, c = ErrorBreakdown(), DetectionCounts()
     for f in frames:
