@@ -17,18 +17,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field, fields
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 from usvfast.shore.boxes import iou_matrix
-
-
-def _assign(iou: np.ndarray, min_iou: float) -> list[tuple[int, int]]:
-    """One-to-one pairs (row, col) with IoU ≥ min_iou maximising their number (ties: IoU)."""
-    if iou.size == 0:
-        return []
-    ok = iou >= min_iou
-    rows, cols = linear_sum_assignment(-(ok + 1e-3 * iou))
-    return [(int(r), int(c)) for r, c in zip(rows, cols, strict=True) if ok[r, c]]
+from usvfast.shore.scores import assign_pairs
 
 
 @dataclass
@@ -71,19 +62,20 @@ class ErrorBreakdown:
         t = np.asarray(truth, dtype=float).reshape(-1, 4)
         d = np.asarray(detected, dtype=float).reshape(-1, 4)
         iou = iou_matrix(t, d)
-        matched = _assign(iou, min_iou)
+        matched = assign_pairs(iou, min_iou)
         self.tp += len(matched)
         t_left = sorted(set(range(len(t))) - {r for r, _ in matched})
         d_left = sorted(set(range(len(d))) - {c for _, c in matched})
         sub = iou[np.ix_(t_left, d_left)] if t_left and d_left else np.zeros((0, 0))
-        loc = [(t_left[r], d_left[c]) for r, c in _assign(sub, loc_iou)]
+        loc = [(t_left[r], d_left[c]) for r, c in assign_pairs(sub, loc_iou)]
         for r, c in loc:
             self.area_ratios.append(float(d[c, 2] * d[c, 3] / max(t[r, 2] * t[r, 3], 1e-9)))
             self.ious.append(float(iou[r, c]))
         self.fp_mislocalised += len(loc)
         self.fn_mislocalised += len(loc)
-        t_rest = [r for r in t_left if r not in {a for a, _ in loc}]
-        d_rest = [c for c in d_left if c not in {b for _, b in loc}]
+        t_loc, d_loc = {r for r, _ in loc}, {c for _, c in loc}
+        t_rest = [r for r in t_left if r not in t_loc]
+        d_rest = [c for c in d_left if c not in d_loc]
         for c in d_rest:
             if len(t) and iou[:, c].max() >= loc_iou:
                 self.fp_duplicate += 1

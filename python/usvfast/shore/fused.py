@@ -13,6 +13,7 @@ h of the input frame.
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 
 from usvfast._validate import as_float_array, instance, real
@@ -42,8 +43,7 @@ def box_support(z: np.ndarray, boxes: np.ndarray, scale: float, threshold: float
     if len(b) == 0 or z.size == 0:
         return np.zeros(0)
     h, w = z.shape
-    ii = np.zeros((h + 1, w + 1))
-    ii[1:, 1:] = np.cumsum(np.cumsum(z > threshold, axis=0), axis=1)
+    ii = cv2.integral((z > threshold).astype(np.uint8), sdepth=cv2.CV_64F)
     x0 = np.clip(np.floor(b[:, 0] * scale), 0, w).astype(int)
     y0 = np.clip(np.floor(b[:, 1] * scale), 0, h).astype(int)
     x1 = np.clip(np.ceil((b[:, 0] + b[:, 2]) * scale), 0, w).astype(int)

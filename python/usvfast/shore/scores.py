@@ -40,13 +40,21 @@ class DetectionCounts:
         return self.fp / n if n else 0.0
 
 
+def assign_pairs(iou: np.ndarray, min_iou: float) -> list[tuple[int, int]]:
+    """The one-to-one (row, col) pairs of an IoU matrix with IoU ≥ min_iou, by the assignment
+    that maximises the number of such pairs (ties broken by IoU). Raises ValueError naming
+    `iou` unless it is a finite 2-D array."""
+    iou = np.asarray(iou, dtype=float)
+    if iou.ndim != 2 or not np.all(np.isfinite(iou)):
+        raise ValueError(f"iou: expected a finite 2-D array, got shape {iou.shape}")
+    if iou.size == 0:
+        return []
+    ok = iou >= min_iou
+    rows, cols = linear_sum_assignment(-(ok + 1e-3 * iou))
+    return [(int(r), int(c)) for r, c in zip(rows, cols, strict=True) if ok[r, c]]
+
+
 def matched_pairs(truth: np.ndarray, detected: np.ndarray, min_iou: float = 0.5) -> int:
     """How many one-to-one (truth, detection) pairs with IoU ≥ min_iou the assignment that
     maximises the number of such pairs finds."""
-    iou = iou_matrix(truth, detected)
-    if iou.size == 0:
-        return 0
-    ok = iou >= min_iou
-    # maximise the number of valid pairs (ties broken by IoU)
-    rows, cols = linear_sum_assignment(-(ok + 1e-3 * iou))
-    return int(ok[rows, cols].sum())
+    return len(assign_pairs(iou_matrix(truth, detected), min_iou))

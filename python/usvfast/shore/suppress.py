@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from usvfast._validate import as_float_array, instance, real
-from usvfast.shore.boxes import Detections, iou_matrix
+from usvfast.shore.boxes import Detections, intersection_matrix, iou_matrix
 
 #: Shipped suppression: IoU above which, and share of the smaller box inside the other above
 #: which, the lower-scored box is dropped (the four leave-one-video-out folds of
@@ -28,13 +28,7 @@ def containment_matrix(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     (m, 4), x, y, w, h px -> (n, m) in [0, 1] (0 where either box is empty)."""
     a = np.asarray(a, dtype=float).reshape(-1, 4)
     b = np.asarray(b, dtype=float).reshape(-1, 4)
-    iw = np.minimum(a[:, None, 0] + a[:, None, 2], b[None, :, 0] + b[None, :, 2]) - np.maximum(
-        a[:, None, 0], b[None, :, 0]
-    )
-    ih = np.minimum(a[:, None, 1] + a[:, None, 3], b[None, :, 1] + b[None, :, 3]) - np.maximum(
-        a[:, None, 1], b[None, :, 1]
-    )
-    inter = np.clip(iw, 0, None) * np.clip(ih, 0, None)
+    inter = intersection_matrix(a, b)
     small = np.minimum((a[:, 2] * a[:, 3])[:, None], (b[:, 2] * b[:, 3])[None])
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(small > 0, inter / small, 0.0)

@@ -64,9 +64,8 @@ def _strip_share(ii: np.ndarray, x0, y0, x1, y1) -> np.ndarray:
 
 
 def _integral(a: np.ndarray) -> np.ndarray:
-    ii = np.zeros((a.shape[0] + 1, a.shape[1] + 1))
-    ii[1:, 1:] = np.cumsum(np.cumsum(a, axis=0), axis=1)
-    return ii
+    """OpenCV's integral image of `a` (h, w) -> (h + 1, w + 1) float64, first row/column 0."""
+    return cv2.integral(np.ascontiguousarray(a, dtype=np.float64), sdepth=cv2.CV_64F)
 
 
 def refit_boxes(
