@@ -84,6 +84,7 @@ def test_write_report_files_and_metrics(run, tmp_path):
     assert m["thesis"]["excluded_tracks"] == {"moored_boat": [7]}
     assert m["walls"]["tracks_on_walls"] == [8]
     assert m["walls"]["tracks_on_moored_boats"] == [7]
+    assert m["walls"]["object_tracks_near_walls"] == []
     targets = [o.object_id for o in th.objects if o.target]
     seq = frame_sequence(
         truth,
@@ -110,6 +111,33 @@ def test_write_report_files_and_metrics(run, tmp_path):
         with Image.open(out / name) as im:
             assert im.size[0] >= 900 and im.size[1] >= 500
             assert np.asarray(im.convert("L")).std() > 10
+
+
+def test_an_objects_track_beside_a_quay_is_not_a_track_on_the_wall(tmp_path):
+    # the vessel (object 4) runs 1.5 m beside a quay: its own track (4), within 2 m of the
+    # quay, is listed apart; a track on the quay behind the vessel (10) is counted
+    objs = default_objects()
+    write_truth(tmp_path, objs)
+    scene = json.loads(write_scene(tmp_path, objs).read_text())
+    heading = np.array([1.5, 1.0]) / np.hypot(1.5, 1.0)
+    side = 1.5 * np.array([-heading[1], heading[0]])
+    start = np.array([-30.0, -20.0])
+    quay = [start + side - 10 * heading, start + side + 90 * heading]
+    scene["walls"].append([list(map(float, p)) for p in quay])
+    (tmp_path / "scene.json").write_text(json.dumps(scene))
+    on_quay = tuple(map(float, start + side - 8 * heading))  # 7.5 m behind the vessel
+    specs = [
+        TrackSpec(4, 4, 5.0, 25.0, noise=P, cov=P),
+        TrackSpec(10, None, 0, 30, position=on_quay),
+    ]
+    out = write_run(tmp_path / "out", objs, specs, duration=30.0)
+    m = write_report(
+        out, truth=tmp_path / "truth.csv", scene=tmp_path / "scene.json", print_table=False
+    )
+    assert m["walls"]["tracks_on_walls"] == [10]
+    assert m["walls"]["object_tracks_near_walls"] == [4]
+    assert m["walls"]["object_tracks_near_moored_boats"] == []
+    assert m["thesis"]["false_tracks"] == [10]
 
 
 def test_animation_has_camera_inset_and_stays_small(tmp_path):

@@ -13,7 +13,11 @@ returns `metrics.json`'s content:
 - "detectors": Table 6.1 scores per sensor and object, and their totals, over the frames in
   which the object lies within the sensor's range and field of view;
 - "walls": tracks whose median position lies within `wall_distance` m of a harbour wall or
-  inside a pier polygon, and of a moored boat's outline (needs the scene);
+  inside a pier polygon, and of a moored boat's outline (needs the scene), that are not an
+  object's track (`track_groups`: matched to an object of a kind that is not excluded in most
+  of their matched rows): the tracks the walls or the hulls made. An object's track near a
+  wall (a vessel passing a pier head) is listed apart ("object_tracks_near_walls",
+  "object_tracks_near_moored_boats");
 - "groups": the thesis's run figures again for each group of target kinds (`GROUPS`):
   "floats", the floating objects (every kind but the vessels), and "vessels", the boats under
   way (`group_metrics`). "thesis" stays the pooled figure over every target.
@@ -373,9 +377,14 @@ def evaluate_run(
         out["detectors"] = det
     if scene is not None:
         boats = [moored_outline(b) for b in scene.get("moored", [])]
+        near_walls = tracks_on_walls(tracks, scene.get("walls", []), wall_distance)
+        near_boats = tracks_on_walls(tracks, boats, wall_distance, closed=True)
+        of_objects = track_groups(th)
         out["walls"] = {
             "distance_m": wall_distance,
-            "tracks_on_walls": tracks_on_walls(tracks, scene.get("walls", []), wall_distance),
-            "tracks_on_moored_boats": tracks_on_walls(tracks, boats, wall_distance, closed=True),
+            "tracks_on_walls": [i for i in near_walls if i not in of_objects],
+            "tracks_on_moored_boats": [i for i in near_boats if i not in of_objects],
+            "object_tracks_near_walls": [i for i in near_walls if i in of_objects],
+            "object_tracks_near_moored_boats": [i for i in near_boats if i in of_objects],
         }
     return out

@@ -108,6 +108,12 @@ def summary_tables(metrics: dict[str, Any]) -> list[Table]:
             rows.append(
                 (f"tracks on {name} (scene)", f"[red]{len(ids)}[/red] {ids}" if ids else "0")
             )
+        for key, name in (
+            ("object_tracks_near_walls", "walls"),
+            ("object_tracks_near_moored_boats", "boat hulls"),
+        ):
+            if ids := walls.get(key):
+                rows.append((f"  objects' tracks near {name}", f"{len(ids)} {ids}"))
     mot = metrics.get("clear_mot")
     if mot:
         rows += [
