@@ -114,30 +114,32 @@ def test_write_report_files_and_metrics(run, tmp_path):
 
 
 def test_an_objects_track_beside_a_quay_is_not_a_track_on_the_wall(tmp_path):
-    # the vessel (object 4) runs 1.5 m beside a quay: its own track (4), within 2 m of the
-    # quay, is listed apart; a track on the quay behind the vessel (10) is counted
+    # the vessel runs 1.5 m beside a quay: its own track (4), within 2 m of the quay, is
+    # listed apart; a track on the quay 8 m behind the vessel's start (10) is counted
     objs = default_objects()
+    vessel = next(o for o in objs if o.kind == "vessel")
     write_truth(tmp_path, objs)
     scene = json.loads(write_scene(tmp_path, objs).read_text())
-    heading = np.array([1.5, 1.0]) / np.hypot(1.5, 1.0)
-    side = 1.5 * np.array([-heading[1], heading[0]])
-    start = np.array([-30.0, -20.0])
-    quay = [start + side - 10 * heading, start + side + 90 * heading]
-    scene["walls"].append([list(map(float, p)) for p in quay])
+    heading = np.array(vessel.velocity) / np.hypot(*vessel.velocity)
+    beside = np.array(vessel.start) + 1.5 * np.array([-heading[1], heading[0]])
+    scene["walls"].append([list(map(float, beside + k * heading)) for k in (-10, 90)])
     (tmp_path / "scene.json").write_text(json.dumps(scene))
-    on_quay = tuple(map(float, start + side - 8 * heading))  # 7.5 m behind the vessel
+    on_quay = tuple(map(float, beside - 8 * heading))
     specs = [
-        TrackSpec(4, 4, 5.0, 25.0, noise=P, cov=P),
+        TrackSpec(4, vessel.object_id, 5.0, 25.0, noise=P, cov=P),
         TrackSpec(10, None, 0, 30, position=on_quay),
     ]
     out = write_run(tmp_path / "out", objs, specs, duration=30.0)
+    console = Console(file=open(tmp_path / "table.txt", "w"), width=120)
     m = write_report(
-        out, truth=tmp_path / "truth.csv", scene=tmp_path / "scene.json", print_table=False
+        out, truth=tmp_path / "truth.csv", scene=tmp_path / "scene.json", console=console
     )
+    console.file.close()
     assert m["walls"]["tracks_on_walls"] == [10]
     assert m["walls"]["object_tracks_near_walls"] == [4]
     assert m["walls"]["object_tracks_near_moored_boats"] == []
     assert m["thesis"]["false_tracks"] == [10]
+    assert "objects' tracks near walls" in (tmp_path / "table.txt").read_text()
 
 
 def test_animation_has_camera_inset_and_stays_small(tmp_path):
