@@ -280,6 +280,8 @@ def test_the_bundled_recording_is_the_current_simulator_s(rec):
     fresh = tomllib.loads((rec.out / "recording.toml").read_text())
     for table in ("lidar", "camera", "detector", "tracker"):
         assert bundled[table] == fresh[table], table
+    key = "heading_calibration_s"
+    assert bundled["recording"][key] == fresh["recording"][key]
     topics = bag_topics(folder / "bag")
     assert {t: i.count for t, i in topics.items()}[TOPICS["image"][0]] == 300
     assert {t: i.count for t, i in topics.items()}[TOPICS["lidar"][0]] >= 299

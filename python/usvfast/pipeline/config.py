@@ -204,6 +204,11 @@ _RECORDING = {
     "origin": ("floats:3", None),
     "reorder_window": ("int", 16),
     "max_pose_gap": ("float", 2.0),
+    # A constant correction of the GNSS heading (degrees clockwise, added to every heading),
+    # and the seconds of LiDAR at the recording's start from which Pipeline.run estimates a
+    # further one (usvfast.nav.heading_offset; None: no estimate).
+    "heading_offset_deg": ("float", 0.0),
+    "heading_calibration_s": ("float", None),
 }
 SCHEMA: dict[str, dict[str, tuple[str, Any]]] = {
     "recording": _RECORDING,
@@ -234,7 +239,10 @@ class PipelineConfig:
     """A validated configuration: recording (the replay streams, mounts filled in), sensors
     ({stream id: "lidar" | "camera"}), navigation (stream ids for position/heading), attitude
     (stream id or None), origin ((lat, lon, h) or None), and one dict per table with every key
-    of SCHEMA (defaults filled in; paths absolute). `path` is the file it came from."""
+    of SCHEMA (defaults filled in; paths absolute). `path` is the file it came from.
+    heading_offset_deg: correction added to the GNSS heading (degrees clockwise);
+    heading_calibration_s: seconds of LiDAR from which `Pipeline.run` estimates a further
+    correction (None: none)."""
 
     recording: Recording
     sensors: dict[str, str]
@@ -248,6 +256,8 @@ class PipelineConfig:
     outputs: dict[str, Any]
     path: Path | None = None
     raw: dict[str, Any] = field(default_factory=dict)
+    heading_offset_deg: float = 0.0
+    heading_calibration_s: float | None = None
 
     def streams_of(self, sensor: str) -> list[StreamSpec]:
         """The streams consumed by `sensor` ("lidar" or "camera"), in file order."""
@@ -450,6 +460,17 @@ def _build(data: dict[str, Any], file: Path) -> PipelineConfig:
                 )
     if rec["max_pose_gap"] <= 0:
         raise ConfigError(f"{file}: key 'recording.max_pose_gap': must be > 0")
+    if not abs(rec["heading_offset_deg"]) <= 180.0:
+        raise ConfigError(
+            f"{file}: key 'recording.heading_offset_deg': expected degrees in [-180, 180], "
+            f"got {rec['heading_offset_deg']}"
+        )
+    calibration = rec["heading_calibration_s"]
+    if calibration is not None and calibration <= 0:
+        raise ConfigError(
+            f"{file}: key 'recording.heading_calibration_s': expected seconds > 0, got "
+            f"{calibration}"
+        )
     recording = Recording(
         rec["name"] or file.stem,
         tuple(streams),
@@ -497,6 +518,8 @@ def _build(data: dict[str, Any], file: Path) -> PipelineConfig:
         outputs=tables["outputs"],
         path=file,
         raw=raw,
+        heading_offset_deg=rec["heading_offset_deg"],
+        heading_calibration_s=calibration,
     )
 
 

@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from usvfast.nav.heading_offset import HeadingOffset
 from usvfast.nav.replay import Replay
 from usvfast.pipeline.camera_chain import CameraChain, load_detector
 from usvfast.pipeline.config import ConfigError, PipelineConfig, load_config
@@ -94,6 +95,7 @@ class Pipeline:
             cfg.origin,
             nav.mount.lever_arm if nav.mount is not None else (0.0, 0.0, 0.0),
             cfg.recording.max_pose_gap,
+            math.radians(cfg.heading_offset_deg),
         )
         self.origin = cfg.origin
         self.epoch: float | None = None
@@ -106,6 +108,7 @@ class Pipeline:
         self.track_ids: set[int] = set()
         self.summary: dict[str, Any] = {}
         self._nav: NavTrack | None = None
+        self.heading_calibration: HeadingOffset | None = None
 
     # --- live -----------------------------------------------------------------------------
     def _live_nav(self, t: float, stream: str, data: Any) -> None:
@@ -268,6 +271,20 @@ class Pipeline:
         finally:
             self._pose_seconds += time.perf_counter() - t0
 
+    def _calibrate_heading(self, seconds: float) -> None:
+        """Estimate the heading correction from the first `seconds` of LiDAR and, when it is
+        observable, read the navigation again with it (`usvfast.pipeline.heading`)."""
+        from usvfast.pipeline.heading import calibrate_heading
+
+        assert self._nav is not None
+        lidar = {k: c for k, c in self.chains.items() if isinstance(c, LidarChain)}
+        with self.timer("calibration.heading"):
+            est = calibrate_heading(self.config, self._nav, lidar, seconds)
+            if est.observable:
+                total = self.config.heading_offset_deg + est.offset_deg
+                self._nav = NavTrack.from_config(self.config, heading_offset_deg=total)
+        self.heading_calibration = est
+
     def run(
         self,
         *,
@@ -292,6 +309,9 @@ class Pipeline:
         wall0 = time.perf_counter()
         with self.timer("navigation"):
             self._nav = NavTrack.from_config(cfg)
+        self.heading_calibration = None
+        if cfg.heading_calibration_s is not None:
+            self._calibrate_heading(cfg.heading_calibration_s)
         self.origin = self._nav.origin
         self._check_topics()
         sensors = [s.id for s in cfg.recording.streams if s.id in self.chains]
@@ -392,6 +412,10 @@ class Pipeline:
             "streams": self.counts,
             "damaged_messages": sum(c["damaged"] for c in self.counts.values()),
             "stages": self.timer.as_dict(),
+            "heading_offset_deg": cfg.heading_offset_deg,
+            "heading_calibration": (
+                None if self.heading_calibration is None else self.heading_calibration.as_dict()
+            ),
         }
         if out is not None:
             Path(out, "summary.json").write_text(json.dumps(self.summary, indent=2))

@@ -25,7 +25,7 @@ from usvfast.lidar.pipeline import (
 from usvfast.pipeline.pose import VesselPose
 from usvfast.pipeline.timing import StageTimer
 
-__all__ = ["LidarChain", "level_points"]
+__all__ = ["LidarChain", "deskew_motion", "level_points"]
 
 _FLU_FRD = np.diag([1.0, -1.0, -1.0])
 _DETECTOR_KEYS = set(LidarConfig.__dataclass_fields__) - {"lever_arm", "mount_yaw", "sensor_id"}
@@ -65,6 +65,26 @@ def level_points(
     out["y"] = -(level[:, 1] - lever[1])
     out["z"] = -level[:, 2]
     return out
+
+
+def deskew_motion(
+    points: np.ndarray,
+    stamp: float,
+    pose: VesselPose,
+    pose_at: Callable[[float], VesselPose | None] | None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, float] | None:
+    """The `motion` argument of `level_points` for a frame's points (their `time` field: s
+    relative to the frame's stamp, <= 0): the vessel's motion from the first firing to the
+    stamp, linear in time, from `pose` (at the stamp) and `pose_at(stamp + first firing)`;
+    None without `pose_at` or an earlier pose."""
+    dt = points["time"].astype(np.float64)
+    t0 = float(dt.min()) if len(dt) else 0.0
+    start = pose_at(stamp + t0) if pose_at is not None and t0 < 0 else None
+    if start is None:
+        return None
+    f = dt / t0  # 1 at the first firing, 0 at the stamp
+    dh = (start.heading - pose.heading + np.pi) % (2 * np.pi) - np.pi
+    return (f * (start.north - pose.north), f * (start.east - pose.east), f * dh, pose.heading)
 
 
 class LidarChain:
@@ -157,19 +177,7 @@ class LidarChain:
             # Only points that can reach the raster (radius + line margin, plus 1 m for the
             # tilt) are levelled.
             p = frame.points[frame.points["x"] ** 2 + frame.points["y"] ** 2 <= self._reach2]
-            motion = None
-            dt = p["time"].astype(np.float64)
-            t0 = float(dt.min()) if len(dt) else 0.0
-            start = pose_at(frame.stamp + t0) if pose_at is not None and t0 < 0 else None
-            if start is not None:
-                f = dt / t0  # 1 at the first firing, 0 at the stamp
-                dh = (start.heading - pose.heading + np.pi) % (2 * np.pi) - np.pi
-                motion = (
-                    f * (start.north - pose.north),
-                    f * (start.east - pose.east),
-                    f * dh,
-                    pose.heading,
-                )
+            motion = deskew_motion(p, frame.stamp, pose, pose_at)
             points = level_points(p, self.mount, pose.roll, pose.pitch, motion)
         levelled = LidarFrame(frame.stamp, points, frame.source, self.frames)
         self.frames += 1

@@ -122,10 +122,14 @@ class NavTrack:
         self.end = float(min(position.time[-1], heading.time[-1]))
 
     @classmethod
-    def from_config(cls, config: Any) -> NavTrack:
+    def from_config(cls, config: Any, heading_offset_deg: float | None = None) -> NavTrack:
         """Read the config's navigation streams (NMEA text `nmea`; bag topics of
-        nmea_msgs/Sentence or NavSatFix) and attitude stream (bag sensor_msgs/Imu). Raises
-        NavigationError naming the stream when no position fix or no heading is found."""
+        nmea_msgs/Sentence or NavSatFix) and attitude stream (bag sensor_msgs/Imu), the
+        headings corrected by `heading_offset_deg` (degrees clockwise; None: the config's
+        `heading_offset_deg`). Raises NavigationError naming the stream when no position fix
+        or no heading is found."""
+        if heading_offset_deg is None:
+            heading_offset_deg = config.heading_offset_deg
         fixes: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
         headings: list[tuple[np.ndarray, np.ndarray]] = []
         damaged: dict[str, int] = {}
@@ -156,7 +160,7 @@ class NavTrack:
         n, e, _ = geodesy.geodetic2ned(lat, lon, np.zeros_like(lat), lat0, lon0, h0)
         t_head, head = headings[0]
         order = np.argsort(t_head, kind="stable")
-        t_head, head = t_head[order], head[order]
+        t_head, head = t_head[order], head[order] + math.radians(heading_offset_deg)
         gap = config.recording.max_pose_gap
         heading = Channel.build("heading", t_head, {"heading": head}, ("angle",), 0.0, gap)
         # Antenna -> reference point: subtract the heading-rotated lever arm.
@@ -397,7 +401,8 @@ class LivePose:
 
     `at(t)` interpolates between the two samples around t or extrapolates the last two by at
     most `max_gap` seconds; None before the first fix and heading. origin (lat, lon, h) or
-    None (the first fix); lever_arm (3,) of the GNSS antenna, body FRD m.
+    None (the first fix); lever_arm (3,) of the GNSS antenna, body FRD m; heading_offset:
+    correction added to every heading, rad clockwise.
     """
 
     def __init__(
@@ -405,8 +410,10 @@ class LivePose:
         origin: tuple[float, float, float] | None = None,
         lever_arm: ArrayLike = (0.0, 0.0, 0.0),
         max_gap: float = 2.0,
+        heading_offset: float = 0.0,
     ) -> None:
         self.origin = origin
+        self.heading_offset = float(heading_offset)
         self.lever = np.asarray(lever_arm, dtype=np.float64)
         self.max_gap = float(max_gap)
         self._fix: deque[tuple[float, float, float]] = deque(maxlen=2)
@@ -421,8 +428,9 @@ class LivePose:
         _append(self._fix, (float(t), float(n), float(e)))
 
     def add_heading(self, t: float, heading: float) -> None:
-        """A true heading (rad clockwise from north) at UNIX time t."""
-        _append(self._head, (float(t), float(heading)))
+        """A true heading (rad clockwise from north) at UNIX time t (`heading_offset` is
+        added)."""
+        _append(self._head, (float(t), float(heading) + self.heading_offset))
 
     def add_attitude(self, t: float, roll: float, pitch: float) -> None:
         """Roll and pitch (rad, FRD) at UNIX time t."""

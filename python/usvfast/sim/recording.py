@@ -460,6 +460,11 @@ vessel_across_std = 0.6
 # confirmed at its third (camera clutter rarely repeats 3 times). A detection in a
 # confirmed track's gate (P_G 0.99) starts no track (no duplicates from the 10 Hz camera).
 # A track not updated for 3 s is deleted (a coasting track drifts with its velocity error).
+# Floats drift with the harbour's current, well below 0.1 m/s: a velocity prior of
+# 0.01 m^2/s^2 (the thesis's 0.3 lets one far camera detection, metres off in range, set a
+# track moving at 0.3-0.5 m/s). Held-out seeds 4-6, 8-14: float RMSE 0.15-0.30 m (with the
+# heading calibration; 0.15-0.35 m with 0.3).
+prior_velocity_var = 0.01
 initiate_in_gates = false
 missed_distance = 2.0
 min_points = 3
@@ -484,6 +489,12 @@ def _config_text(name: str, origin: tuple, streams: list[dict], attitude: bool) 
     if attitude:
         out.write('attitude = "imu"\n')
     out.write(f"origin = {_toml_value(list(origin))}\n")
+    out.write(
+        "# The GNSS heading's constant error (the antennas' baseline is not exactly along the\n"
+        "# hull) is estimated from the LiDAR's view of the quays in the first 30 s\n"
+        "# (usvfast.nav.heading_offset).\n"
+        "heading_calibration_s = 30.0\n"
+    )
     for s in streams:
         out.write("\n[[stream]]\n")
         mount = s.pop("mount", None)
