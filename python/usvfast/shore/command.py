@@ -70,6 +70,7 @@ def shore_command(
             sort = SortConfig(high_score=sort_high_score, low_score=sort_low_score)
         except ValueError as exc:
             name, _, why = str(exc).partition(":")
+            why = why.replace("high_score", "--sort-high-score")
             raise ValueError(f"--sort-{name.replace('_', '-')}:{why}") from exc
         config = ShoreConfig(
             detector=detector,  # pyright: ignore[reportArgumentType]  # (ShoreConfig checks it)

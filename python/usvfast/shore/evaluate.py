@@ -30,6 +30,12 @@ the previous ones; default parameters).
 MarDCT boxes carry no identities: the ground-truth ids are derived by linking the boxes of
 consecutive annotated frames (optimal assignment on centre distance, gated at two box
 diagonals); this is stated with the results.
+
+    python -m usvfast.shore.evaluate ... --sort-high-score 0.45 --sort-low-score 0
+
+runs the SORT-like tracker of every tracking row with ByteTrack's two-stage association
+(:class:`usvfast.shore.sort.SortConfig` `high_score`, `low_score`; default 0 and 0: one
+stage). The values are not tuned here: pick them on other videos.
 """
 
 from __future__ import annotations
@@ -467,8 +473,9 @@ def main(argv: Sequence[str] | None = None) -> None:
     try:
         sort = SortConfig(high_score=a.sort_high_score, low_score=a.sort_low_score)
     except ValueError as exc:
-        name = str(exc).partition(":")[0].replace("_", "-")
-        p.error(f"--sort-{name}: {str(exc).partition(':')[2].strip()}")
+        name, _, why = str(exc).partition(":")
+        why = why.replace("high_score", "--sort-high-score")
+        p.error(f"--sort-{name.replace('_', '-')}:{why}")
     cascade = None if a.no_cascade or "bayes" not in a.detector else CascadeConfig()
     results = evaluate(
         a.data or default_data(),
