@@ -173,3 +173,24 @@ def test_shore_cli_rejects_bad_scores(tmp_path):
         )
         assert res.exit_code != 0
         assert flag in res.output
+
+
+def test_the_evaluation_passes_the_sort_config_on(mardct_annotations):
+    from usvfast.shore.evaluate import evaluate
+    from usvfast.shore.mardct import load_mardct
+    from usvfast.shore.mot_eval import run_tracker, truth_detections
+
+    frames = load_mardct(mardct_annotations)["2"]
+    dets = truth_detections(frames)
+    for k, d in enumerate(dets):  # every other frame's boxes weak
+        d.scores[:] = 0.3 if k % 2 else 0.9
+    one = run_tracker(frames, dets, "sort")
+    cfg = SortConfig(high_score=0.5, low_score=0.5)  # a threshold: weak frames unseen
+    thr = run_tracker(frames, dets, "sort", sort=cfg)
+    two = run_tracker(frames, dets, "sort", sort=SortConfig(high_score=0.5, low_score=0.1))
+    assert len(thr[0]) < len(one[0])
+    assert set(two[0].tolist()) > set(thr[0].tolist())  # weak frames reported again
+    with pytest.raises(TypeError, match=r"^sort:"):
+        run_tracker(frames, dets, "sort", sort=0.5)  # pyright: ignore[reportArgumentType]
+    with pytest.raises(TypeError, match=r"^sort:"):
+        evaluate(mardct_annotations, detectors=["contrast"], sort={"high_score": 0.5})  # pyright: ignore[reportArgumentType]
