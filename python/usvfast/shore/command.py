@@ -13,6 +13,7 @@ from rich.console import Console
 from usvfast.shore.cascade import CascadeConfig, save_cascade, train_detector
 from usvfast.shore.mardct import load_mardct
 from usvfast.shore.pipeline import DETECTORS, TRACKERS, ShoreConfig, run_shore
+from usvfast.shore.sort import SortConfig
 
 
 def shore_command(
@@ -41,6 +42,20 @@ def shore_command(
         Path | None, typer.Option(help="Wake-filter stage XML (shore-train --wake-filter)")
     ] = None,
     tracker: Annotated[str, typer.Option(help=f"Tracker: {', '.join(TRACKERS)}")] = "sort",
+    sort_high_score: Annotated[
+        float,
+        typer.Option(
+            help="SORT two-stage association (ByteTrack): detection score from which a box is "
+            "associated first and may start a track (0: one stage)"
+        ),
+    ] = SortConfig.high_score,
+    sort_low_score: Annotated[
+        float,
+        typer.Option(
+            help="SORT two-stage association: least score of a second-stage box "
+            "(at most --sort-high-score; lower scores are dropped)"
+        ),
+    ] = SortConfig.low_score,
     horizon_filter: Annotated[
         bool, typer.Option(help="Drop detections well above the horizon line")
     ] = True,
@@ -51,6 +66,12 @@ def shore_command(
     """Detect and track vessels in shore or bridge camera footage; write tracks.txt and
     detections.txt (MOTChallenge), an annotated video and summary.json into OUT."""
     try:
+        try:
+            sort = SortConfig(high_score=sort_high_score, low_score=sort_low_score)
+        except ValueError as exc:
+            name, _, why = str(exc).partition(":")
+            why = why.replace("high_score", "--sort-high-score")
+            raise ValueError(f"--sort-{name.replace('_', '-')}:{why}") from exc
         config = ShoreConfig(
             detector=detector,  # pyright: ignore[reportArgumentType]  # (ShoreConfig checks it)
             tracker=tracker,  # pyright: ignore[reportArgumentType]
@@ -59,6 +80,7 @@ def shore_command(
             cnn_model=model if detector in ("cnn", "auto", "fused") else None,
             reflection_filter=reflection_filter,
             wake_model=wake_model,
+            sort=sort,
         )
         s = run_shore(
             input_path, out, config, video=video, progress=progress, max_frames=max_frames

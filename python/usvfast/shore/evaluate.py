@@ -30,6 +30,12 @@ the previous ones; default parameters).
 MarDCT boxes carry no identities: the ground-truth ids are derived by linking the boxes of
 consecutive annotated frames (optimal assignment on centre distance, gated at two box
 diagonals); this is stated with the results.
+
+    python -m usvfast.shore.evaluate ... --sort-high-score 0.45 --sort-low-score 0
+
+runs the SORT-like tracker of every tracking row with ByteTrack's two-stage association
+(:class:`usvfast.shore.sort.SortConfig` `high_score`, `low_score`; default 0 and 0: one
+stage). The values are not tuned here: pick them on other videos.
 """
 
 from __future__ import annotations
@@ -47,6 +53,7 @@ from rich.console import Console
 from rich.table import Table
 
 from usvfast._files import read_image
+from usvfast._validate import instance
 from usvfast.shore.bayes import BayesDetector, BayesDetectorConfig
 from usvfast.shore.boxes import Detections
 from usvfast.shore.cascade import CascadeConfig, train_detector
@@ -59,6 +66,7 @@ from usvfast.shore.mot_eval import (  # noqa: F401  (derive_truth_ids: public he
     truth_detections,
 )
 from usvfast.shore.scores import DetectionCounts
+from usvfast.shore.sort import SortConfig
 
 #: EO thresholds tried when tuning (8-bit levels).
 THRESHOLD_GRID: tuple[float, ...] = (40, 60, 80, 100, 120, 140, 160, 180, 200, 220)
@@ -143,9 +151,16 @@ def counts_dict(c: DetectionCounts) -> dict:
     return {"tpr": c.tpr, "far": c.far, "tp": c.tp, "fp": c.fp, "fn": c.fn}
 
 
-def cnn_row(frames: Sequence[AnnotatedFrame], cache: FrameCache, models: Path, held: str) -> dict:
+def cnn_row(
+    frames: Sequence[AnnotatedFrame],
+    cache: FrameCache,
+    models: Path,
+    held: str,
+    sort: SortConfig | None = None,
+) -> dict:
     """The CNN's detection and tracking rows of held-out video `held` (model trained
-    without it; its card's confidence threshold). Adds the detections to `cache`."""
+    without it; its card's confidence threshold; `sort`: the SORT-like tracker's
+    parameters). Adds the detections to `cache`."""
     from usvfast.shore.cnn import CnnDetector
 
     path = cnn_fold_model(models, held)
@@ -157,8 +172,8 @@ def cnn_row(frames: Sequence[AnnotatedFrame], cache: FrameCache, models: Path, h
         c = count(frames, kept(frames, cache, "cnn", use_h, hcfg))
         row[f"cnn_{'horizon' if use_h else 'no_horizon'}"] = counts_dict(c)
     row["tracking"] = {
-        "cnn": tracking_rows(frames, kept(frames, cache, "cnn", True, hcfg)),
-        "cnn no horizon": tracking_rows(frames, kept(frames, cache, "cnn", False, hcfg)),
+        "cnn": tracking_rows(frames, kept(frames, cache, "cnn", True, hcfg), sort=sort),
+        "cnn no horizon": tracking_rows(frames, kept(frames, cache, "cnn", False, hcfg), sort=sort),
     }
     return row
 
@@ -182,14 +197,15 @@ def cue_row(
     name: str,
     models: Path | None = None,
     held: str = "",
+    sort: SortConfig | None = None,
 ) -> dict:
     """Detection and tracking rows of the training-free contrast detector (`name`
     'contrast', :mod:`usvfast.shore.contrast`, default parameters), of the temporal change
     detector ('change', :mod:`usvfast.shore.change`, online, default parameters) or of the
     fused CNN +
     contrast score ('fused', :mod:`usvfast.shore.fused`, its default thresholds; the CNN of
-    `models` trained without `held`, see :func:`cnn_fold_model`). Adds the detections to
-    `cache` under `name`."""
+    `models` trained without `held`, see :func:`cnn_fold_model`). `sort`: the SORT-like
+    tracker's parameters. Adds the detections to `cache` under `name`."""
     from usvfast.shore.contrast import ContrastDetector
 
     det: object
@@ -220,8 +236,10 @@ def cue_row(
         c = count(frames, kept(frames, cache, name, use_h, hcfg))
         row[f"{name}_{'horizon' if use_h else 'no_horizon'}"] = counts_dict(c)
     row["tracking"] = {
-        name: tracking_rows(frames, kept(frames, cache, name, True, hcfg)),
-        f"{name} no horizon": tracking_rows(frames, kept(frames, cache, name, False, hcfg)),
+        name: tracking_rows(frames, kept(frames, cache, name, True, hcfg), sort=sort),
+        f"{name} no horizon": tracking_rows(
+            frames, kept(frames, cache, name, False, hcfg), sort=sort
+        ),
     }
     return row
 
@@ -233,10 +251,14 @@ def evaluate(
     cascade: CascadeConfig | None = None,
     detectors: Sequence[str] = ("bayes",),
     models: Path | None = None,
+    sort: SortConfig | None = None,
 ) -> dict:
     """Leave-one-video-out results per video (module doc); a JSON-ready dict. With `cascade`,
     a Haar cascade is also trained on the three other videos and scored. `detectors`:
-    'bayes' and/or 'cnn' (the latter needs `models`, see :func:`cnn_fold_model`)."""
+    'bayes' and/or 'cnn' (the latter needs `models`, see :func:`cnn_fold_model`). `sort`:
+    the SORT-like tracker's parameters in every tracking row (default :class:`SortConfig`)."""
+    if sort is not None:
+        instance("sort", sort, SortConfig)
     unknown = set(detectors) - {"bayes", "cnn", "contrast", "fused", "fused-nms", "change"}
     if unknown or not detectors:
         raise ValueError(
@@ -256,15 +278,17 @@ def evaluate(
             row = {"frames": len(frames), "boxes": int(sum(len(f.boxes) for f in frames))}
             row["tracking"] = {}
             if "cnn" in detectors:
-                extra = cnn_row(frames, cache, models or Path(), v)
+                extra = cnn_row(frames, cache, models or Path(), v, sort)
                 row["tracking"].update(extra.pop("tracking"))
                 row.update(extra)
             for name in ("contrast", "fused", "fused-nms", "change"):
                 if name in detectors:
-                    extra = cue_row(frames, cache, name, models, v)
+                    extra = cue_row(frames, cache, name, models, v, sort)
                     row["tracking"].update(extra.pop("tracking"))
                     row.update(extra)
-            row["tracking"]["truth boxes"] = tracking_rows(frames, truth_detections(frames))
+            row["tracking"]["truth boxes"] = tracking_rows(
+                frames, truth_detections(frames), sort=sort
+            )
             results[v] = row
         return results
     settings = {"paper": BayesDetectorConfig()}
@@ -297,10 +321,12 @@ def evaluate(
                     "fn": c.fn,
                 }
         row["tracking"] = {
-            "truth boxes": tracking_rows(frames, truth_detections(frames)),
-            "bayes": tracking_rows(frames, kept(frames, caches[v], f"t{best:g}", True, hcfg)),
+            "truth boxes": tracking_rows(frames, truth_detections(frames), sort=sort),
+            "bayes": tracking_rows(
+                frames, kept(frames, caches[v], f"t{best:g}", True, hcfg), sort=sort
+            ),
             "bayes no horizon": tracking_rows(
-                frames, kept(frames, caches[v], f"t{best:g}", False, hcfg)
+                frames, kept(frames, caches[v], f"t{best:g}", False, hcfg), sort=sort
             ),
         }
         if cascade:
@@ -321,9 +347,9 @@ def evaluate(
                     "fn": c.fn,
                 }
             dets = kept(frames, caches[v], "cascade", True, hcfg)
-            row["tracking"]["cascade"] = tracking_rows(frames, dets)
+            row["tracking"]["cascade"] = tracking_rows(frames, dets, sort=sort)
         if "cnn" in detectors:
-            extra = cnn_row(frames, caches[v], models or Path(), v)
+            extra = cnn_row(frames, caches[v], models or Path(), v, sort)
             row["tracking"].update(extra.pop("tracking"))
             row.update(extra)
         results[v] = row
@@ -427,9 +453,29 @@ def main(argv: Sequence[str] | None = None) -> None:
         help="Detectors",
     )
     p.add_argument("--models", type=Path, default=None, help="CNN fold models (evaluate_det)")
+    p.add_argument(
+        "--sort-high-score",
+        type=float,
+        default=SortConfig.high_score,
+        help="SORT two-stage association (ByteTrack): score from which a detection is "
+        "associated first and may start a track (0: one stage, the default)",
+    )
+    p.add_argument(
+        "--sort-low-score",
+        type=float,
+        default=SortConfig.low_score,
+        help="SORT two-stage association: least score of a second-stage detection "
+        "(at most --sort-high-score)",
+    )
     a = p.parse_args(argv)
     if {"cnn", "fused", "fused-nms"} & set(a.detector) and a.models is None:
         p.error("--models: the cnn and fused detectors need the folder of its fold models")
+    try:
+        sort = SortConfig(high_score=a.sort_high_score, low_score=a.sort_low_score)
+    except ValueError as exc:
+        name, _, why = str(exc).partition(":")
+        why = why.replace("high_score", "--sort-high-score")
+        p.error(f"--sort-{name.replace('_', '-')}:{why}")
     cascade = None if a.no_cascade or "bayes" not in a.detector else CascadeConfig()
     results = evaluate(
         a.data or default_data(),
@@ -437,6 +483,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         cascade=cascade,
         detectors=a.detector,
         models=a.models,
+        sort=sort,
     )
     print_tables(results)
     if a.json:

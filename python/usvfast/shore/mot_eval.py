@@ -17,12 +17,13 @@ from collections.abc import Sequence
 import cv2
 import numpy as np
 
+from usvfast._validate import instance
 from usvfast.metrics import FrameSequence, hota_metrics, mot_metrics
 from usvfast.shore.boxes import Detections
 from usvfast.shore.mardct import AnnotatedFrame
 from usvfast.shore.particle import ParticleTracker
 from usvfast.shore.pixel_kalman import AdaptiveTracker
-from usvfast.shore.sort import SortTracker
+from usvfast.shore.sort import SortConfig, SortTracker
 
 #: Trackers scored.
 TRACKERS: tuple[str, ...] = ("sort", "particle", "adaptive")
@@ -70,12 +71,16 @@ def run_tracker(
     tracker: str,
     images: Sequence[np.ndarray | None] | None = None,
     seed: int = 0,
+    sort: SortConfig | None = None,
 ) -> Tracks:
     """(frame numbers from 1, ids, boxes (n, 4) px) of `tracker` ('sort', 'particle' or
     'adaptive') over the frames with their detections. `images`: the BGR frames (read from
-    the frames' paths when None)."""
+    the frames' paths when None). `sort`: the SORT-like tracker's parameters (default
+    :class:`SortConfig`, one-stage association)."""
     if tracker not in TRACKERS:
         raise ValueError(f"tracker: expected one of {TRACKERS}, got {tracker!r}")
+    if sort is not None:
+        instance("sort", sort, SortConfig)
     if tracker == "particle":
         from dataclasses import replace
 
@@ -85,7 +90,7 @@ def run_tracker(
             replace(ParticleConfig(), seed=seed)
         )
     else:
-        t = SortTracker() if tracker == "sort" else AdaptiveTracker()
+        t = SortTracker(sort) if tracker == "sort" else AdaptiveTracker()
     fr, ids, boxes = [], [], []
     prev_index = None
     for n, (f, d) in enumerate(zip(frames, dets, strict=True), 1):
@@ -151,7 +156,11 @@ def tracking_rows(
     frames: Sequence[AnnotatedFrame],
     dets: Sequence[Detections],
     trackers: Sequence[str] = TRACKERS,
+    sort: SortConfig | None = None,
 ) -> dict[str, dict[str, float]]:
-    """mot_scores of each tracker on one video's detections (frames read once)."""
+    """mot_scores of each tracker on one video's detections (frames read once); `sort`: the
+    SORT-like tracker's parameters (see :func:`run_tracker`)."""
     images: list[np.ndarray | None] = [cv2.imread(str(f.path), cv2.IMREAD_COLOR) for f in frames]
-    return {t: mot_scores(frames, run_tracker(frames, dets, t, images)) for t in trackers}
+    return {
+        t: mot_scores(frames, run_tracker(frames, dets, t, images, sort=sort)) for t in trackers
+    }

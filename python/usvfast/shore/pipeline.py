@@ -20,6 +20,7 @@ import numpy as np
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
 from usvfast._core import HaarCascade
+from usvfast._validate import instance
 from usvfast.shore.annotate import draw_frame
 from usvfast.shore.bayes import BayesDetector, BayesDetectorConfig
 from usvfast.shore.boxes import Detections
@@ -58,7 +59,8 @@ class ShoreConfig:
     ('sort': Kalman + IoU assignment + colour re-identification; 'adaptive': the same paper's
     single-vessel adaptive Kalman tracker; 'particle': Bloisi et al.'s two-tier particle
     filter), `horizon_filter` (drop detections well above the horizon line) and the parameters
-    of each part."""
+    of each part (`sort`: :class:`usvfast.shore.sort.SortConfig`, whose `high_score` and
+    `low_score` turn on ByteTrack's two-stage association)."""
 
     detector: DetectorName = "auto"
     tracker: TrackerName = "sort"
@@ -79,6 +81,7 @@ class ShoreConfig:
     fused_relative: float = FUSED_RELATIVE
 
     def __post_init__(self) -> None:
+        instance("sort", self.sort, SortConfig)
         if self.detector not in DETECTORS:
             raise ValueError(f"detector: expected one of {DETECTORS}, got {self.detector!r}")
         if self.tracker not in TRACKERS:

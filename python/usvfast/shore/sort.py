@@ -7,6 +7,15 @@ Every frame: predict all tracks in one Rust call (`usvfast.kalman.predict_states
 cost 1 − IoU (+ a share of the histogram distance), update the matched tracks in one Rust
 call, then match the leftovers by appearance alone near the predicted box (re-identification),
 start tracks on unmatched detections and delete tracks unseen for `max_age` frames.
+
+Two-stage association (ByteTrack, Zhang et al., ECCV 2022, §3 "BYTE"), on when
+`SortConfig.high_score` > 0: only the detections scoring at least `high_score` take part in
+the steps above (and only they start tracks); the tracks still unmatched after them are then
+assigned to the low-score detections (`low_score` ≤ score < `high_score`) on IoU alone
+(gated at `low_iou_threshold`), so that a boat whose detector confidence drops for a few
+frames (occlusion, glare, a wake) keeps its track; low-score detections left over and
+detections below `low_score` are dropped. With the defaults (`high_score` = `low_score` = 0)
+every detection is used in one stage, as before.
 """
 
 from __future__ import annotations
@@ -16,7 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from usvfast import _core
-from usvfast._validate import as_float_array, finite_result, instance
+from usvfast._validate import as_float_array, finite_result, instance, real
 from usvfast.kalman import LinearModel, predict_states, update_states
 from usvfast.shore.appearance import box_histogram, histogram_distance
 from usvfast.shore.boxes import Detections, iou_matrix
@@ -33,7 +42,15 @@ class SortConfig:
     cost. reid_distance: largest histogram distance of a re-identification. reid_radius: a
     re-identified detection's centre lies within this many predicted-box diagonals.
     measurement_noise, process_noise, initial_covariance: diagonals of R (4,), Q (7,), P₀ (7,)
-    (SORT's published values)."""
+    (SORT's published values).
+
+    Two-stage association (ByteTrack, module doc): high_score: detection score (the
+    detector's confidence in [0, 1]) from which a detection is associated first and may start
+    a track; 0 (default) turns the second stage off and every detection is used as before.
+    low_score: least score of a second-stage detection (low_score ≤ score < high_score;
+    lower scores are dropped); at most high_score. low_iou_threshold: least IoU of a
+    second-stage pair (ByteTrack's published 0.5). Raises ValueError naming the field for a
+    negative or non-finite value or low_score > high_score."""
 
     iou_threshold: float = 0.3
     max_age: int = 3
@@ -44,6 +61,25 @@ class SortConfig:
     measurement_noise: tuple[float, ...] = (1.0, 1.0, 10.0, 10.0)
     process_noise: tuple[float, ...] = (1.0, 1.0, 1.0, 1.0, 1e-2, 1e-2, 1e-4)
     initial_covariance: tuple[float, ...] = (10.0, 10.0, 10.0, 10.0, 1e4, 1e4, 1e4)
+    high_score: float = 0.0
+    low_score: float = 0.0
+    low_iou_threshold: float = 0.5
+
+    def __post_init__(self) -> None:
+        for name in ("high_score", "low_score", "low_iou_threshold"):
+            v = real(name, getattr(self, name), low=0.0)
+            if v > 1.0:
+                raise ValueError(f"{name}: expected a value in [0, 1], got {v}")
+            object.__setattr__(self, name, v)
+        if self.low_score > self.high_score:
+            raise ValueError(
+                f"low_score: must be at most high_score ({self.high_score}), got {self.low_score}"
+            )
+
+    @property
+    def two_stage(self) -> bool:
+        """Whether the second (low-score) association stage is on (high_score > 0)."""
+        return self.high_score > 0.0
 
 
 def box_to_z(box: np.ndarray) -> np.ndarray:
@@ -129,7 +165,15 @@ class SortTracker:
         c = self.config
         self.frame += 1
         self._predict()
-        boxes = np.asarray(detections.boxes, dtype=float).reshape(-1, 4)
+        all_boxes = np.asarray(detections.boxes, dtype=float).reshape(-1, 4)
+        all_scores = np.asarray(detections.scores, dtype=float).reshape(-1)
+        if c.two_stage:
+            high = all_scores >= c.high_score
+            low = ~high & (all_scores >= c.low_score)
+        else:
+            high = np.ones(len(all_boxes), dtype=bool)
+            low = np.zeros(len(all_boxes), dtype=bool)
+        boxes, det_scores = all_boxes[high], all_scores[high]
         hists = [box_histogram(image, b) for b in boxes]
         pred = state_to_box(self.x) if self.tracks else np.zeros((0, 4))
         iou = iou_matrix(pred, boxes)
@@ -152,6 +196,22 @@ class SortTracker:
             sub = app[np.ix_(left_t, left_d)].copy()
             sub[(sub > c.reid_distance) | (dist > c.reid_radius * diag[:, None])] = FORBIDDEN
             matches += [(left_t[i], left_d[j]) for i, j in self._assign(sub)]
+        # second stage (ByteTrack): still-unmatched tracks against the low-score detections
+        low_matches: list[tuple[int, int]] = []
+        low_boxes = all_boxes[low]
+        if len(low_boxes):
+            used_t = {i for i, _ in matches}
+            left_t = [i for i in range(len(self.tracks)) if i not in used_t]
+            if left_t:
+                sub = 1 - iou_matrix(pred[left_t], low_boxes)
+                sub[sub > 1 - c.low_iou_threshold] = FORBIDDEN
+                low_matches = [(left_t[i], j) for i, j in self._assign(sub)]
+        n_high = len(boxes)
+        if low_matches:  # low-score detections indexed after the high ones
+            boxes = np.vstack([boxes, low_boxes])
+            det_scores = np.concatenate([det_scores, all_scores[low]])
+            hists = hists + [None] * len(low_boxes)  # no appearance update from them
+            matches += [(i, n_high + j) for i, j in low_matches]
         if matches:
             ti = np.array([i for i, _ in matches])
             dj = np.array([j for _, j in matches])
@@ -167,12 +227,12 @@ class SortTracker:
                 t = self.tracks[i]
                 t.hits += 1
                 t.time_since_update = 0
-                t.score = float(detections.scores[j])
+                t.score = float(det_scores[j])
                 h = hists[j]
                 if h is not None:
                     t.hist = h if t.hist is None else 0.7 * t.hist + 0.3 * h
         matched_d = {j for _, j in matches}
-        new = [j for j in range(len(boxes)) if j not in matched_d]
+        new = [j for j in range(n_high) if j not in matched_d]  # high-score ones only
         if new:
             z = box_to_z(boxes[new])
             x0 = np.zeros((len(new), 7))
@@ -181,9 +241,7 @@ class SortTracker:
             p0 = np.repeat(np.diag(c.initial_covariance)[None], len(new), axis=0)
             self.p = np.concatenate([self.p, p0])
             for j in new:
-                self.tracks.append(
-                    _Track(self.next_id, hists[j], score=float(detections.scores[j]))
-                )
+                self.tracks.append(_Track(self.next_id, hists[j], score=float(det_scores[j])))
                 self.next_id += 1
         keep = np.array([t.time_since_update <= c.max_age for t in self.tracks], dtype=bool)
         self.tracks = [t for t, k in zip(self.tracks, keep, strict=True) if k]
