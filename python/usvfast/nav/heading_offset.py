@@ -16,8 +16,8 @@ around its best, and a parabola through the fine peak.
 
 The offset is observable only when the vessel has moved: turning on the spot rotates every
 frame's points the same way. `HeadingOffset.observable` is False when the positions used
-span less than `min_baseline` m (the diagonal of their box) or no peak stands out (the pipeline then keeps the heading
-as it is).
+span less than `min_baseline` m (the diagonal of their box) or no peak stands out (the
+pipeline then keeps the heading as it is).
 """
 
 from __future__ import annotations

@@ -25,9 +25,7 @@ MIN_RANGE = 3.0
 MAX_RANGE = 40.0
 
 
-def static_points(
-    levelled: np.ndarray, mount: Mount, waterline_height: float
-) -> np.ndarray:
+def static_points(levelled: np.ndarray, mount: Mount, waterline_height: float) -> np.ndarray:
     """(n, 2) body FRD horizontal coordinates (m, from the vessel reference point) of the
     points of a levelled frame (`level_points`: x forward, y left, z up from the reference
     point, horizontal origin at the mount) that stand `MIN_HEIGHT` m above the water at

@@ -128,8 +128,9 @@ class NavTrack:
         headings corrected by `heading_offset_deg` (degrees clockwise; None: the config's
         `heading_offset_deg`). Raises NavigationError naming the stream when no position fix
         or no heading is found."""
-        if heading_offset_deg is None:
-            heading_offset_deg = config.heading_offset_deg
+        offset = math.radians(
+            config.heading_offset_deg if heading_offset_deg is None else heading_offset_deg
+        )
         fixes: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
         headings: list[tuple[np.ndarray, np.ndarray]] = []
         damaged: dict[str, int] = {}
@@ -160,7 +161,7 @@ class NavTrack:
         n, e, _ = geodesy.geodetic2ned(lat, lon, np.zeros_like(lat), lat0, lon0, h0)
         t_head, head = headings[0]
         order = np.argsort(t_head, kind="stable")
-        t_head, head = t_head[order], head[order] + math.radians(heading_offset_deg)
+        t_head, head = t_head[order], head[order] + offset
         gap = config.recording.max_pose_gap
         heading = Channel.build("heading", t_head, {"heading": head}, ("angle",), 0.0, gap)
         # Antenna -> reference point: subtract the heading-rotated lever arm.
