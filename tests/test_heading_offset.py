@@ -68,12 +68,48 @@ def test_turning_on_the_spot_leaves_the_offset_unobservable():
     assert est.as_dict()["offset_deg"] is None
 
 
+def _sharpness_numpy(xy, north, east, heading, cell):
+    """The score written plainly (the oracle of the Rust loop)."""
+    c, s = np.cos(heading), np.sin(heading)
+    pn = (north + c * xy[:, 0] - s * xy[:, 1]) / cell
+    pe = (east + s * xy[:, 0] + c * xy[:, 1]) / cell
+    total = 0.0
+    for shift in (0.0, 0.5):
+        keys = np.floor(np.column_stack([pn, pe]) + shift).astype(np.int64)
+        _, counts = np.unique(keys, axis=0, return_counts=True)
+        total += float((counts.astype(float) ** 2).sum())
+    return total / (2.0 * len(xy) ** 2)
+
+
 def test_sharpness_is_highest_for_coincident_points():
     xy = np.array([[1.0, 0.0], [1.0, 0.0], [5.0, 5.0]])
     zero = np.zeros(3)
-    tight = sharpness(xy, zero, zero, zero, 0.1)
-    spread = sharpness(xy + np.array([[0, 0], [0.5, 0], [0, 0]]), zero, zero, zero, 0.1)
-    assert tight == pytest.approx(5 / 9) and spread == pytest.approx(3 / 9)
+    tight = sharpness(xy, zero, zero, zero, np.array([0.0]), 0.1)
+    spread = sharpness(xy + np.array([[0, 0], [0.5, 0], [0, 0]]), zero, zero, zero, [0.0], 0.1)
+    assert tight[0] == pytest.approx(5 / 9) and spread[0] == pytest.approx(3 / 9)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_the_rust_score_equals_the_plain_one(seed):
+    points, poses = _frames(0.7, seed)
+    counts = [len(p) for p in points]
+    xy = np.concatenate(points)
+    frame = np.repeat(np.arange(len(points)), counts)
+    n, e, h = poses[frame, 0], poses[frame, 1], poses[frame, 2]
+    offsets = np.array([-1.0, -0.7, 0.0, 0.35])
+    ours = sharpness(xy, n, e, h, offsets, 0.1)
+    plain = [_sharpness_numpy(xy, n, e, h + np.radians(d), 0.1) for d in offsets]
+    assert ours == pytest.approx(plain, rel=1e-12)
+
+
+def test_sharpness_refuses_bad_input():
+    xy, one = np.ones((2, 2)), np.zeros(2)
+    with pytest.raises(ValueError, match="cell"):
+        sharpness(xy, one, one, one, [0.0], 0.0)
+    with pytest.raises(ValueError, match="north"):
+        sharpness(xy, np.zeros(3), one, one, [0.0], 0.1)
+    with pytest.raises(ValueError, match="offsets"):
+        sharpness(xy, one, one, one, [float("nan")], 0.1)
 
 
 @pytest.mark.parametrize(
@@ -99,8 +135,11 @@ def test_bad_input_names_the_argument(kwargs, name):
 
 def test_the_offset_turns_every_heading(tmp_path):
     cfg = load_config(BUNDLED / "recording.toml")
-    plain = NavTrack.from_config(cfg, heading_offset_deg=0.0)
-    turned = NavTrack.from_config(cfg, heading_offset_deg=1.5)
+    plain = NavTrack.from_config(cfg)
+    turned = plain.with_heading_offset(1.5)
+    assert turned.with_heading_offset(0.0).pose_at(plain.start + 1.0) == plain.pose_at(
+        plain.start + 1.0
+    )
     t = 0.5 * (plain.start + plain.end)
     a, b = plain.pose_at(t), turned.pose_at(t)
     assert a is not None and b is not None

@@ -151,6 +151,14 @@ def sensor_to_ned(
     yaw: _F,
     position: _F,
 ) -> _F: ...
+def map_sharpness(
+    xy: _F,
+    north: _F,
+    east: _F,
+    heading: _F,
+    offsets: _F,
+    cell: float,
+) -> _F: ...
 
 # --- camera (rust/src/py/camera.rs) ---
 def nms_indices(

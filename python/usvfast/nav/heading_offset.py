@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from usvfast import _core
 from usvfast._validate import as_float_array, real
 
 __all__ = ["HeadingOffset", "estimate_heading_offset", "sharpness"]
@@ -70,24 +71,26 @@ def _decimate(xy: np.ndarray, cell: float) -> np.ndarray:
 
 
 def sharpness(
-    xy: np.ndarray, north: np.ndarray, east: np.ndarray, heading: np.ndarray, cell: float
-) -> float:
+    xy: np.ndarray,
+    north: np.ndarray,
+    east: np.ndarray,
+    heading: np.ndarray,
+    offsets_deg: np.ndarray,
+    cell: float,
+) -> np.ndarray:
     """Σ n² / (Σ n)² of the points' NED cell counts (two grids, the second shifted by half a
-    cell; mean of the two). xy (n, 2): body FRD horizontal coordinates (x forward, y
-    starboard) from the vessel reference point, m; north, east, heading (n,): the pose of
-    each point's frame (m, m, rad clockwise from north)."""
-    c, s = np.cos(heading), np.sin(heading)
-    pn = (north + c * xy[:, 0] - s * xy[:, 1]) / cell
-    pe = (east + s * xy[:, 0] + c * xy[:, 1]) / cell
-    total = 0.0
-    for shift in (0.0, 0.5):
-        i = np.floor(pn + shift).astype(np.int64)
-        j = np.floor(pe + shift).astype(np.int64)
-        i -= i.min()
-        j -= j.min()
-        counts = np.bincount(i * (int(j.max()) + 1) + j).astype(np.float64)
-        total += float(np.dot(counts, counts))
-    return total / (2.0 * len(xy) ** 2)
+    cell; mean of the two) for each heading correction of `offsets_deg` (m,), degrees. xy
+    (n, 2): body FRD horizontal coordinates (x forward, y starboard) from the vessel
+    reference point, m; north, east, heading (n,): the pose of each point's frame (m, m, rad
+    clockwise from north). In Rust (`usvfast._core.map_sharpness`)."""
+    return _core.map_sharpness(
+        as_float_array("xy", xy, 2),
+        as_float_array("north", north, 1),
+        as_float_array("east", east, 1),
+        as_float_array("heading", heading, 1),
+        np.radians(as_float_array("offsets_deg", offsets_deg, 1)),
+        real("cell", cell, positive=True),
+    )
 
 
 def estimate_heading_offset(
@@ -138,15 +141,11 @@ def estimate_heading_offset(
     frame = np.repeat(np.arange(len(frames)), counts)
     north, east, heading = poses[frame, 0], poses[frame, 1], poses[frame, 2]
     baseline = float(np.hypot(*np.ptp(poses[counts > 0, :2], axis=0)))
-
-    def score(deg: float) -> float:
-        return sharpness(xy, north, east, heading + np.radians(deg), cell)
-
     angles = np.arange(-span, span + coarse / 2, coarse)
-    scores = np.array([score(a) for a in angles])
+    scores = sharpness(xy, north, east, heading, angles, cell)
     best = float(angles[int(np.argmax(scores))])
     near = np.arange(best - coarse, best + coarse + fine / 2, fine)
-    near_scores = np.array([score(a) for a in near])
+    near_scores = sharpness(xy, north, east, heading, near, cell)
     k = int(np.argmax(near_scores))
     offset = float(near[k])
     if 0 < k < len(near) - 1:

@@ -281,8 +281,8 @@ class Pipeline:
         with self.timer("calibration.heading"):
             est = calibrate_heading(self.config, self._nav, lidar, seconds)
             if est.observable:
-                total = self.config.heading_offset_deg + est.offset_deg
-                self._nav = NavTrack.from_config(self.config, heading_offset_deg=total)
+                total = self._nav.heading_offset_deg + est.offset_deg
+                self._nav = self._nav.with_heading_offset(total)
         self.heading_calibration = est
 
     def run(

@@ -120,17 +120,16 @@ class NavTrack:
         self._att = None if attitude is None else (attitude.time.tolist(), attitude.values)
         self.start = float(max(position.time[0], heading.time[0]))
         self.end = float(min(position.time[-1], heading.time[-1]))
+        #: The correction added to the navigation's headings, degrees clockwise.
+        self.heading_offset_deg = 0.0
+        self._source: _NavSource | None = None
 
     @classmethod
-    def from_config(cls, config: Any, heading_offset_deg: float | None = None) -> NavTrack:
+    def from_config(cls, config: Any) -> NavTrack:
         """Read the config's navigation streams (NMEA text `nmea`; bag topics of
         nmea_msgs/Sentence or NavSatFix) and attitude stream (bag sensor_msgs/Imu), the
-        headings corrected by `heading_offset_deg` (degrees clockwise; None: the config's
-        `heading_offset_deg`). Raises NavigationError naming the stream when no position fix
-        or no heading is found."""
-        offset = math.radians(
-            config.heading_offset_deg if heading_offset_deg is None else heading_offset_deg
-        )
+        headings corrected by the config's `heading_offset_deg`. Raises NavigationError
+        naming the stream when no position fix or no heading is found."""
         fixes: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
         headings: list[tuple[np.ndarray, np.ndarray]] = []
         damaged: dict[str, int] = {}
@@ -161,22 +160,14 @@ class NavTrack:
         n, e, _ = geodesy.geodetic2ned(lat, lon, np.zeros_like(lat), lat0, lon0, h0)
         t_head, head = headings[0]
         order = np.argsort(t_head, kind="stable")
-        t_head, head = t_head[order], head[order] + offset
         gap = config.recording.max_pose_gap
-        heading = Channel.build("heading", t_head, {"heading": head}, ("angle",), 0.0, gap)
-        # Antenna -> reference point: subtract the heading-rotated lever arm.
-        h_at_fix = np.full(t_fix.shape, np.nan)
-        ok = heading.covered(t_fix)
-        h_at_fix[ok] = heading.at(t_fix[ok])[:, 0]
-        if not np.any(ok):
+        source = _NavSource(t_fix, n, e, t_head[order], head[order], lever, gap)
+        position, heading = source.channels(math.radians(config.heading_offset_deg))
+        if not np.any(heading.covered(t_fix)):
             raise NavigationError(
                 f"recording {config.recording.name!r}: headings of {names} do not overlap the "
                 "position fixes in time"
             )
-        dn, de = _lever_ne(lever, h_at_fix)
-        position = Channel.build(
-            "position", t_fix, {"north": n - dn, "east": e - de}, ("linear", "linear"), 0.0, gap
-        )
         attitude = None
         if config.attitude is not None:
             spec = config.recording.stream(config.attitude)
@@ -192,7 +183,22 @@ class NavTrack:
                 0.0,
                 gap,
             )
-        return cls((lat0, lon0, h0), position, heading, attitude, damaged)
+        track = cls((lat0, lon0, h0), position, heading, attitude, damaged)
+        track._source = source
+        track.heading_offset_deg = float(config.heading_offset_deg)
+        return track
+
+    def with_heading_offset(self, offset_deg: float) -> NavTrack:
+        """A copy whose headings are the navigation's plus `offset_deg` (degrees clockwise,
+        in all: it replaces any offset applied before), the antenna's lever arm removed again
+        with them. Only for a NavTrack read by `from_config`."""
+        if self._source is None:
+            raise ValueError("offset_deg: this NavTrack was not read by NavTrack.from_config")
+        position, heading = self._source.channels(math.radians(offset_deg))
+        track = NavTrack(self.origin, position, heading, self.attitude, self.damaged)
+        track._source = self._source
+        track.heading_offset_deg = float(offset_deg)
+        return track
 
     def pose_at(self, t: float) -> VesselPose | None:
         """The pose at UNIX time t, or None when the GNSS does not cover t (a gap). Without
@@ -209,6 +215,40 @@ class NavTrack:
         return VesselPose(
             float(t), float(ne[0]), float(ne[1]), float(h[0]) % (2 * math.pi), roll, pitch
         )
+
+
+@dataclass(frozen=True)
+class _NavSource:
+    """The navigation as read (antenna fixes in NED m, headings rad in time order), from
+    which the position and heading channels are built for a heading correction."""
+
+    t_fix: np.ndarray
+    north: np.ndarray
+    east: np.ndarray
+    t_head: np.ndarray
+    head: np.ndarray
+    lever: np.ndarray
+    max_gap: float
+
+    def channels(self, offset: float) -> tuple[Channel, Channel]:
+        """(position, heading) with `offset` rad added to the headings: the reference
+        point's position is the antenna's minus the heading-rotated lever arm."""
+        heading = Channel.build(
+            "heading", self.t_head, {"heading": self.head + offset}, ("angle",), 0.0, self.max_gap
+        )
+        h_at_fix = np.full(self.t_fix.shape, np.nan)
+        ok = heading.covered(self.t_fix)
+        h_at_fix[ok] = heading.at(self.t_fix[ok])[:, 0]
+        dn, de = _lever_ne(self.lever, h_at_fix)
+        position = Channel.build(
+            "position",
+            self.t_fix,
+            {"north": self.north - dn, "east": self.east - de},
+            ("linear", "linear"),
+            0.0,
+            self.max_gap,
+        )
+        return position, heading
 
 
 def _interp(

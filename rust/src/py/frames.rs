@@ -1,8 +1,10 @@
-//! Bindings of the frames core: batch sensor → NED transform of point arrays.
+//! Bindings of the frames core: batch sensor → NED transform of point arrays, and the
+//! sharpness of a point map under trial heading corrections.
 
 use super::{slice, to_py_err};
 use crate::error::Error;
 use crate::frames::{self, Se3};
+use crate::sharpness;
 use nalgebra::{Matrix3, Vector3};
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
@@ -57,7 +59,42 @@ fn sensor_to_ned<'py>(
     Ok(PyArray1::from_vec(py, out).reshape([n, 3])?.into_any())
 }
 
+/// Σ n² / (Σ n)² of the NED cell counts (`cell` m, two grids half a cell apart, their mean)
+/// of points `xy` (n, 2: body FRD x forward, y starboard, m) placed with their frames' poses
+/// `north`, `east` (m) and `heading` (rad clockwise) plus each of `offsets` (rad): (m,).
+#[pyfunction]
+#[pyo3(signature = (xy, north, east, heading, offsets, cell))]
+fn map_sharpness<'py>(
+    py: Python<'py>,
+    xy: PyReadonlyArray2<'py, f64>,
+    north: PyReadonlyArray1<'py, f64>,
+    east: PyReadonlyArray1<'py, f64>,
+    heading: PyReadonlyArray1<'py, f64>,
+    offsets: PyReadonlyArray1<'py, f64>,
+    cell: f64,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    if xy.shape()[1] != 2 {
+        return Err(to_py_err(Error::dim(
+            "xy",
+            "shape (n, 2)",
+            format!("{:?}", xy.shape()),
+        )));
+    }
+    let (p, n, e, h, o) = (
+        slice("xy", &xy)?,
+        slice("north", &north)?,
+        slice("east", &east)?,
+        slice("heading", &heading)?,
+        slice("offsets", &offsets)?,
+    );
+    let out = py
+        .detach(|| sharpness::map_sharpness(p, n, e, h, o, cell))
+        .map_err(to_py_err)?;
+    Ok(PyArray1::from_vec(py, out))
+}
+
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(sensor_to_ned, m)?)?;
+    m.add_function(wrap_pyfunction!(map_sharpness, m)?)?;
     Ok(())
 }
