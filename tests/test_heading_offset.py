@@ -184,3 +184,29 @@ def test_the_bundled_recordings_heading_bias_is_found():
     assert est is not None and est.observable
     assert est.offset_deg == pytest.approx(-math.degrees(truth.heading_bias), abs=0.15)
     assert abs(truth.heading_bias) > math.radians(0.3)  # so the test could fail
+
+
+def test_the_summary_table_shows_the_heading_correction():
+    from rich.console import Console
+
+    from usvfast.pipeline.command import summary_tables
+
+    summary = {
+        "recording": "r",
+        "duration_s": 30.0,
+        "wall_s": 5.0,
+        "real_time_factor": 6.0,
+        "scans": 1,
+        "detections": {"lidar": 1, "camera": 0},
+        "tracks": 1,
+        "damaged_messages": 0,
+        "tracker_backend": "native",
+        "stages": {},
+        "heading_calibration": {"offset_deg": 0.947, "baseline_m": 32.1, "observable": True},
+    }
+    console = Console(width=120, record=True)
+    console.print(summary_tables(summary)[0])
+    assert "+0.95 deg (over 32 m)" in console.export_text()
+    summary["heading_calibration"] = {"offset_deg": None, "baseline_m": 0.4, "observable": False}
+    console.print(summary_tables(summary)[0])
+    assert "not observable (0 m travelled)" in console.export_text()

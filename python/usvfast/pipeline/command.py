@@ -53,6 +53,14 @@ def summary_tables(summary: dict[str, Any]) -> list[Table]:
         ("damaged messages (skipped)", str(summary["damaged_messages"])),
         ("tracker", summary["tracker_backend"]),
     ]
+    cal = summary.get("heading_calibration")
+    if cal is not None:
+        found = (
+            f"{cal['offset_deg']:+.2f} deg (over {cal['baseline_m']:.0f} m)"
+            if cal["observable"]
+            else f"not observable ({cal['baseline_m']:.0f} m travelled)"
+        )
+        rows.append(("heading correction from the LiDAR", found))
     for k, v in rows:
         over.add_row(k, v)
     title = "time per stage"
