@@ -210,3 +210,8 @@ def test_the_summary_table_shows_the_heading_correction():
     summary["heading_calibration"] = {"offset_deg": None, "baseline_m": 0.4, "observable": False}
     console.print(summary_tables(summary)[0])
     assert "not observable (0 m travelled)" in console.export_text()
+
+
+def test_a_heading_calibration_without_lidar_is_a_config_error():
+    with pytest.raises(ConfigError, match=r"heading_calibration_s.*LiDAR"):
+        load_config(BUNDLED / "recording.toml", {"lidar.enabled": False})

@@ -490,6 +490,11 @@ def _build(data: dict[str, Any], file: Path) -> PipelineConfig:
             raise ConfigError(
                 f"{file}: key 'camera.calibration': {cam['calibration']} does not exist"
             )
+    if calibration is not None and not (tables["lidar"]["enabled"] and "lidar" in sensors.values()):
+        raise ConfigError(
+            f"{file}: key 'recording.heading_calibration_s': the heading calibration needs a "
+            'LiDAR stream (sensor = "lidar", lidar.enabled = true)'
+        )
     trk = tables["tracker"]
     if trk["deletion"] == "time":
         for key in ("init_delete_after_s", "delete_after_s"):

@@ -273,7 +273,7 @@ class Pipeline:
 
     def _calibrate_heading(self, seconds: float) -> None:
         """Estimate the heading correction from the first `seconds` of LiDAR and, when it is
-        observable, read the navigation again with it (`usvfast.pipeline.heading`)."""
+        observable, add it to the navigation's headings (`usvfast.pipeline.heading`)."""
         from usvfast.pipeline.heading import calibrate_heading
 
         assert self._nav is not None

@@ -48,10 +48,6 @@ def calibrate_heading(
     frame of the LiDAR streams of `chains` (stream id -> its chain: mount and the reference
     point's height above the water) over the recording's first `seconds` s. Not observable
     (offset NaN) when no frame has a point above the water."""
-    if not chains:
-        raise ValueError(
-            "recording.heading_calibration_s: the heading calibration needs a LiDAR stream"
-        )
     replay = Replay(
         config.recording,
         pose_track=SimpleNamespace(pose_at=nav.pose_at),  # type: ignore[arg-type]
