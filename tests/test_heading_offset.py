@@ -215,3 +215,55 @@ def test_the_summary_table_shows_the_heading_correction():
 def test_a_heading_calibration_without_lidar_is_a_config_error():
     with pytest.raises(ConfigError, match=r"heading_calibration_s.*LiDAR"):
         load_config(BUNDLED / "recording.toml", {"lidar.enabled": False})
+
+
+def test_process_calibrates_the_heading_on_live_frames():
+    """Fed live (no pose attached), the pipeline takes the first 25 s of LiDAR, then turns
+    every later pose by its estimate: Pipeline.run's estimate over the same 25 s to within
+    0.1 deg (the live pose extrapolates its newest samples to each frame's stamp, the
+    recording's interpolates; both time the NMEA fixes by their own UTC times)."""
+    from usvfast.nav.replay import Replay
+    from usvfast.pipeline import Pipeline
+
+    cfg = load_config(
+        BUNDLED / "recording.toml",
+        {"camera.enabled": False, "recording.heading_calibration_s": 25.0},
+    )
+    batch = Pipeline(cfg)
+    batch._nav = NavTrack.from_config(cfg)
+    batch._calibrate_heading(25.0)
+    assert batch.heading_calibration is not None
+    pipe = Pipeline(cfg)
+    for message in Replay(cfg.recording):
+        pipe.process(message)
+    est = pipe.heading_calibration
+    assert est is not None and est.observable
+    assert abs(est.frames - batch.heading_calibration.frames) <= 1
+    assert est.offset_deg == pytest.approx(batch.heading_calibration.offset_deg, abs=0.1)
+    # the live pose now carries the correction
+    assert pipe.live.heading_offset == pytest.approx(math.radians(est.offset_deg))
+    t = message.time
+    turned = pipe.live.at(t)
+    pipe.live.heading_offset = 0.0
+    plain = pipe.live.at(t)
+    assert turned is not None and plain is not None
+    diff = (turned.heading - plain.heading + math.pi) % (2 * math.pi) - math.pi
+    assert diff == pytest.approx(math.radians(est.offset_deg), abs=1e-9)
+
+
+def test_sentence_utc_takes_the_day_of_the_receive_time():
+    from usvfast.pipeline.pose import sentence_utc
+
+    gga = "$GPGGA,235959.50,6326.3820,N,01024.1500,E,4,12,0.8,40.0,M,0.0,M,,*"
+    body = gga[1:-1]
+    checksum = 0
+    for ch in body:
+        checksum ^= ord(ch)
+    gga += f"{checksum:02X}"
+    day = 1686873600.0  # 2023-06-16 00:00 UTC
+    # received 0.1 s after midnight: the fix belongs to the day before
+    assert sentence_utc(gga, day + 0.05) == pytest.approx(day - 0.5)
+    assert sentence_utc(gga, day - 0.45) == pytest.approx(day - 0.5)
+    assert sentence_utc(gga, day + 3600.0) is None  # a clock that does not agree
+    assert sentence_utc("$GPHDT,10.0,T*00", day) is None
+    assert sentence_utc("garbage", day) is None

@@ -35,9 +35,17 @@ from usvfast.nav.heading_offset import HeadingOffset
 from usvfast.nav.replay import Replay
 from usvfast.pipeline.camera_chain import CameraChain, load_detector
 from usvfast.pipeline.config import ConfigError, PipelineConfig, load_config
+from usvfast.pipeline.heading import HeadingCalibrator, calibrate_heading
 from usvfast.pipeline.lidar_chain import LidarChain
 from usvfast.pipeline.outputs import OutputWriter
-from usvfast.pipeline.pose import LivePose, NavTrack, VesselPose, imu_roll_pitch, parse_sentence
+from usvfast.pipeline.pose import (
+    LivePose,
+    NavTrack,
+    VesselPose,
+    imu_roll_pitch,
+    parse_sentence,
+    sentence_utc,
+)
 from usvfast.pipeline.timing import StageTimer
 from usvfast.pipeline.tracker import (
     SENSORS,
@@ -109,6 +117,14 @@ class Pipeline:
         self.summary: dict[str, Any] = {}
         self._nav: NavTrack | None = None
         self.heading_calibration: HeadingOffset | None = None
+        # process(): each NMEA stream's receive delay (s), from its latest timed fix
+        self._nav_delay: dict[str, float] = {}
+        # process(): the live frames' heading calibration, until it has given its estimate
+        self._live_calibrator = (
+            HeadingCalibrator(cfg.heading_calibration_s)
+            if cfg.heading_calibration_s is not None
+            else None
+        )
 
     # --- live -----------------------------------------------------------------------------
     def _live_nav(self, t: float, stream: str, data: Any) -> None:
@@ -119,6 +135,13 @@ class Pipeline:
             if parsed is None:
                 return
             kind, values = parsed
+            if kind == "fix":
+                # A fix is timed by its own UTC time; the stream's other sentences by their
+                # receive time less the receive delay of its latest fix.
+                utc = sentence_utc(data, t)
+                if utc is not None:
+                    self._nav_delay[stream] = t - utc
+            t -= self._nav_delay.get(stream, 0.0)
             if kind == "fix":
                 self.live.add_fix(t, *values)
             elif kind == "attitude":
@@ -174,7 +197,8 @@ class Pipeline:
                 self._live_nav(t, stream, data)
             return None
         pose = getattr(message, "pose", None)
-        if not isinstance(pose, VesselPose):
+        live = not isinstance(pose, VesselPose)
+        if live:
             pose = self.live.at(t)
         if pose is None:
             self.counts[stream]["no_pose"] += 1
@@ -183,6 +207,8 @@ class Pipeline:
             self.epoch = math.floor(t)
         chain = self.chains[stream]
         if isinstance(chain, LidarChain):
+            if live and self._live_calibrator is not None:
+                self._calibrate_live(data, pose, chain)
             dets = chain.process(data, pose, self._pose_source(message))
             if dets is None:
                 return None
@@ -271,11 +297,22 @@ class Pipeline:
         finally:
             self._pose_seconds += time.perf_counter() - t0
 
+    def _calibrate_live(self, frame: Any, pose: VesselPose, chain: LidarChain) -> None:
+        """Feed a live LiDAR frame to the heading calibration; once it has its estimate, an
+        observable correction turns every later pose (the frames before it keep theirs)."""
+        assert self._live_calibrator is not None
+        with self.timer("calibration.heading"):
+            est = self._live_calibrator.add(frame, pose, self.live.at, chain)
+        if est is None:
+            return
+        self._live_calibrator = None
+        self.heading_calibration = est
+        if est.observable:
+            self.live.heading_offset += math.radians(est.offset_deg)
+
     def _calibrate_heading(self, seconds: float) -> None:
         """Estimate the heading correction from the first `seconds` of LiDAR and, when it is
         observable, add it to the navigation's headings (`usvfast.pipeline.heading`)."""
-        from usvfast.pipeline.heading import calibrate_heading
-
         assert self._nav is not None
         lidar = {k: c for k, c in self.chains.items() if isinstance(c, LidarChain)}
         with self.timer("calibration.heading"):

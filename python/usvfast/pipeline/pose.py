@@ -36,6 +36,7 @@ __all__ = [
     "VesselPose",
     "imu_roll_pitch",
     "parse_sentence",
+    "sentence_utc",
 ]
 
 # ENU -> NED (world) and FLU -> FRD (body) axis swaps.
@@ -400,7 +401,8 @@ def parse_sentence(sentence: str) -> tuple[str, tuple[float, ...]] | None:
     """One NMEA sentence of a live stream -> ("fix", (lat, lon)) for GGA/RMC/GLL with a fix,
     ("heading", (deg,)) for HDT/THS, ("attitude", (roll rad, pitch rad)) for PASHR and XDR
     PITCH/ROLL, None otherwise or when it does not parse (checksum
-    checked). The time is the message's (live streams carry it in the header)."""
+    checked). Its time: see `sentence_utc` (the pipeline's live path times a stream's
+    sentences by the fixes' own UTC times, less the receive delay)."""
     import pynmea2
 
     try:
@@ -427,6 +429,24 @@ def parse_sentence(sentence: str) -> tuple[str, tuple[float, ...]] | None:
     return None
 
 
+def sentence_utc(sentence: str, near: float, max_delay: float = 2.0) -> float | None:
+    """The UNIX time (s) of a GGA/RMC/GLL sentence's own UTC time of day, taken on the UTC day
+    of `near` (the message's receive time, UNIX s); None when the sentence has no time or it
+    lies more than `max_delay` s from `near` (a clock that does not agree with the stamps)."""
+    import pynmea2
+
+    try:
+        stamp = getattr(pynmea2.parse(sentence.strip(), check=True), "timestamp", None)
+    except (pynmea2.ParseError, ValueError, AttributeError):
+        return None
+    if stamp is None or not hasattr(stamp, "hour"):
+        return None
+    of_day = stamp.hour * 3600 + stamp.minute * 60 + stamp.second + stamp.microsecond * 1e-6
+    utc = math.floor(near / 86400.0) * 86400.0 + of_day
+    utc += 86400.0 * round((near - utc) / 86400.0)  # across midnight
+    return utc if abs(near - utc) <= max_delay else None
+
+
 def _append(samples: deque, sample: tuple[float, ...]) -> None:
     """Keep the newest two samples; a sample at the time of the newest replaces it."""
     if samples and sample[0] <= samples[-1][0]:
@@ -443,7 +463,7 @@ class LivePose:
     `at(t)` interpolates between the two samples around t or extrapolates the last two by at
     most `max_gap` seconds; None before the first fix and heading. origin (lat, lon, h) or
     None (the first fix); lever_arm (3,) of the GNSS antenna, body FRD m; heading_offset:
-    correction added to every heading, rad clockwise.
+    correction added to every heading, rad clockwise (an attribute: it may change).
     """
 
     def __init__(
@@ -469,9 +489,8 @@ class LivePose:
         _append(self._fix, (float(t), float(n), float(e)))
 
     def add_heading(self, t: float, heading: float) -> None:
-        """A true heading (rad clockwise from north) at UNIX time t (`heading_offset` is
-        added)."""
-        _append(self._head, (float(t), float(heading) + self.heading_offset))
+        """A true heading (rad clockwise from north) at UNIX time t."""
+        _append(self._head, (float(t), float(heading)))
 
     def add_attitude(self, t: float, roll: float, pitch: float) -> None:
         """Roll and pitch (rad, FRD) at UNIX time t."""
@@ -501,7 +520,7 @@ class LivePose:
         h = self._value(self._head, t, (True,))
         if ne is None or h is None:
             return None
-        heading = h[0] % (2 * math.pi)
+        heading = (h[0] + self.heading_offset) % (2 * math.pi)
         dn, de = _lever_ne(self.lever, np.array(heading))
         att = self._value(self._att, t, (True, True)) or (0.0, 0.0)
         return VesselPose(float(t), ne[0] - float(dn), ne[1] - float(de), heading, att[0], att[1])
