@@ -116,6 +116,23 @@ def test_clipped_end_uses_the_trail_learned_hull_length():
     assert clipped_found >= 4 and short >= 3
 
 
+def test_seen_side_unbiased_over_the_cell_grid():
+    """A broadside hull's seen side shifted across the 0.2 m cell grid in 2 cm steps: the
+    centre placed from the nearest cell centre is unbiased across the hull (the cells' near
+    edge put it 0.1 m too near on average)."""
+    sensor = np.zeros(2)
+    finder = VesselFinder()
+    errors = []
+    for shift in np.arange(0.0, 0.2, 0.02):
+        truth = np.array([0.3, 5.0 + shift])
+        (cand,) = finder.candidates(_faces_seen(truth, 0.0, 6.5, sensor), 0.0, sensor)
+        centre, _ = finder.detection(cand, sensor)
+        errors.append(float(centre[1] - truth[1]))
+        assert abs(float(centre[0] - truth[0])) < 0.15
+    assert abs(np.mean(errors)) < 0.03, errors
+    assert max(np.abs(errors)) <= finder.cell / 2 + 1e-9
+
+
 def test_single_linkage_equals_dbscan_with_one_sample():
     from sklearn.cluster import DBSCAN
 

@@ -18,9 +18,11 @@ removed points of the last frame of every clustering cycle (world frame, NED m):
    gives a speed. Static structure (walls, moored boats) keeps its ends in place; a vessel
    moves them at its speed. A candidate whose speed is ≥ `min_speed` m/s on `min_moving`
    consecutive cycles is a vessel;
-4. its detection: the hull's seen side is the nearest to the sensor across the axis, so the
-   centre lies half the `beam` beyond it; along the axis it is the middle of the seen ends
-   when both are seen, else half the hull's length from the one seen end. That length is
+4. its detection: the hull's seen side is the nearest cell centre to the sensor across the
+   axis (the centre, not the cell's near edge: a point lies anywhere in its cell, so the edge
+   placed the side half a cell too near), so the centre lies half the `beam` beyond it;
+   along the axis it is the middle of the seen ends when both are seen, else half the
+   hull's length from the one seen end. That length is
    learned per trail: the median of the group's along-axis extents over the cycles of its
    trail in which neither end was clipped (the hull seen whole; the median, not the longest,
    since one cycle's group now and then reaches 0.6-0.9 m beyond the hull), else the
@@ -250,7 +252,7 @@ class VesselFinder:
             n = -n  # across axis pointing away from the sensor
         a = (cand.cells - cand.centroid) @ u
         c = (cand.cells - cand.centroid) @ n
-        near = float(c.min()) - self.cell / 2
+        near = float(c.min())
         across = near + self.beam / 2
         lo, hi = float(a.min()) - self.cell / 2, float(a.max()) + self.cell / 2
         half = self.hull_length(cand) / 2
