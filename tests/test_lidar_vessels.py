@@ -102,9 +102,13 @@ def test_clipped_end_uses_the_trail_learned_hull_length():
             clipped_found += 1
             centre, cov = finder.detection(cand, sensor)
             assert np.hypot(*(centre - truth)) < 0.3
-            assert np.sqrt(cov[0, 0]) == pytest.approx(finder.length_std)
+            # a learned length: the seen end's error along the hull, as with both ends seen
+            assert np.sqrt(cov[0, 0]) == pytest.approx(finder.end_std)
             # without a learned length: the configured one, or the extent seen if longer
             unlearned = dataclasses.replace(cand, extents=[])
+            assert np.sqrt(finder.detection(unlearned, sensor)[1][0, 0]) == pytest.approx(
+                finder.length_std
+            )
             assert np.isnan(unlearned.hull_length)
             a = (cand.cells - cand.centroid) @ cand.axis
             seen = float(a.max() - a.min()) + finder.cell

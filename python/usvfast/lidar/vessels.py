@@ -27,8 +27,10 @@ removed points of the last frame of every clustering cycle (world frame, NED m):
    trail in which neither end was clipped (the hull seen whole; the median, not the longest,
    since one cycle's group now and then reaches 0.6-0.9 m beyond the hull), else the
    configured `length`; never less than the extent seen now. Covariance diag(along²,
-   across²) in the (axis, across) frame: `end_std` m along with both ends seen, `length_std`
-   m with one, and `beam_std` m across (the unknown beam and hull shape, not sensor noise).
+   across²) in the (axis, across) frame: `end_std` m along with both ends seen now or a
+   learned length (both ends were seen on the trail), `length_std` m with one end and the
+   configured length, and `beam_std` m across (the unknown beam and hull shape, not sensor
+   noise).
 
 The moored boats of a harbour lie alongside the quay: their cells join the quay's into one
 group too long to be a candidate, and they do not move.
@@ -263,7 +265,8 @@ class VesselFinder:
             along = lo + half
         else:
             along = hi - half
-        along_std = self.end_std if not clipped.any() else self.length_std
+        learned = not np.isnan(cand.hull_length)
+        along_std = self.end_std if learned or not clipped.any() else self.length_std
         centre = cand.centroid + along * u + across * n
         basis = np.column_stack([u, n])
         cov = (basis * np.array([along_std**2, self.beam_std**2])) @ basis.T
