@@ -598,8 +598,7 @@ class LidarDetector:
             centre, cov = finder.detection(cand, sensor)
             u = cand.axis
             n = np.array([-u[1], u[0]])
-            a = (cand.cells - cand.centroid) @ u
-            half_len = max(finder.length, float(a.max() - a.min())) / 2 + 0.5
+            half_len = finder.hull_length(cand) / 2 + 0.5
             half_beam = finder.beam / 2 + 0.5
             result.detections = [
                 d

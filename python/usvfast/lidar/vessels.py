@@ -18,11 +18,19 @@ removed points of the last frame of every clustering cycle (world frame, NED m):
    gives a speed. Static structure (walls, moored boats) keeps its ends in place; a vessel
    moves them at its speed. A candidate whose speed is ≥ `min_speed` m/s on `min_moving`
    consecutive cycles is a vessel;
-4. its detection: the hull's seen side is the nearest to the sensor across the axis, so the
-   centre lies half the `beam` beyond it; along the axis it is the middle of the seen ends
-   when both are seen, else `length` / 2 from the one seen end. Covariance diag(along², across²)
-   in the (axis, across) frame: `end_std` m along with both ends seen, `length_std` m with
-   one, and `beam_std` m across (the unknown beam and hull shape, not sensor noise).
+4. its detection: the hull's seen side is the nearest cell centre to the sensor across the
+   axis (the centre, not the cell's near edge: a point lies anywhere in its cell, so the edge
+   placed the side half a cell too near), so the centre lies half the `beam` beyond it;
+   along the axis it is the middle of the seen ends when both are seen, else half the
+   hull's length from the one seen end. That length is
+   learned per trail: the median of the group's along-axis extents over the cycles of its
+   trail in which neither end was clipped (the hull seen whole; the median, not the longest,
+   since one cycle's group now and then reaches 0.6-0.9 m beyond the hull), else the
+   configured `length`; never less than the extent seen now. Covariance diag(along²,
+   across²) in the (axis, across) frame: `end_std` m along with both ends seen now or a
+   learned length (both ends were seen on the trail), `length_std` m with one end and the
+   configured length, and `beam_std` m across (the unknown beam and hull shape, not sensor
+   noise).
 
 The moored boats of a harbour lie alongside the quay: their cells join the quay's into one
 group too long to be a candidate, and they do not move.
@@ -50,7 +58,8 @@ class VesselCandidate:
     trail : the matched candidates of earlier cycles (time, ends (2, 2), clipped (2,)),
     oldest first; moving : consecutive cycles with a speed ≥ min_speed; speed : m/s of the
     last estimate (NaN when no end could be compared); velocity : (2,) NED m/s of the last
-    estimate.
+    estimate; extents : the along-axis extents m of this group and of its trail's groups
+    that were seen with neither end clipped, oldest first.
     """
 
     time: float
@@ -64,6 +73,13 @@ class VesselCandidate:
     moving: int = 0
     speed: float = float("nan")
     velocity: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    extents: list[float] = field(default_factory=list)
+
+    @property
+    def hull_length(self) -> float:
+        """The hull's length m learned from the trail: the median of `extents` (NaN when
+        empty)."""
+        return float(np.median(self.extents)) if self.extents else float("nan")
 
 
 @dataclass
@@ -166,7 +182,10 @@ class VesselFinder:
             )
             reach = self.radius - self.clip_margin
             clipped = np.hypot(*(ends - sensor).T) >= reach
-            out.append(VesselCandidate(float(time), centroid, axis, ends, clipped, c, n))
+            cand = VesselCandidate(float(time), centroid, axis, ends, clipped, c, n)
+            if not clipped.any():
+                cand.extents = [along_extent]
+            out.append(cand)
         return out
 
     def update(self, points: np.ndarray, time: float, sensor: np.ndarray) -> list[VesselCandidate]:
@@ -194,6 +213,7 @@ class VesselFinder:
             cand.trail = [*trail, (prev.time, ends, clipped)]
             cand.moving = prev.moving
             cand.velocity = prev.velocity
+            cand.extents = [*prev.extents, *cand.extents]
             self._judge(cand)
         self._previous = now
         # a group with both ends maybe cut off tells nothing of where the hull's centre is
@@ -215,6 +235,15 @@ class VesselFinder:
         cand.speed = float(np.hypot(v[0], v[1]))
         cand.moving = cand.moving + 1 if cand.speed >= self.min_speed else 0
 
+    def hull_length(self, cand: VesselCandidate) -> float:
+        """The hull's length m assumed for `cand` (module doc, step 4): its trail's learned
+        `hull_length` when it has one, else the configured `length`, and never less than the
+        group's along-axis extent seen now."""
+        a = (cand.cells - cand.centroid) @ cand.axis
+        seen = float(a.max() - a.min()) + self.cell
+        learned = cand.hull_length
+        return max(self.length if np.isnan(learned) else float(learned), seen)
+
     def detection(self, cand: VesselCandidate, sensor: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Centre (2,) NED m and covariance (2, 2) m² of a vessel candidate seen from
         `sensor` (2,) NED m (module doc, step 4)."""
@@ -225,10 +254,10 @@ class VesselFinder:
             n = -n  # across axis pointing away from the sensor
         a = (cand.cells - cand.centroid) @ u
         c = (cand.cells - cand.centroid) @ n
-        near = float(c.min()) - self.cell / 2
+        near = float(c.min())
         across = near + self.beam / 2
         lo, hi = float(a.min()) - self.cell / 2, float(a.max()) + self.cell / 2
-        half = max(self.length, hi - lo) / 2
+        half = self.hull_length(cand) / 2
         clipped = cand.clipped
         if clipped.all() or not clipped.any():  # update() gives no candidate with both
             along = (lo + hi) / 2
@@ -236,7 +265,8 @@ class VesselFinder:
             along = lo + half
         else:
             along = hi - half
-        along_std = self.end_std if not clipped.any() else self.length_std
+        learned = not np.isnan(cand.hull_length)
+        along_std = self.end_std if learned or not clipped.any() else self.length_std
         centre = cand.centroid + along * u + across * n
         basis = np.column_stack([u, n])
         cov = (basis * np.array([along_std**2, self.beam_std**2])) @ basis.T
