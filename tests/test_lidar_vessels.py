@@ -236,3 +236,19 @@ def test_bundled_recording_vessel_gets_one_lidar_track():
     assert len(errors) >= 5 and np.median(errors) < 1.0
     without = nearest(False)
     assert all(min(d) > 2.0 for d in without.values()), without
+
+
+def test_a_trail_keeps_a_bounded_number_of_hull_extents():
+    """A hull escorted for 120 cycles (48 s, the sensor running beside it) stays in full view;
+    its trail keeps the newest MAX_EXTENTS extents."""
+    from usvfast.lidar.vessels import MAX_EXTENTS
+
+    finder = VesselFinder()
+    longest = 0
+    for k in range(120):
+        truth = np.array([-2.0 + 1.6 * 0.4 * k, 5.0])
+        sensor = truth - [0.0, 5.0]
+        for cand in finder.update(_faces_seen(truth, 0.0, 7.2, sensor), 50.0 + 0.4 * k, sensor):
+            longest = max(longest, len(cand.extents))
+            assert len(cand.extents) <= MAX_EXTENTS
+    assert longest == MAX_EXTENTS

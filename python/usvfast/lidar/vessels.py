@@ -47,6 +47,11 @@ from usvfast._validate import as_float_array, real
 __all__ = ["VesselCandidate", "VesselFinder", "single_linkage"]
 
 
+#: The unclipped extents a trail keeps for its hull length (memory stays bounded on a vessel
+#: followed for hours; 50 cycles are 20 s of the LiDAR's 2.5 Hz clustering).
+MAX_EXTENTS = 50
+
+
 @dataclass(eq=False)
 class VesselCandidate:
     """One vessel-sized group of line points in one cycle.
@@ -59,7 +64,7 @@ class VesselCandidate:
     oldest first; moving : consecutive cycles with a speed ≥ min_speed; speed : m/s of the
     last estimate (NaN when no end could be compared); velocity : (2,) NED m/s of the last
     estimate; extents : the along-axis extents m of this group and of its trail's groups
-    that were seen with neither end clipped, oldest first.
+    that were seen with neither end clipped, oldest first (the newest `MAX_EXTENTS`).
     """
 
     time: float
@@ -213,7 +218,7 @@ class VesselFinder:
             cand.trail = [*trail, (prev.time, ends, clipped)]
             cand.moving = prev.moving
             cand.velocity = prev.velocity
-            cand.extents = [*prev.extents, *cand.extents]
+            cand.extents = [*prev.extents, *cand.extents][-MAX_EXTENTS:]
             self._judge(cand)
         self._previous = now
         # a group with both ends maybe cut off tells nothing of where the hull's centre is
