@@ -73,7 +73,7 @@ pub fn map_sharpness(
             format!("the map's grid would hold {rows} x {cols} cells; use a larger cell"),
         ));
     }
-    let mut points: Vec<Placed> = (0..n)
+    let points: Vec<Placed> = (0..n)
         .map(|k| {
             let (sin, cos) = heading[k].sin_cos();
             Placed {
@@ -87,16 +87,12 @@ pub fn map_sharpness(
         })
         .collect();
     let grid = Grid {
-        points: Vec::new(),
+        points,
         cell,
         origin: (i0 as i64, j0 as i64),
         cols,
         cells: rows * cols,
     };
-    // The score does not depend on the points' order: in the order of their cells (without
-    // correction) the trials walk the grid nearly in sequence instead of at random.
-    points.sort_by_cached_key(|p| grid.index(p, 1.0, 0.0, 0.0));
-    let grid = Grid { points, ..grid };
     // Trial corrections split over the cores, each thread with its own grid.
     const MIN_PLACEMENTS_PER_THREAD: usize = 1 << 20;
     let threads = std::thread::available_parallelism()
