@@ -13,7 +13,7 @@ from rich.console import Console
 from usvfast.shore.cascade import CascadeConfig, save_cascade, train_detector
 from usvfast.shore.mardct import load_mardct
 from usvfast.shore.pipeline import DETECTORS, TRACKERS, ShoreConfig, run_shore
-from usvfast.shore.sort import SortConfig
+from usvfast.shore.sort import SortConfig, sort_config_from_options
 
 
 def shore_command(
@@ -66,12 +66,7 @@ def shore_command(
     """Detect and track vessels in shore or bridge camera footage; write tracks.txt and
     detections.txt (MOTChallenge), an annotated video and summary.json into OUT."""
     try:
-        try:
-            sort = SortConfig(high_score=sort_high_score, low_score=sort_low_score)
-        except ValueError as exc:
-            name, _, why = str(exc).partition(":")
-            why = why.replace("high_score", "--sort-high-score")
-            raise ValueError(f"--sort-{name.replace('_', '-')}:{why}") from exc
+        sort = sort_config_from_options(sort_high_score, sort_low_score)
         config = ShoreConfig(
             detector=detector,  # pyright: ignore[reportArgumentType]  # (ShoreConfig checks it)
             tracker=tracker,  # pyright: ignore[reportArgumentType]

@@ -66,7 +66,7 @@ from usvfast.shore.mot_eval import (  # noqa: F401  (derive_truth_ids: public he
     truth_detections,
 )
 from usvfast.shore.scores import DetectionCounts
-from usvfast.shore.sort import SortConfig
+from usvfast.shore.sort import SortConfig, sort_config_from_options
 
 #: EO thresholds tried when tuning (8-bit levels).
 THRESHOLD_GRID: tuple[float, ...] = (40, 60, 80, 100, 120, 140, 160, 180, 200, 220)
@@ -471,11 +471,9 @@ def main(argv: Sequence[str] | None = None) -> None:
     if {"cnn", "fused", "fused-nms"} & set(a.detector) and a.models is None:
         p.error("--models: the cnn and fused detectors need the folder of its fold models")
     try:
-        sort = SortConfig(high_score=a.sort_high_score, low_score=a.sort_low_score)
+        sort = sort_config_from_options(a.sort_high_score, a.sort_low_score)
     except ValueError as exc:
-        name, _, why = str(exc).partition(":")
-        why = why.replace("high_score", "--sort-high-score")
-        p.error(f"--sort-{name.replace('_', '-')}:{why}")
+        p.error(str(exc))
     cascade = None if a.no_cascade or "bayes" not in a.detector else CascadeConfig()
     results = evaluate(
         a.data or default_data(),

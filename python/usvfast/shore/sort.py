@@ -82,6 +82,17 @@ class SortConfig:
         return self.high_score > 0.0
 
 
+def sort_config_from_options(high_score: float, low_score: float) -> SortConfig:
+    """The SortConfig of the command-line options --sort-high-score and --sort-low-score;
+    its ValueError names the option."""
+    try:
+        return SortConfig(high_score=high_score, low_score=low_score)
+    except ValueError as exc:
+        name, _, why = str(exc).partition(":")
+        why = why.replace("high_score", "--sort-high-score")
+        raise ValueError(f"--sort-{name.replace('_', '-')}:{why}") from exc
+
+
 def box_to_z(box: np.ndarray) -> np.ndarray:
     """(k, 4) x, y, w, h -> (k, 4) u, v, s, r."""
     box = as_float_array("box", box)
