@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy.stats import chi2
 
 from usvfast.frames import Mount, sensor_to_ned
 from usvfast.lidar import LidarDetector
@@ -79,14 +80,19 @@ def test_output_files_and_summary(rec, run):
         "tracks.csv": "time,track_id,north,east,v_north,v_east,lat,lon,cov_nn,cov_ne,cov_ee",
         "detections.csv": "time,sensor,north,east,lat,lon,cov_nn,cov_ne,cov_ee,score",
         "nav.csv": "time,north,east,lat,lon,heading_deg,roll_deg,pitch_deg",
-        "innovations.csv": "time,track_id,sensor,nis,dof",
+        "innovations.csv": "time,track_id,sensor,nis,dof,gate",
     }
     for name, cols in header.items():
         assert (out / name).read_text().splitlines()[0] == cols
     dets = _rows(out / "detections.csv")
     assert {d["sensor"] for d in dets} == {"lidar", "camera"}
-    nis = np.array([float(r["nis"]) for r in _rows(out / "innovations.csv")])
+    innovations = _rows(out / "innovations.csv")
+    nis = np.array([float(r["nis"]) for r in innovations])
     assert nis.size > 100 and np.all(nis >= 0)
+    # every NIS comes from a detection inside the tracker's gate, which the file names
+    prob_gate = load_config(rec.config).tracker["prob_gate"]
+    assert {float(r["gate"]) for r in innovations} == {prob_gate}
+    assert nis.max() <= chi2.ppf(prob_gate, 2) + 1e-4
     gj = json.loads((out / "tracks.geojson").read_text())
     assert len(gj["features"]) == 5
     lon, lat = gj["features"][0]["geometry"]["coordinates"][0]

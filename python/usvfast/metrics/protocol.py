@@ -312,6 +312,11 @@ def _by_kind(targets: list[ObjectScore], m: Matches) -> dict[str, dict[str, Any]
     return out
 
 
+def _rows(values: np.ndarray | None, keep: np.ndarray) -> np.ndarray | None:
+    """values[keep], None staying None (an optional per-row column)."""
+    return None if values is None else values[keep]
+
+
 def _rmse(err: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.sum(err**2, axis=1)))) if len(err) else float("nan")
 
@@ -393,11 +398,11 @@ def thesis_metrics(
     anis: Consistency | None = None
     by_sensor: dict[str, Consistency | None] = {}
     if innovations is not None and len(innovations.nis):
-        anis = average_consistency(innovations.nis, innovations.dof, confidence)
+        anis = average_consistency(innovations.nis, innovations.dof, confidence, innovations.gate)
         for s in np.unique(innovations.sensor):
             k = innovations.sensor == s
             by_sensor[str(s)] = average_consistency(
-                innovations.nis[k], innovations.dof[k], confidence
+                innovations.nis[k], innovations.dof[k], confidence, _rows(innovations.gate, k)
             )
     return ThesisMetrics(
         objects=objects,

@@ -145,7 +145,9 @@ class Nav:
 @dataclass(frozen=True)
 class Innovations:
     """Track updates with a detection: time (N,) s, track_id (N,) int, sensor (N,) str,
-    nis (N,) the normalised innovation squared, dof (N,) int its degrees of freedom."""
+    nis (N,) the normalised innovation squared, dof (N,) int its degrees of freedom, gate (N,)
+    the tracker's gate probability P_G that truncated it (NaN: not gated; None: unknown, as
+    not gated)."""
 
     time: np.ndarray
     track_id: np.ndarray
@@ -153,6 +155,7 @@ class Innovations:
     nis: np.ndarray
     dof: np.ndarray
     skipped: int = 0
+    gate: np.ndarray | None = None
 
 
 def _cov(a: dict[str, np.ndarray], n: int) -> np.ndarray:
@@ -225,8 +228,11 @@ def read_nav(path: str | Path) -> Nav:
 
 
 def read_innovations(path: str | Path) -> Innovations:
-    """Read `innovations.csv` (time,track_id,sensor,nis,dof)."""
-    a, skipped = _read(path, INNOVATION_COLUMNS, (), ("sensor",))
+    """Read `innovations.csv` (time,track_id,sensor,nis,dof[,gate])."""
+    a, skipped = _read(path, INNOVATION_COLUMNS, ("gate",), ("sensor",))
+    gate = a.get("gate")
+    if gate is not None and not np.all(np.isnan(gate) | ((gate > 0) & (gate <= 1))):
+        raise ValueError(f"{path}: column gate: a gate probability must lie in (0, 1]")
     return Innovations(
         time=a["time"],
         track_id=a["track_id"].astype(np.int64),
@@ -234,4 +240,5 @@ def read_innovations(path: str | Path) -> Innovations:
         nis=a["nis"],
         dof=a["dof"].astype(np.int64),
         skipped=skipped,
+        gate=gate,
     )

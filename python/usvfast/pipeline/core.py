@@ -372,6 +372,7 @@ class Pipeline:
                 self.origin,
                 frames_hz=cfg.outputs["frames_hz"] if cfg.outputs["animation"] else 0.0,
                 frame_width=cfg.outputs["frame_width"],
+                nis_gate=self.tracker.nis_gate,
             )
         first: float | None = None
         last = 0.0

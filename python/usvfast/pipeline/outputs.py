@@ -6,7 +6,8 @@ Columns (NED metres at the origin, m/s, WGS84 degrees, m²; times UNIX s):
 - tracks.csv: time,track_id,north,east,v_north,v_east,lat,lon,cov_nn,cov_ne,cov_ee
 - detections.csv: time,sensor,north,east,lat,lon,cov_nn,cov_ne,cov_ee,score
 - nav.csv: time,north,east,lat,lon,heading_deg,roll_deg,pitch_deg (one row per sensor message)
-- innovations.csv: time,track_id,sensor,nis,dof
+- innovations.csv: time,track_id,sensor,nis,dof,gate (gate: the tracker's gate probability P_G,
+  which truncates every reported NIS; usvfast.metrics.consistency)
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ __all__ = ["OutputWriter", "write_geojson"]
 TRACK_COLUMNS = "time,track_id,north,east,v_north,v_east,lat,lon,cov_nn,cov_ne,cov_ee".split(",")
 DETECTION_COLUMNS = "time,sensor,north,east,lat,lon,cov_nn,cov_ne,cov_ee,score".split(",")
 NAV_COLUMNS = "time,north,east,lat,lon,heading_deg,roll_deg,pitch_deg".split(",")
-INNOVATION_COLUMNS = "time,track_id,sensor,nis,dof".split(",")
+INNOVATION_COLUMNS = "time,track_id,sensor,nis,dof,gate".split(",")
 
 
 def _f(x: float, digits: int = 6) -> str:
@@ -45,8 +46,11 @@ class OutputWriter:
         *,
         frames_hz: float | None = 2.0,
         frame_width: int = 480,
+        nis_gate: float = 1.0,
     ) -> None:
+        """nis_gate: the tracker's gate probability P_G (innovations.csv "gate")."""
         self.out = Path(out_dir)
+        self.nis_gate = float(nis_gate)
         self.out.mkdir(parents=True, exist_ok=True)
         self.origin = origin
         self._files: list[Any] = []
@@ -139,7 +143,9 @@ class OutputWriter:
             )
         self.rows["tracks"] += len(snapshot.ids)
         for tid, sensor, nis in snapshot.innovations:
-            self.innovations.writerow([_f(t), tid, ("lidar", "camera")[sensor], _f(nis, 5), 2])
+            self.innovations.writerow(
+                [_f(t), tid, ("lidar", "camera")[sensor], _f(nis, 5), 2, _f(self.nis_gate, 6)]
+            )
         self.rows["innovations"] += len(snapshot.innovations)
 
     def write_frame(self, t: float, image: np.ndarray) -> None:

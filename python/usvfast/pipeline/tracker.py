@@ -65,6 +65,16 @@ class _Base:
         ]
         self._prev: dict[int, tuple[float, np.ndarray, np.ndarray]] = {}
 
+    @property
+    def nis_gate(self) -> float:
+        """The gate probability P_G of the reported NIS: a detection updates a track only
+        inside its gate (JPDA: prob_gate; GNN: the χ²(2) probability of gnn_missed_distance²)."""
+        if self.s["association"] == "gnn":
+            from scipy.stats import chi2
+
+            return float(chi2.cdf(float(self.s["gnn_missed_distance"]) ** 2, 2))
+        return float(self.s["prob_gate"])
+
     def _noise(self, sensors: np.ndarray, covs: np.ndarray | None) -> np.ndarray:
         if self.per_detection and covs is not None:
             return covs

@@ -121,14 +121,16 @@ def group_metrics(
         }
         if innovations is not None and len(innovations.nis):
             mine = np.isin(innovations.track_id, g["tracks"])
-            g["anis"] = _dict(
-                average_consistency(innovations.nis[mine], innovations.dof[mine], confidence)
-            )
-            for s in np.unique(innovations.sensor[mine]):
-                k = mine & (innovations.sensor == s)
-                g["anis_by_sensor"][str(s)] = _dict(
-                    average_consistency(innovations.nis[k], innovations.dof[k], confidence)
+            for s in [None, *np.unique(innovations.sensor[mine])]:
+                k = mine if s is None else mine & (innovations.sensor == s)
+                gate = None if innovations.gate is None else innovations.gate[k]
+                c = _dict(
+                    average_consistency(innovations.nis[k], innovations.dof[k], confidence, gate)
                 )
+                if s is None:
+                    g["anis"] = c
+                else:
+                    g["anis_by_sensor"][str(s)] = c
         out[key] = g
     return out
 

@@ -19,7 +19,7 @@ from matplotlib.patches import Ellipse, Polygon
 from scipy.stats import chi2
 
 from usvfast._validate import as_float_array, instance
-from usvfast.metrics.consistency import chi2_band
+from usvfast.metrics.consistency import average_consistency, chi2_band
 from usvfast.metrics.protocol import Matches
 from usvfast.metrics.tables import Detections, Innovations, Nav, Tracks, Truth
 from usvfast.report.evaluate import is_closed, moored_outline
@@ -353,16 +353,17 @@ def nis_figure(innovations: Innovations, confidence: float = 0.95, title: str = 
     ax.axhline(lo1, color="grey", ls="--", lw=1)
     ax.axhline(hi1, color="grey", ls="--", lw=1, label=f"{confidence:.0%} band, one update")
     n = len(innovations.nis)
-    if n:
+    c = average_consistency(innovations.nis, innovations.dof, confidence, innovations.gate)
+    if c is not None:
         order = np.argsort(innovations.time, kind="stable")
         t, v = innovations.time[order] - t0, innovations.nis[order]
         w = max(1, min(50, n // 10))
         mov = np.convolve(v, np.ones(w) / w, mode="valid")
         ax.plot(t[w - 1 :], mov, color="black", lw=1.5, label=f"moving ANIS ({w} updates)")
-        lo, hi = chi2_band(innovations.dof, confidence=confidence)
-        anis = float(v.mean())
-        inside = "inside" if lo <= anis <= hi else "OUTSIDE"
-        ax.axhspan(lo, hi, color="#2ca02c", alpha=0.2, label=f"ANIS band ({n} updates)")
+        lo, hi, anis = c.lower, c.upper, c.mean
+        inside = "inside" if c.inside else "OUTSIDE"
+        gated = f", gated P_G {c.gate:g}" if c.gate is not None else ""
+        ax.axhspan(lo, hi, color="#2ca02c", alpha=0.2, label=f"ANIS band ({n} updates{gated})")
         ax.axhline(anis, color="#2ca02c", lw=2, label=f"ANIS = {anis:.2f} ({inside})")
     top = 1.2 * max(hi1, float(np.percentile(innovations.nis, 99)) if n else 0.0)
     if n:
