@@ -5,13 +5,14 @@ worked out by hand (and scipy's χ² quantiles), and the printed one-row-per-gro
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 from rich.console import Console
 from scipy.stats import chi2
 
-from usvfast.metrics import Innovations, Tracks, Truth, thesis_metrics
+from usvfast.metrics import Innovations, Tracks, Truth, chi2_band, thesis_metrics
 from usvfast.report.evaluate import evaluate_run, group_metrics, kind_group, track_groups
 from usvfast.report.table import print_summary
 
@@ -141,3 +142,15 @@ def test_bad_input_names_the_argument():
     with pytest.raises(TypeError, match="kind"):
         kind_group(4)  # type: ignore[arg-type]
     assert group_table({"thesis": {}}) is None
+
+
+def test_gated_innovations_give_gated_bands():
+    inn = replace(_innovations(), gate=np.full(8, 0.99))
+    th = thesis_metrics(_truth(), _tracks(), innovations=inn)
+    g = group_metrics(th, inn)
+    fl = g["floats"]
+    assert fl["anis"]["gate"] == 0.99 and th.anis is not None and th.anis.gate == 0.99
+    assert (fl["anis"]["lower"], fl["anis"]["upper"]) == pytest.approx(chi2_band(2, 3, gate=0.99))
+    assert fl["anis"]["expected"] == pytest.approx(1.907, abs=5e-4)
+    assert th.anis_by_sensor["camera"].gate == 0.99
+    assert g["vessels"]["anis_by_sensor"]["lidar"]["gate"] == 0.99

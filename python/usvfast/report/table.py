@@ -24,7 +24,8 @@ def _band(c: dict[str, Any] | None) -> str:
     if not c:
         return "–"
     mark = "inside" if c["inside"] else "[red]OUTSIDE[/red]"
-    return f"{c['mean']:.3f}  [{c['lower']:.3f}, {c['upper']:.3f}] {mark} (n={c['n']})"
+    gated = f", gated P_G {c['gate']:g}: expected {c['expected']:.3f}" if c.get("gate") else ""
+    return f"{c['mean']:.3f}  [{c['lower']:.3f}, {c['upper']:.3f}] {mark} (n={c['n']}{gated})"
 
 
 def _short(c: dict[str, Any] | None, fmt: str = "{:.2f}") -> str:
