@@ -13,7 +13,13 @@ from rich.console import Console
 from scipy.stats import chi2
 
 from usvfast.metrics import Innovations, Tracks, Truth, chi2_band, thesis_metrics
-from usvfast.report.evaluate import evaluate_run, group_metrics, kind_group, track_groups
+from usvfast.report.evaluate import (
+    evaluate_run,
+    group_metrics,
+    kind_group,
+    sensor_switch,
+    track_groups,
+)
 from usvfast.report.table import print_summary
 
 T = np.arange(11.0)  # s, truth and tracks every second
@@ -154,3 +160,26 @@ def test_gated_innovations_give_gated_bands():
     assert fl["anis"]["expected"] == pytest.approx(1.907, abs=5e-4)
     assert th.anis_by_sensor["camera"].gate == 0.99
     assert g["vessels"]["anis_by_sensor"]["lidar"]["gate"] == 0.99
+
+
+def test_sensor_switch_marks_a_change_of_sensor_within_a_track():
+    # rows out of time order, two tracks interleaved
+    inn = Innovations(
+        np.array([3.0, 1.0, 2.0, 1.0, 2.0, 4.0]),
+        np.array([1, 1, 1, 2, 2, 1]),
+        np.array(["lidar", "lidar", "camera", "camera", "camera", "lidar"]),
+        np.ones(6),
+        np.full(6, 2),
+    )
+    assert sensor_switch(inn).tolist() == [True, False, True, False, False, False]
+
+
+def test_groups_split_anis_by_sensor_switch():
+    g = group_metrics(
+        thesis_metrics(_truth(), _tracks(), innovations=_innovations()), _innovations()
+    )
+    # float track 10: lidar, lidar, camera (NIS 1, 2, 3); vessel tracks 20 (camera twice), 21
+    fl, ve = g["floats"]["anis_by_switch"], g["vessels"]["anis_by_switch"]
+    assert (fl["same_sensor"]["n"], fl["same_sensor"]["mean"]) == (2, pytest.approx(1.5))
+    assert (fl["sensor_switch"]["n"], fl["sensor_switch"]["mean"]) == (1, pytest.approx(3.0))
+    assert ve["same_sensor"]["mean"] == pytest.approx(6.0) and ve["sensor_switch"] is None

@@ -82,6 +82,21 @@ def track_groups(
     return out
 
 
+def sensor_switch(innovations: Innovations) -> np.ndarray:
+    """(N,) bool: the update's sensor differs from that of the same track's previous update
+    (False for a track's first). Same-sensor NIS in its band but switch NIS above it is the
+    mark of an offset between the sensors that no single R explains (each sensor's errors
+    about an object are correlated from update to update; a track follows the last sensor)."""
+    instance("innovations", innovations, Innovations)
+    order = np.lexsort((innovations.time, innovations.track_id))
+    tid, sensor = innovations.track_id[order], innovations.sensor[order]
+    changed = np.zeros(len(order), bool)
+    changed[1:] = (tid[1:] == tid[:-1]) & (sensor[1:] != sensor[:-1])
+    out = np.zeros(len(order), bool)
+    out[order] = changed
+    return out
+
+
 def group_metrics(
     th: ThesisMetrics,
     innovations: Innovations | None = None,
@@ -93,7 +108,8 @@ def group_metrics(
     TRF mean / max over the tracked ones, RMSE (m) and ANEES (χ² band) over the matched rows
     of the group's targets, and ANIS (its own χ² band, also per sensor) over the innovations
     of the group's tracks (`track_groups`: a track belongs to the group of the object it is
-    matched to most). Every group is listed, empty or not (NaN figures, None bands)."""
+    matched to most), and split by `sensor_switch`. Every group is listed, empty or not (NaN
+    figures, None bands)."""
     instance("th", th, ThesisMetrics)
     if innovations is not None:
         instance("innovations", innovations, Innovations)
@@ -118,6 +134,7 @@ def group_metrics(
             "tracks": sorted(t for t, k in by_track.items() if k == key),
             "anis": None,
             "anis_by_sensor": {},
+            "anis_by_switch": {},
         }
         if innovations is not None and len(innovations.nis):
             mine = np.isin(innovations.track_id, g["tracks"])
@@ -131,6 +148,12 @@ def group_metrics(
                     g["anis"] = c
                 else:
                     g["anis_by_sensor"][str(s)] = c
+            switch = sensor_switch(innovations)
+            for name, k in (("same_sensor", mine & ~switch), ("sensor_switch", mine & switch)):
+                gate = None if innovations.gate is None else innovations.gate[k]
+                g["anis_by_switch"][name] = _dict(
+                    average_consistency(innovations.nis[k], innovations.dof[k], confidence, gate)
+                )
         out[key] = g
     return out
 
