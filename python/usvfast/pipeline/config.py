@@ -171,6 +171,11 @@ _TRACKER = {
     "per_detection_covariance": ("bool", True),
     "missed_distance": ("float", 0.3),
     "prior_velocity_var": ("float", 0.3),
+    # A per-track offset of the camera's detections in the state ([n, v_n, e, v_e, b_n, b_e]):
+    # its prior std (m, 0: none) and random-walk diffusion (m²/s). The camera and the LiDAR
+    # each place an object with an offset of their own that changes slowly.
+    "camera_offset_std": ("float", 0.0),
+    "camera_offset_q": ("float", 0.001),
     "min_points": ("int", 2),
     "init_delete_steps": ("int", 3),
     "delete_steps": ("int", 35),
@@ -503,6 +508,15 @@ def _build(data: dict[str, Any], file: Path) -> PipelineConfig:
                     f"{file}: key 'tracker.{key}': a number of seconds > 0 is needed with "
                     'tracker.deletion = "time"'
                 )
+    if trk["camera_offset_std"] < 0 or trk["camera_offset_q"] < 0:
+        raise ConfigError(
+            f"{file}: key 'tracker.camera_offset_std' / 'tracker.camera_offset_q': must be >= 0"
+        )
+    if trk["camera_offset_std"] > 0 and trk["backend"] == "stonesoup":
+        raise ConfigError(
+            f"{file}: key 'tracker.camera_offset_std': the camera-offset state needs backend "
+            '"native" (Stone Soup\'s initiator would split a detection between position and offset)'
+        )
     det = tables["detector"]
     if det["backend"] in ("onnx", "torch") and det["weights"] is None:
         raise ConfigError(f"{file}: key 'detector.weights': missing for backend {det['backend']!r}")

@@ -113,10 +113,29 @@ class NativeTracker(_Base):
     def __init__(self, settings: dict[str, Any]) -> None:
         super().__init__(settings)
         from usvfast import tracking as tk
-        from usvfast.kalman import constant_velocity_2d
+        from usvfast.kalman import RandomWalk, constant_velocity_2d
 
         s = settings
         prior = np.diag([0.0, s["prior_velocity_var"], 0.0, s["prior_velocity_var"]])
+        motion: Any = constant_velocity_2d(s["q"])
+        lidar = tk.Sensor.position(s["lidar_noise_std"])
+        camera = tk.Sensor.position(s["camera_noise_std"])
+        if float(s["camera_offset_std"]) > 0:
+            # State [n, v_n, e, v_e, b_n, b_e]: b the camera's offset for this track (a slow
+            # random walk), seen by the camera only; a camera detection starts a track at its
+            # position with b = 0 and prior std camera_offset_std.
+            motion = (*motion, *(RandomWalk(s["camera_offset_q"]),) * 2)
+            sd = float(s["camera_offset_std"])
+            prior = np.diag(
+                [0.0, s["prior_velocity_var"], 0.0, s["prior_velocity_var"], sd * sd, sd * sd]
+            )
+            lidar = tk.Sensor.position(s["lidar_noise_std"], ndim_state=6)
+            cam = tk.Sensor.position(s["camera_noise_std"], ndim_state=6)
+            h = cam.measurement_matrix.copy()
+            h[0, 4] = h[1, 5] = 1.0
+            camera = tk.Sensor(
+                h, cam.measurement_noise, cam.measurement_matrix, cam.measurement_noise
+            )
         deleter: Any = (
             tk.StepsSinceUpdate(s["delete_steps"])
             if s["deletion"] == "steps"
@@ -139,15 +158,12 @@ class NativeTracker(_Base):
                 method=s["method"],
             )
         self.tracker = tk.Tracker(
-            motion_model=constant_velocity_2d(s["q"]),
-            sensors=[
-                tk.Sensor.position(s["lidar_noise_std"]),
-                tk.Sensor.position(s["camera_noise_std"]),
-            ],
+            motion_model=motion,
+            sensors=[lidar, camera],
             association=assoc,
             deleter=deleter,
             initiator=tk.MultiMeasurementInitiator(
-                prior_state=np.zeros(4),
+                prior_state=np.zeros(len(prior)),
                 prior_covariance=prior,
                 min_points=s["min_points"],
                 deleter=init_deleter,
@@ -182,8 +198,9 @@ class NativeTracker(_Base):
             noise = self._noise(sensors, covs if self.uses_detection_covariance else None)
             rows = np.where(tracks.is_update, tracks.detection, -1)
             nis = self._nis(t, tracks.ids, rows, z, sensors, noise)
-        self._remember(t, tracks.ids, tracks.states, tracks.covariances)
-        return Snapshot(tracks.ids, tracks.states, tracks.covariances, nis)
+        x, p = tracks.states[:, :4], tracks.covariances[:, :4, :4]
+        self._remember(t, tracks.ids, x, p)
+        return Snapshot(tracks.ids, x, p, nis)
 
 
 class StoneSoupTracker(_Base):
@@ -378,6 +395,7 @@ def make_vessel_tracker(settings: dict[str, Any]) -> NativeTracker | StoneSoupTr
     s = dict(settings)
     s["q"] = settings["vessel_q"]
     s["prior_velocity_var"] = settings["vessel_prior_velocity_var"]
+    s["camera_offset_std"] = 0.0
     s["covariance_trace"] = settings["vessel_covariance_trace"]
     if s["deletion"] == "time":
         s["delete_after_s"] = settings["vessel_delete_after_s"]
