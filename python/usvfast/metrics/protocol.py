@@ -312,11 +312,6 @@ def _by_kind(targets: list[ObjectScore], m: Matches) -> dict[str, dict[str, Any]
     return out
 
 
-def _rows(values: np.ndarray | None, keep: np.ndarray) -> np.ndarray | None:
-    """values[keep], None staying None (an optional per-row column)."""
-    return None if values is None else values[keep]
-
-
 def _rmse(err: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.sum(err**2, axis=1)))) if len(err) else float("nan")
 
@@ -402,7 +397,7 @@ def thesis_metrics(
         for s in np.unique(innovations.sensor):
             k = innovations.sensor == s
             by_sensor[str(s)] = average_consistency(
-                innovations.nis[k], innovations.dof[k], confidence, _rows(innovations.gate, k)
+                innovations.nis[k], innovations.dof[k], confidence, innovations.gate_of(k)
             )
     return ThesisMetrics(
         objects=objects,

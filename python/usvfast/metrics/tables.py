@@ -157,6 +157,10 @@ class Innovations:
     skipped: int = 0
     gate: np.ndarray | None = None
 
+    def gate_of(self, keep: np.ndarray) -> np.ndarray | None:
+        """gate[keep] (a row mask or indices), None when the gate is unknown."""
+        return None if self.gate is None else self.gate[keep]
+
 
 def _cov(a: dict[str, np.ndarray], n: int) -> np.ndarray:
     if not all(c in a for c in TRACK_COV_COLUMNS):

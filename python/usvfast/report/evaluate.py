@@ -64,6 +64,11 @@ def _dict(c: Consistency | None) -> dict[str, Any] | None:
     return c.as_dict() if c is not None else None
 
 
+def _anis(inn: Innovations, keep: np.ndarray, confidence: float) -> dict[str, Any] | None:
+    """ANIS and its (gated) band over the rows `keep` of `inn`, as a dict."""
+    return _dict(average_consistency(inn.nis[keep], inn.dof[keep], confidence, inn.gate_of(keep)))
+
+
 def track_groups(
     th: ThesisMetrics, exclude_kinds: tuple[str, ...] = EXCLUDED_KINDS
 ) -> dict[int, str]:
@@ -137,23 +142,16 @@ def group_metrics(
             "anis_by_switch": {},
         }
         if innovations is not None and len(innovations.nis):
-            mine = np.isin(innovations.track_id, g["tracks"])
-            for s in [None, *np.unique(innovations.sensor[mine])]:
-                k = mine if s is None else mine & (innovations.sensor == s)
-                gate = None if innovations.gate is None else innovations.gate[k]
-                c = _dict(
-                    average_consistency(innovations.nis[k], innovations.dof[k], confidence, gate)
-                )
-                if s is None:
-                    g["anis"] = c
-                else:
-                    g["anis_by_sensor"][str(s)] = c
-            switch = sensor_switch(innovations)
-            for name, k in (("same_sensor", mine & ~switch), ("sensor_switch", mine & switch)):
-                gate = None if innovations.gate is None else innovations.gate[k]
-                g["anis_by_switch"][name] = _dict(
-                    average_consistency(innovations.nis[k], innovations.dof[k], confidence, gate)
-                )
+            inn = innovations
+            mine = np.isin(inn.track_id, g["tracks"])
+            g["anis"] = _anis(inn, mine, confidence)
+            for s in np.unique(inn.sensor[mine]):
+                g["anis_by_sensor"][str(s)] = _anis(inn, mine & (inn.sensor == s), confidence)
+            switch = sensor_switch(inn)
+            g["anis_by_switch"] = {
+                "same_sensor": _anis(inn, mine & ~switch, confidence),
+                "sensor_switch": _anis(inn, mine & switch, confidence),
+            }
         out[key] = g
     return out
 
