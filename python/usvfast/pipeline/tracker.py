@@ -133,6 +133,10 @@ class NativeTracker(_Base):
             cam = tk.Sensor.position(s["camera_noise_std"], ndim_state=6)
             h = cam.measurement_matrix.copy()
             h[0, 4] = h[1, 5] = 1.0
+            # A camera detection starts a track from its position rows with the sensor's R
+            # (camera_noise_std), not the detection's own: the position is the detection less
+            # an unknown offset (with its own R the track is sure of a biased start and the
+            # LiDAR's detections fall outside its gate).
             camera = tk.Sensor(
                 h, cam.measurement_noise, cam.measurement_matrix, cam.measurement_noise
             )
