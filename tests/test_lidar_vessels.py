@@ -96,7 +96,7 @@ def test_clipped_end_uses_the_trail_learned_hull_length():
         pts = _faces_seen(truth, 0.0, true_length, sensor)
         pts = pts[np.hypot(*(pts - sensor).T) < finder.radius]  # beyond the range: no return
         for cand in finder.update(pts, t, sensor):
-            assert cand.hull_length == pytest.approx(true_length, abs=0.35)
+            assert cand.learned_length == pytest.approx(true_length, abs=0.35)
             if not cand.clipped.any():
                 continue
             clipped_found += 1
@@ -109,7 +109,7 @@ def test_clipped_end_uses_the_trail_learned_hull_length():
             assert np.sqrt(finder.detection(unlearned, sensor)[1][0, 0]) == pytest.approx(
                 finder.length_std
             )
-            assert np.isnan(unlearned.hull_length)
+            assert np.isnan(unlearned.learned_length)
             a = (cand.cells - cand.centroid) @ cand.axis
             seen = float(a.max() - a.min()) + finder.cell
             assert finder.hull_length(unlearned) == pytest.approx(max(finder.length, seen))

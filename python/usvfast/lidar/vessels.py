@@ -81,7 +81,7 @@ class VesselCandidate:
     extents: list[float] = field(default_factory=list)
 
     @property
-    def hull_length(self) -> float:
+    def learned_length(self) -> float:
         """The hull's length m learned from the trail: the median of `extents` (NaN when
         empty)."""
         return float(np.median(self.extents)) if self.extents else float("nan")
@@ -241,12 +241,12 @@ class VesselFinder:
         cand.moving = cand.moving + 1 if cand.speed >= self.min_speed else 0
 
     def hull_length(self, cand: VesselCandidate) -> float:
-        """The hull's length m assumed for `cand` (module doc, step 4): its trail's learned
-        `hull_length` when it has one, else the configured `length`, and never less than the
+        """The hull's length m assumed for `cand` (module doc, step 4): its trail's
+        `learned_length` when it has one, else the configured `length`, and never less than the
         group's along-axis extent seen now."""
         a = (cand.cells - cand.centroid) @ cand.axis
         seen = float(a.max() - a.min()) + self.cell
-        learned = cand.hull_length
+        learned = cand.learned_length
         return max(self.length if np.isnan(learned) else float(learned), seen)
 
     def detection(self, cand: VesselCandidate, sensor: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -270,7 +270,7 @@ class VesselFinder:
             along = lo + half
         else:
             along = hi - half
-        learned = not np.isnan(cand.hull_length)
+        learned = not np.isnan(cand.learned_length)
         along_std = self.end_std if learned or not clipped.any() else self.length_std
         centre = cand.centroid + along * u + across * n
         basis = np.column_stack([u, n])

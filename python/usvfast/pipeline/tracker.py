@@ -11,7 +11,6 @@ squared (NIS) against the prediction from the track's previous state.
 
 from __future__ import annotations
 
-import inspect
 from dataclasses import dataclass
 from datetime import datetime, timedelta
 from typing import Any
@@ -63,7 +62,6 @@ class _Base:
             np.eye(2) * settings["lidar_noise_std"] ** 2,
             np.eye(2) * settings["camera_noise_std"] ** 2,
         ]
-        self._prev: dict[int, tuple[float, np.ndarray, np.ndarray]] = {}
 
     @property
     def nis_gate(self) -> float:
@@ -75,40 +73,11 @@ class _Base:
             return float(chi2.cdf(float(self.s["gnn_missed_distance"]) ** 2, 2))
         return float(self.s["prob_gate"])
 
-    def _noise(self, sensors: np.ndarray, covs: np.ndarray | None) -> np.ndarray:
-        if self.per_detection and covs is not None:
-            return covs
-        return np.array([self.r[int(s)] for s in sensors]).reshape(-1, 2, 2)
-
-    def _nis(
-        self,
-        t: float,
-        ids: np.ndarray,
-        rows: np.ndarray,
-        z: np.ndarray,
-        sensors: np.ndarray,
-        noise: np.ndarray,
-    ) -> list[tuple[int, int, float]]:
-        out = []
-        for tid, row in zip(ids.tolist(), rows.tolist(), strict=True):
-            if row < 0 or tid not in self._prev:
-                continue
-            t0, x, p = self._prev[tid]
-            f, q = _cv(self.s["q"], t - t0)
-            xp, pp = f @ x, f @ p @ f.T + q
-            y = z[row] - _H @ xp
-            s = _H @ pp @ _H.T + noise[row]
-            out.append((int(tid), int(sensors[row]), float(y @ np.linalg.solve(s, y))))
-        return out
-
-    def _remember(self, t: float, ids: np.ndarray, states: np.ndarray, covs: np.ndarray) -> None:
-        self._prev = {int(i): (t, states[k], covs[k]) for k, i in enumerate(ids.tolist())}
-
 
 class NativeTracker(_Base):
     """`usvfast.tracking.Tracker` with the [tracker] settings; per-detection covariances go
-    through `Tracker.step(..., covariances=)` where the installed tracker has it (otherwise
-    each sensor's R is used)."""
+    through `Tracker.step(..., covariances=)` (per_detection_covariance; otherwise each
+    sensor's R is used), and the NIS is the tracker's own."""
 
     def __init__(self, settings: dict[str, Any]) -> None:
         super().__init__(settings)
@@ -175,9 +144,7 @@ class NativeTracker(_Base):
             ),
             initiate_in_gates=s["initiate_in_gates"],
         )
-        params = inspect.signature(self.tracker.step).parameters
-        self.has_covariances = "covariances" in params
-        self.uses_detection_covariance = self.per_detection and self.has_covariances
+        self.uses_detection_covariance = self.per_detection
 
     def step(
         self, t: float, z: np.ndarray, sensors: np.ndarray, covs: np.ndarray | None
@@ -187,24 +154,19 @@ class NativeTracker(_Base):
             tracks = self.tracker.step(t, z, sensors, covariances=covs)
         else:
             tracks = self.tracker.step(t, z, sensors)
-        if hasattr(tracks, "nis_dof"):  # the tracker's own NIS of each track's last update
-            upd = (tracks.nis_dof > 0) & (tracks.times == t) & (tracks.detection >= 0)
-            nis = [
-                (int(i), int(sensors[d]), float(v))
-                for i, d, v in zip(
-                    tracks.ids[upd].tolist(),
-                    tracks.detection[upd].tolist(),
-                    tracks.nis[upd].tolist(),
-                    strict=True,
-                )
-            ]
-        else:
-            noise = self._noise(sensors, covs if self.uses_detection_covariance else None)
-            rows = np.where(tracks.is_update, tracks.detection, -1)
-            nis = self._nis(t, tracks.ids, rows, z, sensors, noise)
-        x, p = tracks.states[:, :4], tracks.covariances[:, :4, :4]
-        self._remember(t, tracks.ids, x, p)
-        return Snapshot(tracks.ids, x, p, nis)
+        # the tracker's own NIS of each track's last update
+        upd = (tracks.nis_dof > 0) & (tracks.times == t) & (tracks.detection >= 0)
+        nis = [
+            (int(i), int(sensors[d]), float(v))
+            for i, d, v in zip(
+                tracks.ids[upd].tolist(),
+                tracks.detection[upd].tolist(),
+                tracks.nis[upd].tolist(),
+                strict=True,
+            )
+        ]
+        # the state's first four entries: [n, v_n, e, v_e] (a camera offset may follow)
+        return Snapshot(tracks.ids, tracks.states[:, :4], tracks.covariances[:, :4, :4], nis)
 
 
 class StoneSoupTracker(_Base):
@@ -327,6 +289,36 @@ class StoneSoupTracker(_Base):
             initiator.confirmed = lambda: self.tracker.tracks
         self._ids: dict[int, int] = {}
         self._next = 0
+        self._prev: dict[int, tuple[float, np.ndarray, np.ndarray]] = {}
+
+    def _noise(self, sensors: np.ndarray, covs: np.ndarray | None) -> np.ndarray:
+        if self.per_detection and covs is not None:
+            return covs
+        return np.array([self.r[int(s)] for s in sensors]).reshape(-1, 2, 2)
+
+    def _nis(
+        self,
+        t: float,
+        ids: np.ndarray,
+        rows: np.ndarray,
+        z: np.ndarray,
+        sensors: np.ndarray,
+        noise: np.ndarray,
+    ) -> list[tuple[int, int, float]]:
+        out = []
+        for tid, row in zip(ids.tolist(), rows.tolist(), strict=True):
+            if row < 0 or tid not in self._prev:
+                continue
+            t0, x, p = self._prev[tid]
+            f, q = _cv(self.s["q"], t - t0)
+            xp, pp = f @ x, f @ p @ f.T + q
+            y = z[row] - _H @ xp
+            s = _H @ pp @ _H.T + noise[row]
+            out.append((int(tid), int(sensors[row]), float(y @ np.linalg.solve(s, y))))
+        return out
+
+    def _remember(self, t: float, ids: np.ndarray, states: np.ndarray, covs: np.ndarray) -> None:
+        self._prev = {int(i): (t, states[k], covs[k]) for k, i in enumerate(ids.tolist())}
 
     def step(
         self, t: float, z: np.ndarray, sensors: np.ndarray, covs: np.ndarray | None
