@@ -7,13 +7,17 @@
 //! predicted with its own `F_j`, `Q_j`; updated with the scan (mode likelihoods `Λ_j`); then
 //! `μ_j ∝ c̄_j Λ_j` and the output is the moment-matched combination `Σ_j μ_j N(x_j, P_j)`.
 //!
-//! Modes: any [`MotionModel`] (constant velocity, acceleration, random walk per axis) and the
+//! Modes: any [`MotionModel`] (constant velocity, acceleration, random walk per axis), the
 //! known-turn-rate coordinated turn on `[x, ẋ, y, ẏ]` (Stone Soup's `KnownTurnRate`: exact
 //! transition of a constant turn at rate `ω` rad/s, positive from x towards y — starboard with
-//! `x` = north, `y` = east —, process noise of a Wiener velocity per axis).
+//! `x` = north, `y` = east —, process noise of a Wiener velocity per axis), and the
+//! coordinated turn with the turn rate in the state `[x, ẋ, y, ẏ, ω]` ([`ConstantTurn`], Stone
+//! Soup's `ConstantTurn`, predicted by EKF or UKF; the other modes of its bank are then 5-D
+//! too, e.g. `[CV(q), CV(q), RandomWalk(q_ω)]`).
 
 use crate::error::{Error, Result};
 use crate::models::MotionModel;
+pub use crate::tracking::turn::{ConstantTurn, TurnPredictor};
 use nalgebra::{DMatrix, DVector};
 
 /// One mode of an IMM bank.
@@ -24,6 +28,8 @@ pub enum Mode {
     /// Coordinated turn at the known rate `omega` (rad/s) on `[x, ẋ, y, ẏ]`, Wiener-velocity
     /// noise `q = [q_x, q_y]` (m² s⁻³).
     KnownTurnRate { q: [f64; 2], omega: f64 },
+    /// Coordinated turn with the turn rate in the state `[x, ẋ, y, ẏ, ω]` (non-linear).
+    ConstantTurn(ConstantTurn),
 }
 
 impl Mode {
@@ -32,17 +38,39 @@ impl Mode {
         match self {
             Mode::Linear(m) => m.ndim(),
             Mode::KnownTurnRate { .. } => 4,
+            Mode::ConstantTurn(_) => ConstantTurn::NDIM,
         }
     }
 
-    /// `F(dt)` and `Q(dt)` (Stone Soup's `KnownTurnRate.matrix`/`covar`; `ω = 0` is the
-    /// constant-velocity limit).
+    /// The prediction `(x⁻, P⁻)` of `(x, p)` over `dt` seconds: `F x`, `F P Fᵀ + Q` for the
+    /// linear modes, the EKF or UKF prediction of a [`ConstantTurn`].
+    pub fn predict(
+        &self,
+        x: &DVector<f64>,
+        p: &DMatrix<f64>,
+        dt: f64,
+    ) -> (DVector<f64>, DMatrix<f64>) {
+        if let Mode::ConstantTurn(ct) = self {
+            return ct.predict(x, p, dt);
+        }
+        let (f, q) = self.matrices(dt);
+        (&f * x, &f * p * f.transpose() + q)
+    }
+
+    /// `F(dt)` and `Q(dt)` of a linear mode (Stone Soup's `KnownTurnRate.matrix`/`covar`;
+    /// `ω = 0` is the constant-velocity limit). For a [`ConstantTurn`]: its Jacobian at zero
+    /// turn rate and zero velocity (the constant-velocity matrices) and its `Q`.
     pub fn matrices(&self, dt: f64) -> (DMatrix<f64>, DMatrix<f64>) {
         let n = self.ndim();
         let mut f = DMatrix::zeros(n, n);
         let mut q = DMatrix::zeros(n, n);
         match self {
             Mode::Linear(m) => m.fill(dt, &mut f, &mut q),
+            Mode::ConstantTurn(ct) => {
+                let j = ConstantTurn::jacobian(&[0.0; 5], dt);
+                f = DMatrix::from_fn(5, 5, |r, c| j[r][c]);
+                q = ct.covar(dt);
+            }
             Mode::KnownTurnRate { q: qs, omega } => {
                 let w = *omega;
                 let rows = if w == 0.0 {
@@ -107,6 +135,9 @@ impl ImmConfig {
                         "turn rate must be finite and noise coefficients finite and >= 0",
                     ));
                 }
+            }
+            if let Mode::ConstantTurn(ct) = m {
+                ct.validate(&format!("imm.modes[{i}]"))?;
             }
         }
         if self.transition.shape() != (r, r) {
@@ -193,9 +224,9 @@ pub fn predict(cfg: &ImmConfig, st: &ImmState, dt: f64) -> ImmPrediction {
             let y = xi - &x;
             p += (&y * y.transpose() + pi) * *wi;
         }
-        let (f, q) = cfg.modes[j].matrices(dt);
-        xs.push(&f * x);
-        ps.push(&f * p * f.transpose() + q);
+        let (xj, pj) = cfg.modes[j].predict(&x, &p, dt);
+        xs.push(xj);
+        ps.push(pj);
     }
     ImmPrediction { cbar, x: xs, p: ps }
 }

@@ -2,7 +2,7 @@
 //!
 //! | role | module | Stone Soup |
 //! |---|---|---|
-//! | predict / update | [`crate::kalman`], [`hypothesise`] (innovations, posterior covariance), [`imm`], [`polar`] | `KalmanPredictor`, `KalmanUpdater`, `Extended/UnscentedKalmanUpdater` |
+//! | predict / update | [`crate::kalman`], [`hypothesise`] (innovations, posterior covariance), [`imm`], [`turn`], [`polar`] | `KalmanPredictor`, `Extended/UnscentedKalmanPredictor`, `KalmanUpdater`, `Extended/UnscentedKalmanUpdater` |
 //! | gating | [`gating`] (χ² gate, spatial grid), [`hypothesise`] (`gate_pairs`) | `PDAHypothesiser` / `DistanceHypothesiser` gates |
 //! | clustering | [`clustering`] | `JPDA` clusters |
 //! | JPDA | [`jpda`] (EHM, brute force, belief propagation past a budget), [`kbest`] (Murty k-best) | `JPDA`, `JPDAwithEHM` |
@@ -26,3 +26,4 @@ pub mod polar;
 pub mod run;
 pub mod track;
 pub mod tracker;
+pub mod turn;
