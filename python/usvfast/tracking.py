@@ -111,6 +111,7 @@ __all__ = [
     "AllOf",
     "AnyOf",
     "BearingRange",
+    "ConstantTurn",
     "CovarianceTrace",
     "Existence",
     "KnownTurnRate",
@@ -125,6 +126,7 @@ __all__ = [
     "Tracker",
     "Tracks",
     "code_5_7",
+    "constant_velocity_turn_rate",
 ]
 
 
@@ -383,12 +385,78 @@ class KnownTurnRate:
     omega: float
 
 
+def _noise_coeff(name: str, v: Any) -> float:
+    """`v` as a finite float >= 0, else TypeError/ValueError naming `name`."""
+    if isinstance(v, bool) or not isinstance(v, int | float | np.integer | np.floating):
+        raise TypeError(f"{name}: expected a float, got {type(v).__name__}")
+    if not (np.isfinite(v) and v >= 0):
+        raise ValueError(f"{name}: must be finite and >= 0, got {v!r}")
+    return float(v)
+
+
+@dataclass(frozen=True)
+class ConstantTurn:
+    """Coordinated turn with the turn rate in the state [n, v_n, e, v_e, ω] (ω rad/s, positive
+    from north towards east, i.e. to starboard) — Stone Soup's
+    `ConstantTurn(linear_noise_coeffs=(q, q), turn_noise_coeff=q_turn)`: exact transition of a
+    constant turn (ω → 0 is the constant-velocity limit, no division by zero), process noise
+    block_diag(q_n Q, q_e Q, q_turn dt), Q = [[dt³/3, dt²/2], [dt²/2, dt]]. An IMM mode of a
+    5-D tracker, whose other modes are 5-D too (e.g. `constant_velocity_turn_rate(q, q_w)`).
+
+    q: velocity noise (m² s⁻³), a float or (q_n, q_e); q_turn: turn-rate noise (rad² s⁻³);
+    predictor: "ekf" (Stone Soup's `ExtendedKalmanPredictor`, here with the analytic Jacobian)
+    or "ukf" (`UnscentedKalmanPredictor` with alpha, beta, kappa; kappa None: 3 − 5).
+    Bad values raise ValueError (TypeError for a wrong type) naming the argument."""
+
+    q: float | tuple[float, float]
+    q_turn: float
+    predictor: Literal["ekf", "ukf"] = "ekf"
+    alpha: float = 0.5
+    beta: float = 2.0
+    kappa: float | None = None
+
+    def __post_init__(self) -> None:
+        if isinstance(self.q, tuple | list | np.ndarray):
+            if len(self.q) != 2:
+                raise ValueError(f"q: expected a float or (q_n, q_e), got {self.q!r}")
+            q: Any = (_noise_coeff("q", self.q[0]), _noise_coeff("q", self.q[1]))
+        else:
+            q = _noise_coeff("q", self.q)
+        object.__setattr__(self, "q", q)
+        object.__setattr__(self, "q_turn", _noise_coeff("q_turn", self.q_turn))
+        if self.predictor not in ("ekf", "ukf"):
+            raise ValueError(f"predictor: expected 'ekf' or 'ukf', got {self.predictor!r}")
+        for name in ("alpha", "beta") + (("kappa",) if self.kappa is not None else ()):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int | float | np.integer | np.floating):
+                raise TypeError(f"{name}: expected a float, got {type(v).__name__}")
+            if not np.isfinite(v):
+                raise ValueError(f"{name}: must be finite, got {v!r}")
+            object.__setattr__(self, name, float(v))
+        if self.alpha <= 0:
+            raise ValueError(f"alpha: must be > 0, got {self.alpha!r}")
+        if self.kappa is not None and 5 + self.kappa <= 0:
+            raise ValueError(f"kappa: 5 + kappa must be > 0, got {self.kappa!r}")
+
+
+def constant_velocity_turn_rate(q: float, q_turn: float) -> MotionModel:
+    """The constant-velocity model of a 5-D turn-rate state [n, v_n, e, v_e, ω]:
+    [ConstantVelocity(q), ConstantVelocity(q), RandomWalk(q_turn)] (q m² s⁻³, q_turn
+    rad² s⁻³): the tracker's model (tentative tracks) and the CV mode beside `ConstantTurn`
+    in an IMM; ω is carried (as a random walk) so that every mode shares one state."""
+    from usvfast.kalman import ConstantVelocity, RandomWalk
+
+    q = _noise_coeff("q", q)
+    return (ConstantVelocity(q), ConstantVelocity(q), RandomWalk(_noise_coeff("q_turn", q_turn)))
+
+
 @dataclass(frozen=True)
 class IMM:
     """Interacting multiple models for the confirmed tracks (Blom and Bar-Shalom 1988).
 
     modes: motion models over the tracker's state (usvfast.kalman models such as
-    constant_velocity_2d(q), or `KnownTurnRate(q, omega)`); transition (r, r): Markov switching
+    constant_velocity_2d(q), or `KnownTurnRate(q, omega)`; on the 5-D state [n, v_n, e, v_e,
+    ω] `ConstantTurn(q, q_turn)` beside e.g. `constant_velocity_turn_rate(q, q_w)`); transition (r, r): Markov switching
     matrix, transition[i, j] = P(mode j at the next scan | mode i now), rows summing to 1;
     initial (r,): mode probabilities of a newly confirmed track (default uniform). Each scan:
     mixing, mode predictions, a mode-conditioned update (Kalman update under GNN, PDA mixture

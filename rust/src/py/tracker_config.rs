@@ -11,7 +11,7 @@ use super::to_py_err;
 use crate::error::Error;
 use crate::models::MotionModel;
 use crate::tracking::config::Existence;
-use crate::tracking::imm::{ImmConfig, Mode};
+use crate::tracking::imm::{ConstantTurn, ImmConfig, Mode, TurnPredictor};
 use crate::tracking::jpda::Method;
 use crate::tracking::polar::{Polar, PolarUpdate};
 use crate::tracking::track::Deleter;
@@ -403,9 +403,49 @@ struct TurnArgs {
     omega: f64,
 }
 
-/// An IMM mode: a `KnownTurnRate` (it has `omega`) or a `usvfast.kalman` motion model.
+/// The fields of `usvfast.tracking.ConstantTurn`.
+#[derive(FromPyObject)]
+struct ConstantTurnArgs {
+    q: TurnNoise,
+    q_turn: f64,
+    predictor: String,
+    alpha: f64,
+    beta: f64,
+    kappa: Option<f64>,
+}
+
+impl ConstantTurnArgs {
+    /// The core mode named `arg` (e.g. `imm.modes[1]`).
+    fn into_core(self, arg: &str) -> PyResult<ConstantTurn> {
+        let predictor = match self.predictor.as_str() {
+            "ekf" => TurnPredictor::Extended,
+            "ukf" => TurnPredictor::Unscented {
+                alpha: self.alpha,
+                beta: self.beta,
+                kappa: self.kappa,
+            },
+            other => {
+                return Err(to_py_err(Error::param(
+                    &format!("{arg}.predictor"),
+                    format!("expected 'ekf' or 'ukf', got {other:?}"),
+                )))
+            }
+        };
+        let ct = ConstantTurn {
+            q: self.q.0,
+            q_turn: self.q_turn,
+            predictor,
+        };
+        ct.validate(arg).map_err(to_py_err)?;
+        Ok(ct)
+    }
+}
+
+/// An IMM mode: a `KnownTurnRate` (it has `omega`), a `ConstantTurn` (it has `q_turn`) or a
+/// `usvfast.kalman` motion model.
 enum ModeArgs {
     Turn(TurnArgs),
+    ConstantTurn(ConstantTurnArgs),
     Linear(ModelArgs),
 }
 
@@ -415,6 +455,8 @@ impl<'a, 'py> FromPyObject<'a, 'py> for ModeArgs {
     fn extract(obj: Borrowed<'a, 'py, PyAny>) -> PyResult<Self> {
         if obj.hasattr("omega")? {
             Ok(Self::Turn(obj.extract()?))
+        } else if obj.hasattr("q_turn")? {
+            Ok(Self::ConstantTurn(obj.extract()?))
         } else {
             Ok(Self::Linear(obj.extract()?))
         }
@@ -434,12 +476,16 @@ impl ImmArgs<'_> {
         let modes = self
             .modes
             .into_iter()
-            .map(|m| {
+            .enumerate()
+            .map(|(i, m)| {
                 Ok(match m {
                     ModeArgs::Turn(t) => Mode::KnownTurnRate {
                         q: t.q.0,
                         omega: t.omega,
                     },
+                    ModeArgs::ConstantTurn(c) => {
+                        Mode::ConstantTurn(c.into_core(&format!("imm.modes[{i}]"))?)
+                    }
                     ModeArgs::Linear(l) => Mode::Linear(l.into_core()?),
                 })
             })
