@@ -63,9 +63,15 @@ def perturb(c: dict, rng: np.random.Generator, scale: float, polar: bool) -> dic
     ini["prior_velocity_var"] = lm(ini["prior_velocity_var"])
     imm = c["imm"]
     imm["cv_q"] = [lm(v) for v in imm.get("cv_q", [])]
-    w1, w2 = lm(imm["turn_rates"][0]), lm(imm["turn_rates"][2])
-    imm["turn_rates"] = [w1, -w1, w2, -w2]
-    imm["turn_q"] = lm(imm["turn_q"])
+    if "ct_q" in imm:  # the turn rate in the state
+        imm["ct_q"] = [lm(v) for v in imm["ct_q"]]
+        imm["ct_q_turn"] = [lm(v) for v in imm["ct_q_turn"]]
+        imm["cv_q_turn"] = lm(imm["cv_q_turn"])
+        ini["prior_turn_rate_var"] = lm(ini["prior_turn_rate_var"])
+    else:
+        w1, w2 = lm(imm["turn_rates"][0]), lm(imm["turn_rates"][2])
+        imm["turn_rates"] = [w1, -w1, w2, -w2]
+        imm["turn_q"] = lm(imm["turn_q"])
     imm["stay"] = near_one(imm["stay"], 0.002, 0.5)
     ex = c["existence"]
     for k in ("birth", "confirm", "vis_stay"):
@@ -110,6 +116,7 @@ def main() -> None:
             continue
         if s < s_best:
             best, s_best, q_best = c, s, q
+            print(f"run {i}: score {s:.3f}  " + "   ".join(map(fmt, q)), file=sys.stderr)
     head = "RMSE m  cov%  fr  ft"
     print(f"score {s_best:.3f} on {a.part}; {head} for all / 0-118 / 119-237:")
     print("  " + "   ".join(map(fmt, q_best or [])))

@@ -6,7 +6,8 @@ rows of equal time are one scan; damaged rows are skipped and counted; `own_*` t
 position, needed by `polar_noise` and `bearing_correction_deg`). CFG is a TOML file or the
 name of a shipped preset (`python/usvfast/presets/NAME.toml`, e.g. `joyride`); its
 `[tracker]` table is read by `tracker_from_config`. Writes DIR/tracks.csv (`time,track_id,
-north,east,v_north,v_east,cov_nn,cov_ne,cov_ee`, one row per confirmed track per scan) and
+north,east,v_north,v_east,cov_nn,cov_ne,cov_ee`, one row per confirmed track per scan, and
+`turn_rate,var_turn_rate` (rad/s, rad²/s²) after them when the IMM estimates the turn rate) and
 DIR/summary.json (counts, time per scan, and with Joyride's GNSS truth the figures of
 `usvfast.metrics.track_quality`).
 """
@@ -45,8 +46,23 @@ _TOP = {
     "imm",
     "existence",
 }
-_INIT = {"min_points", "delete_steps", "missed_distance", "prior_velocity_var"}
-_IMM = {"turn_rates", "turn_q", "stay", "cv_q"}
+_INIT = {
+    "min_points",
+    "delete_steps",
+    "missed_distance",
+    "prior_velocity_var",
+    "prior_turn_rate_var",
+}
+_IMM = {
+    "turn_rates",
+    "turn_q",
+    "stay",
+    "cv_q",
+    "ct_q",
+    "ct_q_turn",
+    "ct_predictor",
+    "cv_q_turn",
+}
 _EXIST = {"survival", "initial", "delete", "vis_stay", "invis_stay", "confirm", "birth"}
 
 
@@ -89,32 +105,28 @@ def tracker_from_config(cfg: dict[str, Any]) -> tk.Tracker:
         assoc = tk.GNN(missed_distance=float(cfg.get("missed_distance", 4.0)))
     else:
         raise ValueError(f"tracker.association: 'jpda' or 'gnn', got {cfg['association']!r}")
-    imm = None
-    if "imm" in cfg:
-        t = dict(cfg["imm"])
-        _check_keys(t, _IMM, "tracker.imm")
-        # Modes: CV(q), then more CV modes (e.g. a high-noise one), then coordinated turns.
-        modes: list[Any] = [constant_velocity_2d(q)]
-        modes += [constant_velocity_2d(float(v)) for v in t.get("cv_q", [])]
-        modes += [tk.KnownTurnRate(float(t.get("turn_q", q)), float(w)) for w in t["turn_rates"]]
-        r, stay = len(modes), float(t.get("stay", 0.95))
-        m = np.full((r, r), (1.0 - stay) / max(r - 1, 1))
-        np.fill_diagonal(m, stay)
-        imm = tk.IMM(modes, m)
+    imm, ndim, q_w = _imm_from_config(cfg, q)
     existence = None
     if "existence" in cfg:
         e = dict(cfg["existence"])
         _check_keys(e, _EXIST, "tracker.existence")
         existence = tk.Existence(**{k: float(v) for k, v in e.items()})
     pvv = float(init.get("prior_velocity_var", 100.0))
+    prior = [0.0, pvv, 0.0, pvv]
+    motion: Any = constant_velocity_2d(q)
+    if ndim == 5:
+        prior.append(float(init.get("prior_turn_rate_var", 0.01)))
+        motion = tk.constant_velocity_turn_rate(q, q_w)
+    elif "prior_turn_rate_var" in init:
+        raise ValueError("tracker.initiator.prior_turn_rate_var: needs [tracker.imm] ct_q")
     return tk.Tracker(
-        motion_model=constant_velocity_2d(q),
-        sensors=[tk.Sensor.position(float(cfg.get("sigma", 20.0)))],
+        motion_model=motion,
+        sensors=[tk.Sensor.position(float(cfg.get("sigma", 20.0)), ndim_state=ndim)],
         association=assoc,
         deleter=tk.StepsSinceUpdate(int(cfg.get("delete_steps", 50))),
         initiator=tk.MultiMeasurementInitiator(
-            np.zeros(4),
-            np.diag([0.0, pvv, 0.0, pvv]),
+            np.zeros(ndim),
+            np.diag(prior),
             min_points=int(init.get("min_points", 2)),
             deleter=tk.StepsSinceUpdate(int(init.get("delete_steps", 3))),
             missed_distance=float(init.get("missed_distance", 5.0)),
@@ -123,6 +135,62 @@ def tracker_from_config(cfg: dict[str, Any]) -> tk.Tracker:
         imm=imm,
         existence=existence,
     )
+
+
+def _imm_from_config(cfg: dict[str, Any], q: float) -> tuple[tk.IMM | None, int, float]:
+    """The `[tracker.imm]` table as an `IMM`, the state dimension (4, or 5 with `ct_q`: the
+    turn rate in the state) and the turn-rate noise of the constant-velocity modes (rad² s⁻³).
+
+    Modes: CV(q), more CV modes (`cv_q`), then either known-rate turns (`turn_rates`, `turn_q`;
+    4-D state) or `ConstantTurn` modes (`ct_q` velocity noises with `ct_q_turn` turn-rate
+    noises, one per mode, `ct_predictor` "ekf"/"ukf"; 5-D state whose CV modes carry ω as a
+    random walk of noise `cv_q_turn`). `stay`: P(same mode next scan), the rest spread evenly."""
+    if "imm" not in cfg:
+        return None, 4, 0.0
+    t = dict(cfg["imm"])
+    _check_keys(t, _IMM, "tracker.imm")
+    ct = "ct_q" in t
+    if ct and "turn_rates" in t:
+        raise ValueError(
+            "tracker.imm: turn_rates (known-rate turns on [n, v_n, e, v_e]) and ct_q (the turn "
+            "rate in the state) cannot share one bank"
+        )
+    if not ct and "turn_rates" not in t:
+        raise ValueError("tracker.imm: needs turn_rates or ct_q")
+    for k in ("ct_q_turn", "ct_predictor", "cv_q_turn"):
+        if k in t and not ct:
+            raise ValueError(f"tracker.imm.{k}: needs ct_q")
+    q_w = float(t.get("cv_q_turn", 0.0))
+    if ct:
+        cqs = [float(v) for v in _as_list(t["ct_q"], "ct_q")]
+        qts = [float(v) for v in _as_list(t.get("ct_q_turn", [1e-3]), "ct_q_turn")]
+        if len(qts) == 1:
+            qts *= len(cqs)
+        if len(qts) != len(cqs):
+            raise ValueError(
+                f"tracker.imm.ct_q_turn: one value or one per ct_q ({len(cqs)}), got {len(qts)}"
+            )
+        cv = [tk.constant_velocity_turn_rate(q, q_w)]
+        cv += [tk.constant_velocity_turn_rate(float(v), q_w) for v in t.get("cv_q", [])]
+        pred = t.get("ct_predictor", "ukf")
+        modes: list[Any] = cv + [tk.ConstantTurn(a, b, pred) for a, b in zip(cqs, qts, strict=True)]
+    else:
+        modes = [constant_velocity_2d(q)]
+        modes += [constant_velocity_2d(float(v)) for v in t.get("cv_q", [])]
+        modes += [tk.KnownTurnRate(float(t.get("turn_q", q)), float(w)) for w in t["turn_rates"]]
+    r, stay = len(modes), float(t.get("stay", 0.95))
+    m = np.full((r, r), (1.0 - stay) / max(r - 1, 1))
+    np.fill_diagonal(m, stay)
+    return tk.IMM(modes, m), 5 if ct else 4, q_w
+
+
+def _as_list(v: Any, name: str) -> list[Any]:
+    """A TOML number or array as a list."""
+    if isinstance(v, list):
+        return v
+    if isinstance(v, int | float) and not isinstance(v, bool):
+        return [v]
+    raise ValueError(f"tracker.imm.{name}: a number or an array of numbers, got {v!r}")
 
 
 @dataclass(frozen=True)
@@ -290,13 +358,17 @@ def track_command(
         typer.echo(f"error: {exc}", err=True)
         raise typer.Exit(2) from exc
     out.mkdir(parents=True, exist_ok=True)
+    # The state's first four entries are [n, v_n, e, v_e]; a fifth is the turn rate (rad/s).
+    turn = res.state.shape[1] >= 5
     with (out / "tracks.csv").open("w", newline="") as fh:
         w = csv.writer(fh)
+        head = ["time", "track_id", "north", "east", "v_north", "v_east"]
         w.writerow(
-            ["time", "track_id", "north", "east", "v_north", "v_east", "cov_nn", "cov_ne", "cov_ee"]
+            head + ["cov_nn", "cov_ne", "cov_ee"] + (["turn_rate", "var_turn_rate"] if turn else [])
         )
         for s, i, x, p in zip(res.scan, res.track_id, res.state, res.covariance, strict=True):
             cells = [x[0], x[2], x[1], x[3], p[0, 0], p[0, 2], p[2, 2]]
+            cells += [x[4], p[4, 4]] if turn else []
             w.writerow([repr(float(data.times[s])), int(i), *(repr(float(v)) for v in cells)])
     summary: dict[str, Any] = {
         "scans": len(data.times),
