@@ -4,8 +4,14 @@
 //! targets moving in parallel 0.3 m apart, inside each other's gates (8 and 20); and the small
 //! scans of the Stone Soup drop-in (2 and 4 targets seen by two sensors, σ = 0.25 m and
 //! 0.35 m, plus one clutter detection a scan), where the fixed cost per scan dominates.
+//! `imm_scan`: one scan of IMM trackers (1 and 20 separated targets): the 4-D bank of the
+//! `joyride` preset (CV, CV-high, known-rate turns at ±0.09 and ±0.16 rad/s) against the
+//! 5-D bank with the turn rate in the state (CV5, CV5-high and a `ConstantTurn`, EKF or UKF).
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
+use nalgebra::{DMatrix, DVector};
 use std::hint::black_box;
+use usvfast_core::models::{Component, MotionModel};
+use usvfast_core::tracking::imm::{ConstantTurn, ImmConfig, Mode, TurnPredictor};
 use usvfast_core::tracking::tracker::{Tracker, TrackerConfig};
 
 struct Lcg(u64);
@@ -186,5 +192,139 @@ fn bench_scan(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, bench_scan);
+/// The IMM banks of `bench_imm_scan`: Code 5.7 with σ = 2 m, JPDA λ = 1e-5, and the bank.
+fn imm_config(bank: &str) -> TrackerConfig {
+    let mut cfg = config();
+    cfg.association = usvfast_core::tracking::tracker::Association::Jpda(
+        usvfast_core::tracking::tracker::JpdaParams {
+            prob_detect: 0.9,
+            prob_gate: 0.999,
+            clutter_density: Some(1e-5),
+            include_all: false,
+            method: usvfast_core::tracking::jpda::Method::Ehm,
+            max_hypotheses: None,
+        },
+    );
+    cfg.deleter = usvfast_core::tracking::track::Deleter::StepsSinceUpdate(5);
+    let cv = |q: f64| MotionModel::constant_velocity_2d(q).unwrap();
+    let cv5 = |q: f64| {
+        MotionModel::new(vec![
+            Component::ConstantVelocity { q },
+            Component::ConstantVelocity { q },
+            Component::RandomWalk { q: 1e-5 },
+        ])
+        .unwrap()
+    };
+    let (modes, n) = if bank == "known_rate_4d" {
+        let mut m = vec![Mode::Linear(cv(0.03)), Mode::Linear(cv(25.0))];
+        for w in [0.09, -0.09, 0.16, -0.16] {
+            m.push(Mode::KnownTurnRate {
+                q: [4.0, 4.0],
+                omega: w,
+            });
+        }
+        (m, 4)
+    } else {
+        let predictor = if bank == "ct_ukf_5d" {
+            TurnPredictor::Unscented {
+                alpha: 0.5,
+                beta: 2.0,
+                kappa: None,
+            }
+        } else {
+            TurnPredictor::Extended
+        };
+        let ct = ConstantTurn {
+            q: [0.2, 0.2],
+            q_turn: 1e-3,
+            predictor,
+        };
+        (
+            vec![
+                Mode::Linear(cv5(0.03)),
+                Mode::Linear(cv5(10.0)),
+                Mode::ConstantTurn(ct),
+            ],
+            5,
+        )
+    };
+    let r = modes.len();
+    let stay = 0.97;
+    let mut m = DMatrix::from_element(r, r, (1.0 - stay) / (r - 1) as f64);
+    m.fill_diagonal(stay);
+    cfg.imm = Some(ImmConfig {
+        modes,
+        transition: m,
+        initial: vec![1.0 / r as f64; r],
+    });
+    let mut h = DMatrix::zeros(2, n);
+    h[(0, 0)] = 1.0;
+    h[(1, 2)] = 1.0;
+    let sensor = &mut cfg.sensors[0];
+    sensor.r = DMatrix::identity(2, 2) * 4.0;
+    sensor.h = h.clone();
+    sensor.init = (h, sensor.r.clone());
+    cfg.motion_model = if n == 5 { cv5(0.03) } else { cv(0.03) };
+    cfg.initiator.prior_state = DVector::zeros(n);
+    cfg.initiator.prior_covariance = DMatrix::identity(n, n);
+    cfg
+}
+
+fn bench_imm_scan(c: &mut Criterion) {
+    let mut g = c.benchmark_group("imm_scan");
+    g.sample_size(20);
+    for bank in ["known_rate_4d", "ct_ekf_5d", "ct_ukf_5d"] {
+        for n in [1usize, 20] {
+            let mut tracker = Tracker::new(imm_config(bank)).unwrap();
+            let nd = if bank == "known_rate_4d" { 4 } else { 5 };
+            let mut p0 = vec![0.0; nd * nd];
+            for i in 0..nd {
+                p0[i * nd + i] = if i == 4 { 1e-3 } else { 1.0 };
+            }
+            for i in 0..n {
+                let mut x = vec![100.0 * i as f64, 3.0, 0.0, 1.0];
+                x.truncate(nd.min(4));
+                if nd == 5 {
+                    x.push(0.02);
+                }
+                tracker.add_track(&x, &p0, 0.0).unwrap();
+            }
+            let mut rng = Lcg(7);
+            let mut t = 0.0;
+            let mut scan = |tr: &mut Tracker, t: &mut f64| {
+                *t += 1.0;
+                let z: Vec<f64> = (0..n)
+                    .flat_map(|i| {
+                        [
+                            100.0 * i as f64 + 3.0 * *t + 2.0 * rng.normal(),
+                            *t + 2.0 * rng.normal(),
+                        ]
+                    })
+                    .collect();
+                tr.step(*t, black_box(&z), &vec![0; n]).unwrap();
+            };
+            for _ in 0..5 {
+                scan(&mut tracker, &mut t);
+            }
+            g.bench_function(format!("{bank}_{n}"), |b| {
+                b.iter_batched(
+                    || {
+                        let mut tr = tracker.clone();
+                        tr.reserve_history(8);
+                        tr
+                    },
+                    |mut tr| {
+                        let mut tt = t;
+                        scan(&mut tr, &mut tt);
+                        tr
+                    },
+                    BatchSize::LargeInput,
+                )
+            });
+        }
+    }
+    g.finish();
+}
+
+criterion_group!(benches, bench_scan, bench_imm_scan);
 criterion_main!(benches);
