@@ -2,7 +2,8 @@
 (preset `joyride-cv`), the IMM alone (preset `joyride` without its existence table),
 IMM + existence (preset `joyride`, `joyride-accurate` that trades coverage for RMSE, and
 `joyride-polar` with per-plot range/bearing covariances, and `joyride-calibrated`: `joyride` on
-plots whose bearing bias was measured on the first half)
+plots whose bearing bias was measured on the first half), the IMM with the turn rate in the
+state (preset `joyride-ct`: CV, CV-high and a `ConstantTurn` on [n, v_n, e, v_e, ω], EKF)
 against Stone Soup's JPDA with the anchor parameters, in
 one process: time per scan and the track-quality figures of `usvfast.metrics.track_quality`
 (gate 50 m) over the whole recording and over its two halves (scans 0-118 and 119-237, scored
@@ -82,6 +83,7 @@ def main() -> None:
         "IMM + existence (joyride)": cfg,
         "IMM + existence (-accurate)": load_config("joyride-accurate"),
         "IMM + existence + polar R": load_config("joyride-polar"),
+        "CV + CT(ω) + existence (-ct)": load_config("joyride-ct"),
         "joyride, calibrated radar *": load_config("joyride-calibrated"),
     }
     t0 = time.perf_counter()

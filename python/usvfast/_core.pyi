@@ -186,6 +186,9 @@ def georeference_rays(
 ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.uint8]]: ...
 
 # --- tracker (rust/src/py/tracker.rs) ---
+# The configuration objects are read by attribute (rust/src/py/tracker_config.rs): `imm` is a
+# usvfast.tracking.IMM whose modes are usvfast.kalman models, KnownTurnRate (q, omega) or
+# ConstantTurn (q, q_turn, predictor "ekf"/"ukf", alpha, beta, kappa; 5-D state).
 class TrackerCore:
     def __init__(
         self,
