@@ -473,7 +473,8 @@ def test_toml_preset_with_constant_turn_writes_the_turn_rate(tmp_path):
     truth, zs = turning_plots(4, 0.08, n=40)
     plots = tmp_path / "plots.csv"
     plots.write_text(
-        "time,north,east\n" + "".join(f"{k}.0,{float(z[0])!r},{float(z[1])!r}\n" for k, z in enumerate(zs))
+        "time,north,east\n"
+        + "".join(f"{k}.0,{float(z[0])!r},{float(z[1])!r}\n" for k, z in enumerate(zs))
     )
     cfg = tmp_path / "ct.toml"
     cfg.write_text(

@@ -457,7 +457,8 @@ class IMM:
     modes: motion models over the tracker's state (usvfast.kalman models such as
     constant_velocity_2d(q), or `KnownTurnRate(q, omega)`; on the 5-D state [n, v_n, e, v_e,
     ω] `ConstantTurn(q, q_turn)` beside e.g. `constant_velocity_turn_rate(q, q_w)`);
-    transition (r, r): Markov switching matrix, transition[i, j] = P(mode j at the next scan | mode i now), rows summing to 1;
+    transition (r, r): Markov switching matrix, transition[i, j] = P(mode j at the next scan |
+    mode i now), rows summing to 1;
     initial (r,): mode probabilities of a newly confirmed track (default uniform). Each scan:
     mixing, mode predictions, a mode-conditioned update (Kalman update under GNN, PDA mixture
     with the track's JPDA association weights under JPDA), mode probabilities from the mode
