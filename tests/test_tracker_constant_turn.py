@@ -132,8 +132,8 @@ def complex_step_jacobian(x, dt, h=1e-30):
 
 
 def ct_function(x, dt):
-    """The constant turn in numpy (complex-step safe, ω != 0): Bar-Shalom et al. 2001,
-    eq. 11.7.1-4, with 1 − cos ωT written 2 sin²(ωT/2) (no cancellation near ω = 0)."""
+    """The constant turn in numpy (complex-step safe, ω != 0; Stone Soup's `ConstantTurn`
+    function), with 1 − cos ωT written 2 sin²(ωT/2) (no cancellation near ω = 0)."""
     w = x[4]
     s, c = np.sin(w * dt), np.cos(w * dt)
     a, b = s / w, 2 * np.sin(w * dt / 2) ** 2 / w

@@ -2,9 +2,9 @@
 //! `stonesoup.models.transition.nonlinear.ConstantTurn`): state `[x, ẋ, y, ẏ, ω]` (m, m/s,
 //! rad/s; `ω > 0` turns from x towards y — to starboard with `x` = north, `y` = east).
 //!
-//! Exact discretisation of a constant turn over `T` seconds (Bar-Shalom, Li and Kirubarajan,
-//! *Estimation with Applications to Tracking and Navigation*, 2001, eq. 11.7.1-4), with
-//! `A(ω) = sin(ωT)/ω` and `B(ω) = (1 − cos ωT)/ω`:
+//! Exact discretisation of a constant turn over `T` seconds (the coordinated-turn model with an
+//! unknown turn rate of Li and Jilkov, "Survey of maneuvering target tracking, Part I: dynamic
+//! models", IEEE Trans. AES 39(4), 2003), with `A(ω) = sin(ωT)/ω` and `B(ω) = (1 − cos ωT)/ω`:
 //!
 //! `x' = x + A ẋ − B ẏ`, `ẋ' = cos(ωT) ẋ − sin(ωT) ẏ`, `y' = y + B ẋ + A ẏ`,
 //! `ẏ' = sin(ωT) ẋ + cos(ωT) ẏ`, `ω' = ω`.
