@@ -287,6 +287,74 @@ mod tests {
         assert!(v[1].abs() < 1e-12 && (v[3] - 1.0).abs() < 1e-12);
     }
 
+    /// A 5-D tracker (CV5 + CT) on a boat turning to starboard at 0.08 rad/s, plots every
+    /// second without noise: one track, ω of the turn's sign, μ summing to 1, and a saved copy
+    /// that continues bit-exactly.
+    #[test]
+    fn five_state_tracker_follows_a_turn() {
+        use crate::models::Component;
+        use crate::tracking::tracker::{Tracker, TrackerConfig};
+        let cv5 = MotionModel::new(vec![
+            Component::ConstantVelocity { q: 0.05 },
+            Component::ConstantVelocity { q: 0.05 },
+            Component::RandomWalk { q: 1e-6 },
+        ])
+        .unwrap();
+        for predictor in [
+            TurnPredictor::Extended,
+            TurnPredictor::Unscented {
+                alpha: 0.5,
+                beta: 2.0,
+                kappa: None,
+            },
+        ] {
+            let mut c = TrackerConfig::code_5_7();
+            c.motion_model = cv5.clone();
+            let mut h = DMatrix::zeros(2, 5);
+            h[(0, 0)] = 1.0;
+            h[(1, 2)] = 1.0;
+            c.sensors[0].h = h.clone();
+            c.sensors[0].r = DMatrix::identity(2, 2);
+            c.sensors[0].init = (h, DMatrix::identity(2, 2));
+            c.deleter = crate::tracking::track::Deleter::StepsSinceUpdate(5);
+            if let crate::tracking::config::Association::Jpda(j) = &mut c.association {
+                j.prob_gate = 0.999;
+                j.clutter_density = Some(1e-5);
+            }
+            c.initiate_in_gates = false;
+            c.initiator.prior_state = DVector::zeros(5);
+            c.initiator.prior_covariance =
+                DMatrix::from_diagonal(&DVector::from_vec(vec![0.0, 50.0, 0.0, 50.0, 0.01]));
+            c.initiator.gnn.missed_distance = 5.0;
+            let ct = ConstantTurn {
+                q: [0.2, 0.2],
+                q_turn: 1e-4,
+                predictor,
+            };
+            c.imm = Some(ImmConfig {
+                modes: vec![Mode::Linear(cv5.clone()), Mode::ConstantTurn(ct)],
+                transition: DMatrix::from_row_slice(2, 2, &[0.95, 0.05, 0.1, 0.9]),
+                initial: vec![0.5, 0.5],
+            });
+            let mut tr = Tracker::new(c).unwrap();
+            let (w, v) = (0.08, 6.0);
+            let plot = |k: f64| [v / w * (w * k).sin(), v / w * (1.0 - (w * k).cos())];
+            for k in 0..40 {
+                tr.step(k as f64, &plot(k as f64), &[0]).unwrap();
+            }
+            assert_eq!(tr.tracks.len(), 1);
+            let t = &tr.tracks[0];
+            assert!(t.x[4] > 0.04 && t.x[4] < 0.24, "omega {}", t.x[4]);
+            let mu = &t.imm.as_ref().unwrap().mu;
+            assert!((mu.iter().sum::<f64>() - 1.0).abs() < 1e-12);
+            let mut copy = Tracker::from_bytes(&tr.to_bytes().unwrap()).unwrap();
+            tr.step(40.0, &plot(40.0), &[0]).unwrap();
+            copy.step(40.0, &plot(40.0), &[0]).unwrap();
+            assert_eq!(tr.tracks[0].x, copy.tracks[0].x);
+            assert_eq!(tr.tracks[0].p, copy.tracks[0].p);
+        }
+    }
+
     #[test]
     fn mode_probabilities_sum_to_one() {
         let mu = mode_probabilities(&[0.7, 0.2, 0.1], &[-800.0, -801.0, -1e6]);
