@@ -172,28 +172,44 @@ class SsdMobileNetV2(nn.Module):
             class_heads.append(_unit(graph, b + "ClassPredictor", names, keep))
         return cls(blocks, tap, extras, box_heads, class_heads, per_cell, classes)
 
-    def features(self, x: torch.Tensor) -> list[torch.Tensor]:
-        """The six feature maps of x (B, 3, H, W)."""
-        maps = []
-        for i, (block, res) in enumerate(zip(self.blocks, self.residual, strict=True)):
+    def stem(self, x: torch.Tensor) -> torch.Tensor:
+        """The layers before the first feature map's block (stride 16, 96 channels): the
+        part :mod:`usvfast.shore.ssd_train` keeps frozen."""
+        for block, res in zip(self.blocks[: self.tap], self.residual[: self.tap], strict=True):
             y = block(x)
             x = x + y if res else y
+        return x
+
+    def maps(self, x: torch.Tensor) -> list[torch.Tensor]:
+        """The six feature maps from the stem's output x."""
+        out = []
+        for i in range(self.tap, len(self.blocks)):
+            y = self.blocks[i](x)
+            x = x + y if self.residual[i] else y
             if i == self.tap:
-                maps.append(x)
-        maps.append(x)
+                out.append(x)
+        out.append(x)
         for e in self.extras:
             x = e(x)
-            maps.append(x)
-        return maps
+            out.append(x)
+        return out
 
-    def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        b = x.shape[0]
+    def heads(self, maps: list[torch.Tensor]) -> tuple[torch.Tensor, torch.Tensor]:
+        """Box codes (B, A, 4) and class logits (B, A, C) of the six feature maps."""
+        b = maps[0].shape[0]
         boxes, logits = [], []
         n = len(self.classes)
-        for f, bh, ch in zip(self.features(x), self.box_heads, self.class_heads, strict=True):
+        for f, bh, ch in zip(maps, self.box_heads, self.class_heads, strict=True):
             boxes.append(bh(f).permute(0, 2, 3, 1).reshape(b, -1, 4))
             logits.append(ch(f).permute(0, 2, 3, 1).reshape(b, -1, n))
         return torch.cat(boxes, 1), torch.cat(logits, 1)
+
+    def features(self, x: torch.Tensor) -> list[torch.Tensor]:
+        """The six feature maps of x (B, 3, H, W)."""
+        return self.maps(self.stem(x))
+
+    def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        return self.heads(self.features(x))
 
     def feature_sizes(self, height: int, width: int) -> list[tuple[int, int]]:
         """(h, w) of the six feature maps for an input of height × width px."""
