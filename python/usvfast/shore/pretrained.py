@@ -80,7 +80,8 @@ def preprocess(image: np.ndarray, input_size: tuple[int, int], letterbox: bool):
     if letterbox:
         s = min(iw / w, ih / h)
         nw, nh = max(1, round(w * s)), max(1, round(h * s))
-        small = cv2.resize(image, (nw, nh), interpolation=cv2.INTER_AREA if s < 1 else cv2.INTER_LINEAR)
+        interp = cv2.INTER_AREA if s < 1 else cv2.INTER_LINEAR
+        small = cv2.resize(image, (nw, nh), interpolation=interp)
         out = np.full((ih, iw, 3), 114, np.uint8)
         ox, oy = (iw - nw) // 2, (ih - nh) // 2
         out[oy : oy + nh, ox : ox + nw] = small
@@ -129,7 +130,9 @@ class SsdDetector:
             import torch
 
             if not isinstance(model, torch.nn.Module):
-                raise TypeError(f"model: expected an .onnx path or a torch module, got {type(model)}")
+                raise TypeError(
+                    f"model: expected an .onnx path or a torch module, got {type(model).__name__}"
+                )
             self.net = None
             self.torch_net = model.eval()
         size = input_size or card.get("input_size") or (300, 300)
@@ -153,7 +156,9 @@ class SsdDetector:
         the preprocessing geometry, for one BGR uint8 frame."""
         check_image("image", image)
         if image.ndim != 3 or image.shape[2] != 3 or image.dtype != np.uint8:
-            raise ValueError(f"image: expected (h, w, 3) uint8 BGR, got {image.shape} {image.dtype}")
+            raise ValueError(
+                f"image: expected (h, w, 3) uint8 BGR, got {image.shape} {image.dtype}"
+            )
         x, geo = preprocess(image, self.input_size, self.letterbox)
         if self.net is not None:
             self.net.setInput(x)

@@ -178,9 +178,7 @@ def fine_tune(
                 pos = m >= 0
                 n = int(pos.sum())
                 target = pos.float()
-                ce = F.binary_cross_entropy_with_logits(
-                    logits[k, :, 0], target, reduction="none"
-                )
+                ce = F.binary_cross_entropy_with_logits(logits[k, :, 0], target, reduction="none")
                 neg_ce = ce.detach().clone()
                 neg_ce[pos] = -1.0
                 nneg = max(cfg.negatives_per_positive * n, cfg.min_negatives)
