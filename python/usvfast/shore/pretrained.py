@@ -200,8 +200,16 @@ def export_onnx(net, path: Path | str, input_size: tuple[int, int]) -> Path:
     """Export an :class:`usvfast.shore.ssd.SsdMobileNetV2` with its anchors for `input_size`
     (W, H) to ONNX: input "images" (1, 3, H, W) RGB in [−1, 1], output "output" (1, A, 4 + C)
     normalised corners and sigmoid scores (:class:`usvfast.shore.ssd.SsdExport`)."""
+    import warnings
+
+    import torch
+
     from usvfast.camera.export import export_onnx as _export
     from usvfast.shore.ssd import SsdExport
 
     w, h = (int(v) for v in input_size)
-    return _export(SsdExport(net.eval(), h, w), path, (w, h))
+    with warnings.catch_warnings():
+        # the SAME paddings are read from the traced sizes: fixed for this input size
+        warnings.simplefilter("ignore", torch.jit.TracerWarning)
+        warnings.filterwarnings("ignore", message="Constant folding")
+        return _export(SsdExport(net.eval(), h, w), path, (w, h))

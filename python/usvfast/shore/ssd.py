@@ -13,8 +13,8 @@ Object Detection API (`ssd_mobilenet_v2_coco_2018_03_29`, Apache 2.0) read by
   per kept class (the graph has 91: background + the 90 COCO ids; `classes` keeps the chosen
   ids' channels, 9 = "boat", which is 8 in the 0-based 80-class list).
 * Anchors: the SSD anchor generator of the graph (scales 0.2–0.95 over 6 maps, aspect ratios
-  1, 2, ½, 3, ⅓ plus the interpolated scale; 0.1 / 2 / ½ on the lowest map), normalised
-  (y, x, h, w) in [0, 1].
+  1, 2, ½, 3, 0.3333 (the graph's constant for ⅓) plus the interpolated scale; 0.1 / 2 / ½ on
+  the lowest map), normalised (y, x, h, w) in [0, 1].
 
 TensorFlow's SAME padding (extra row/column at the bottom/right for stride 2) is reproduced.
 """
@@ -232,7 +232,7 @@ def ssd_anchors(
     sizes: Sequence[tuple[int, int]],
     min_scale: float = 0.2,
     max_scale: float = 0.95,
-    aspect_ratios: Sequence[float] = (1.0, 2.0, 0.5, 3.0, 1.0 / 3.0),
+    aspect_ratios: Sequence[float] = (1.0, 2.0, 0.5, 3.0, 0.3333),
 ) -> np.ndarray:
     """(A, 4) normalised anchors (y centre, x centre, h, w) of the graph's SSD anchor generator
     for feature maps `sizes` [(h, w), ...]: per map i, scale s_i = min + (max − min) i/(n − 1);

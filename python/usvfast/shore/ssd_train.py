@@ -198,9 +198,10 @@ def fine_tune(
             loss.backward()
             opt.step()
             if step % 100 == 0 or step == cfg.steps - 1:
+                lc, lb = float(loss_cls.detach()), float(loss_box.detach())
                 log(
-                    f"step {step}: loss {float(loss):.3f} (cls {float(loss_cls) / max(npos, 1):.3f}"
-                    f", box {float(loss_box) / max(npos, 1):.3f}), {time.perf_counter() - t0:.0f} s"
+                    f"step {step}: loss {(lc + lb) / max(npos, 1):.3f} (cls {lc / max(npos, 1):.3f}"
+                    f", box {lb / max(npos, 1):.3f}), {time.perf_counter() - t0:.0f} s"
                 )
         for p in net.parameters():
             p.requires_grad_(False)
