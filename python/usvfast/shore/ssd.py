@@ -172,18 +172,22 @@ class SsdMobileNetV2(nn.Module):
             class_heads.append(_unit(graph, b + "ClassPredictor", names, keep))
         return cls(blocks, tap, extras, box_heads, class_heads, per_cell, classes)
 
-    def stem(self, x: torch.Tensor) -> torch.Tensor:
-        """The layers before the first feature map's block (stride 16, 96 channels): the
-        part :mod:`usvfast.shore.ssd_train` keeps frozen."""
-        for block, res in zip(self.blocks[: self.tap], self.residual[: self.tap], strict=True):
+    def stem(self, x: torch.Tensor, end: int | None = None) -> torch.Tensor:
+        """The blocks before block `end` (default: the first feature map's block, stride 16,
+        96 channels): the part :mod:`usvfast.shore.ssd_train` keeps frozen."""
+        end = self.tap if end is None else end
+        for block, res in zip(self.blocks[:end], self.residual[:end], strict=True):
             y = block(x)
             x = x + y if res else y
         return x
 
-    def maps(self, x: torch.Tensor) -> list[torch.Tensor]:
-        """The six feature maps from the stem's output x."""
+    def maps(self, x: torch.Tensor, start: int | None = None) -> list[torch.Tensor]:
+        """The six feature maps from x, the output of :meth:`stem` with `end=start`."""
+        start = self.tap if start is None else start
+        if not 0 <= start <= self.tap:
+            raise ValueError(f"start: expected 0..{self.tap}, got {start}")
         out = []
-        for i in range(self.tap, len(self.blocks)):
+        for i in range(start, len(self.blocks)):
             y = self.blocks[i](x)
             x = x + y if self.residual[i] else y
             if i == self.tap:

@@ -49,7 +49,9 @@ class SsdTrainConfig:
     network (multiples of 16; frames are letterboxed to it); `views` augmented views computed
     through the frozen stem; `steps` of `batch` views; `lr` Adam's peak learning rate (cosine
     decay to 0 after `warmup` steps); `negatives_per_positive` hard negatives kept per matched
-    anchor (at least `min_negatives` per view); `match_iou` anchor–box IoU of a positive."""
+    anchor (at least `min_negatives` per view); `match_iou` anchor–box IoU of a positive;
+    `unfrozen_before_tap` MobileNetV2 blocks before the first feature map's block also trained
+    (0: the stem is everything up to stride 16)."""
 
     seed: int = 0
     input_size: tuple[int, int] = (320, 240)
@@ -63,6 +65,7 @@ class SsdTrainConfig:
     match_iou: float = 0.5
     scale_range: tuple[float, float] = (0.6, 1.5)
     threads: int = 1
+    unfrozen_before_tap: int = 0
 
     def __post_init__(self) -> None:
         w, h = self.input_size
@@ -70,6 +73,8 @@ class SsdTrainConfig:
             raise ValueError(f"input_size: multiples of 16, at least 64, got {self.input_size}")
         if self.steps < 1 or self.batch < 1 or self.views < self.batch:
             raise ValueError("steps: steps, batch >= 1 and views >= batch expected")
+        if not 0 <= self.unfrozen_before_tap <= 13:
+            raise ValueError(f"unfrozen_before_tap: expected 0..13, got {self.unfrozen_before_tap}")
         if not 0 < self.match_iou < 1:
             raise ValueError(f"match_iou: expected in (0, 1), got {self.match_iou}")
 
@@ -143,15 +148,16 @@ def fine_tune(
         at = torch.from_numpy(anchors)
         t0 = time.perf_counter()
         xs, boxes = _views(data, cfg, rng)
+        start = net.tap - cfg.unfrozen_before_tap
         net.eval()
         with torch.inference_mode():
             stems = torch.cat(
-                [net.stem(torch.from_numpy(xs[i : i + 32])) for i in range(0, len(xs), 32)]
+                [net.stem(torch.from_numpy(xs[i : i + 32]), start) for i in range(0, len(xs), 32)]
             )
         del xs
         log(f"{cfg.views} views through the frozen stem in {time.perf_counter() - t0:.0f} s")
         match = [match_anchors(anchors, b, cfg.match_iou) for b in boxes]
-        train = [*[p for i in range(net.tap, len(net.blocks)) for p in net.blocks[i].parameters()]]
+        train = [*[p for i in range(start, len(net.blocks)) for p in net.blocks[i].parameters()]]
         train += [*net.extras.parameters(), *net.box_heads.parameters()]
         train += [*net.class_heads.parameters()]
         for p in net.parameters():
@@ -169,7 +175,7 @@ def fine_tune(
         net.train()
         for step in range(cfg.steps):
             idx = rng.choice(len(stems), size=cfg.batch, replace=False)
-            codes, logits = net.heads(net.maps(stems[idx].clone()))
+            codes, logits = net.heads(net.maps(stems[idx].clone(), start))
             loss_cls = codes.new_zeros(())
             loss_box = codes.new_zeros(())
             npos = 0
@@ -288,9 +294,10 @@ def main(argv: Sequence[str] | None = None) -> None:
     ap.add_argument("--seed", type=int, default=SsdTrainConfig.seed)
     ap.add_argument("--steps", type=int, default=SsdTrainConfig.steps)
     ap.add_argument("--views", type=int, default=SsdTrainConfig.views)
+    ap.add_argument("--unfrozen", type=int, default=0, help="Blocks before the tap also trained")
     ap.add_argument("--exclude", nargs="*", default=[])
     a = ap.parse_args(argv)
-    cfg = SsdTrainConfig(seed=a.seed, steps=a.steps, views=a.views)
+    cfg = SsdTrainConfig(seed=a.seed, steps=a.steps, views=a.views, unfrozen_before_tap=a.unfrozen)
     train_and_export(a.annotations, a.out, cfg, a.exclude, a.name)
 
 
