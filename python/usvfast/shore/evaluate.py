@@ -27,7 +27,8 @@ default thresholds; `fused-nms` then also the overlap and containment suppressio
 :mod:`usvfast.shore.change` (online: each annotated frame against the registered median of
 the previous ones; default parameters). `--detector ssd` scores the COCO-pretrained SSD
 fine-tuned without the video (`shore-ssd-without-VIDEO.onnx` of `--models`, from
-`python -m usvfast.shore.evaluate_det --detectors ssd --models DIR`) at its card's threshold.
+`python -m usvfast.shore.evaluate_det --detectors ssd --models DIR`) at its card's threshold,
+alone and after the suppression of :mod:`usvfast.shore.suppress` (its shipped pair).
 
 MarDCT boxes carry no identities: the ground-truth ids are derived by linking the boxes of
 consecutive annotated frames (optimal assignment on centre distance, gated at two box
@@ -202,8 +203,10 @@ def ssd_row(
 ) -> dict:
     """The fine-tuned SSD's detection and tracking rows of held-out video `held` (model
     `shore-ssd-without-HELD.onnx` of `models`, its card's threshold; :mod:`usvfast.shore.
-    ssd_train`). Adds the detections to `cache`."""
+    ssd_train`), alone and after the overlap and containment suppression of
+    :mod:`usvfast.shore.suppress` (its shipped pair). Adds the detections to `cache`."""
     from usvfast.shore.pretrained import SsdDetector
+    from usvfast.shore.suppress import suppress
 
     path = Path(models) / f"shore-ssd-without-{held}.onnx"
     if not path.is_file():
@@ -213,14 +216,15 @@ def ssd_row(
         )
     det = SsdDetector(path)
     cache.raw["ssd"] = [det.detect(read_image(f.path, cv2.IMREAD_COLOR)) for f in frames]
+    cache.raw["ssd-nms"] = [suppress(d) for d in cache.raw["ssd"]]
     hcfg = HorizonConfig()
-    row: dict = {"ssd_model": path.name, "ssd_conf": det.conf_threshold}
-    for use_h in (False, True):
-        c = count(frames, kept(frames, cache, "ssd", use_h, hcfg))
-        row[f"ssd_{'horizon' if use_h else 'no_horizon'}"] = counts_dict(c)
-    row["tracking"] = {
-        "ssd": tracking_rows(frames, kept(frames, cache, "ssd", True, hcfg), sort=sort),
-    }
+    row: dict = {"ssd_model": path.name, "ssd_conf": det.conf_threshold, "tracking": {}}
+    for key in ("ssd", "ssd-nms"):
+        for use_h in (False, True):
+            c = count(frames, kept(frames, cache, key, use_h, hcfg))
+            row[f"{key}_{'horizon' if use_h else 'no_horizon'}"] = counts_dict(c)
+        dets = kept(frames, cache, key, True, hcfg)
+        row["tracking"][key] = tracking_rows(frames, dets, sort=sort)
     return row
 
 
@@ -411,7 +415,8 @@ def print_tables(results: dict, console: Console | None = None) -> None:
         if "cnn_horizon" in r:
             rows.append(("cnn", f"{r['cnn_model']} (confidence {r['cnn_conf']:g})"))
         if "ssd_horizon" in r:
-            rows.append(("ssd", f"{r['ssd_model']} (confidence {r['ssd_conf']:g})"))
+            name = f"{r['ssd_model']} (confidence {r['ssd_conf']:g})"
+            rows += [("ssd", name), ("ssd-nms", f"{name} + suppression")]
         if "cascade_horizon" in r:
             rows.append(("cascade", f"cascade ({r['cascade_stages']} stages)"))
         if "contrast_horizon" in r:
