@@ -279,15 +279,29 @@ def test_bad_input_raises(tmp_path, net, monkeypatch):
         SsdTrainConfig(input_size=(100, 100))
 
 
-def test_zero_shot_boats_on_frames_it_never_saw(net):
-    """COCO's "boat" class on MarDCT's video3 (no MarDCT frame was used to make the model).
-    Measured (python -m usvfast.shore.evaluate_det --detectors ssd-coco): TPR 0.676 at
-    FAR 0.884 with confidence ≥ 0.1; the floor here is well below that."""
-    det = SsdDetector(net, conf_threshold=0.1)
+def test_zero_shot_boats_on_frames_it_never_saw(net, tmp_path):
+    """COCO's "boat" class on all 103 frames of MarDCT's video3 (no MarDCT frame was used to
+    make the model), run by OpenCV DNN. Measured (python -m usvfast.shore.evaluate_det
+    --detectors ssd-coco): TPR 0.676 at FAR 0.884 with confidence ≥ 0.1."""
+    det = SsdDetector(export_onnx(net, tmp_path / "coco.onnx", (300, 300)), conf_threshold=0.1)
     video = load_mardct(shared_data("mardct") / "training" / "annotations")["video3"]
     c = DetectionCounts()
-    for f in video[::3]:
-        d = det.detect(cv2.imread(str(f.path), cv2.IMREAD_COLOR))
-        keep = np.asarray(d.scores) >= 0.1
-        c.add(f.boxes, d.boxes[keep])
+    for f in video:
+        c.add(f.boxes, det.detect(cv2.imread(str(f.path), cv2.IMREAD_COLOR)).boxes)
     assert c.tpr >= 0.55
+
+
+def test_a_short_fine_tune_finds_boats_of_a_video_it_never_saw():
+    """200 views, 150 steps (≈ 70 s) on video3, regDTV9 and 3; scored on video 2 at
+    confidence 0.3. Measured: TPR 0.519, FAR 0.176 (23 of 27 boats found by the full
+    fine-tuning at its card's threshold, README); the floor leaves margin for other CPUs."""
+    videos = load_mardct(shared_data("mardct") / "training" / "annotations")
+    train = [f for v in ("video3", "regDTV9", "3") for f in videos[v]]
+    cfg = SsdTrainConfig(views=200, steps=150, batch=8, warmup=10)
+    net = fine_tune(train, cfg, log=lambda s: None)
+    det = SsdDetector(net, input_size=cfg.input_size, letterbox=True, conf_threshold=0.3)
+    c = DetectionCounts()
+    for f in videos["2"]:
+        c.add(f.boxes, det.detect(cv2.imread(str(f.path), cv2.IMREAD_COLOR)).boxes)
+    assert c.tpr >= 0.4
+    assert c.far <= 0.3
