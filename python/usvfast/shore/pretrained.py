@@ -202,14 +202,12 @@ def export_onnx(net, path: Path | str, input_size: tuple[int, int]) -> Path:
     normalised corners and sigmoid scores (:class:`usvfast.shore.ssd.SsdExport`)."""
     import warnings
 
-    import torch
-
     from usvfast.camera.export import export_onnx as _export
     from usvfast.shore.ssd import SsdExport
 
     w, h = (int(v) for v in input_size)
     with warnings.catch_warnings():
         # the SAME paddings are read from the traced sizes: fixed for this input size
-        warnings.simplefilter("ignore", torch.jit.TracerWarning)
+        warnings.filterwarnings("ignore", message="Converting a tensor to a Python")
         warnings.filterwarnings("ignore", message="Constant folding")
         return _export(SsdExport(net.eval(), h, w), path, (w, h))

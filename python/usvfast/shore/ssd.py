@@ -57,9 +57,8 @@ class ConvUnit(nn.Module):
         super().__init__()
         out, inp, k, _ = weight.shape
         self.conv = nn.Conv2d(inp * groups, out, k, stride, 0, groups=groups, bias=True)
-        with torch.no_grad():
-            self.conv.weight.copy_(torch.from_numpy(weight))
-            self.conv.bias.copy_(torch.from_numpy(bias))
+        self.conv.weight = nn.Parameter(torch.from_numpy(weight.copy()))
+        self.conv.bias = nn.Parameter(torch.from_numpy(bias.copy()))
         self.stride, self.kernel, self.relu6 = stride, k, relu6
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
@@ -105,7 +104,7 @@ class SsdMobileNetV2(nn.Module):
 
     Build it with :meth:`from_graph`. `classes` are the COCO ids whose logits are kept."""
 
-    def __init__(self, blocks, tap, extras, box_heads, class_heads, anchors_per_cell, classes):
+    def __init__(self, blocks, tap: int, extras, box_heads, class_heads, anchors_per_cell, classes):
         super().__init__()
         self.blocks = nn.ModuleList(nn.Sequential(*units) for units, _ in blocks)
         self.residual = [res for _, res in blocks]
@@ -220,16 +219,21 @@ class SsdMobileNetV2(nn.Module):
         sizes = []
         h, w = height, width
         for i, block in enumerate(self.blocks):
-            for u in block:
+            for u in _units(block):
                 h, w = -(-h // u.stride), -(-w // u.stride)
             if i == self.tap:
                 sizes.append((h, w))
         sizes.append((h, w))
         for e in self.extras:
-            for u in e:
+            for u in _units(e):
                 h, w = -(-h // u.stride), -(-w // u.stride)
             sizes.append((h, w))
         return sizes
+
+
+def _units(seq: nn.Module) -> list[ConvUnit]:
+    """The ConvUnits of a block or extra layer, in order."""
+    return [m for m in seq.children() if isinstance(m, ConvUnit)]
 
 
 def ssd_anchors(

@@ -169,10 +169,12 @@ class FrozenGraph:
             g.ParseFromString(path.read_bytes())
         except DecodeError as e:
             raise ValueError(f"path: {path} is not a TensorFlow GraphDef ({e})") from None
-        if not len(g.node):
+        # the message class is declared at run time: its fields are unknown to type checkers
+        graph_nodes = g.node  # pyright: ignore[reportAttributeAccessIssue]
+        if not len(graph_nodes):
             raise ValueError(f"path: {path} holds no graph nodes")
         nodes, consts = [], {}
-        for n in g.node:
+        for n in graph_nodes:
             attrs = {a.key: _attr(a.value) for a in n.attr if a.key != "value"}
             nodes.append(GraphNode(n.name, n.op, tuple(n.input), attrs))
             if n.op == "Const":
