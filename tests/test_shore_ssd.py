@@ -305,3 +305,33 @@ def test_a_short_fine_tune_finds_boats_of_a_video_it_never_saw():
         c.add(f.boxes, det.detect(cv2.imread(str(f.path), cv2.IMREAD_COLOR)).boxes)
     assert c.tpr >= 0.4
     assert c.far <= 0.3
+
+
+def test_usvfast_shore_runs_the_ssd(tmp_path, net):
+    import json
+    import shutil
+
+    from typer.testing import CliRunner
+
+    from usvfast.cli import app
+    from usvfast.shore.mot import read_mot
+    from usvfast.shore.pipeline import ShoreConfig
+
+    model = export_onnx(net, tmp_path / "ssd.onnx", (300, 300))
+    card = {"input_size": [300, 300], "letterbox": False, "conf_threshold": 0.2}
+    model.with_suffix(".json").write_text(json.dumps(card))
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    video = load_mardct(shared_data("mardct") / "training" / "annotations")["video3"]
+    for f in video[:4]:
+        shutil.copy(f.path, folder / f.path.name)
+    out = tmp_path / "out"
+    args = ["shore", str(folder), "--out", str(out), "--no-progress", "--no-video"]
+    res = CliRunner().invoke(app, [*args, "--detector", "ssd", "--model", str(model)])
+    assert res.exit_code == 0, res.output
+    assert json.loads((out / "summary.json").read_text())["detector"] == "ssd"
+    # the chain's boxes are the detector's (horizon filter aside) on the first frame
+    first = SsdDetector(model).detect(cv2.imread(str(video[0].path), cv2.IMREAD_COLOR))
+    assert len(read_mot(out / "detections.txt")) >= 1 and len(first) >= 1
+    with pytest.raises(ValueError, match="ssd_model"):
+        ShoreConfig(detector="ssd")
