@@ -27,8 +27,14 @@ Frames: MarDCT's regDTV9 frames resized to each size when ../shared/data is pres
   chain; beside it, OpenCV's MOG2 background subtractor alone on the same frames (no
   registration, no boxes: the library's cheapest per-pixel background, for scale).
 
+* The COCO-pretrained SSD-MobileNetV2 (`usvfast.shore.pretrained`, OpenCV DNN): zero-shot
+  at the COCO graph's 300 × 300 input (exported to ONNX in a temporary folder; needs the
+  `pretrained` extra and torch), and with `--ssd shore-ssd.onnx` (from
+  `python -m usvfast.shore.ssd_train`) the fine-tuned model at its 320 × 240 input; each
+  timed as detect + horizon filter + SORT-like tracker per frame.
+
 Run: python benches/bench_shore.py [--frames N] [--repeat R] [--cascade boat.xml]
-    [--cnn MODEL.onnx] [--only contrast fused change]
+    [--cnn MODEL.onnx] [--ssd MODEL.onnx] [--only contrast fused change ssd]
 """
 
 from __future__ import annotations
@@ -98,6 +104,44 @@ def chain_fps(
         chain.step(f)
     stages = {k: 1e3 * v / len(frames) for k, v in chain.seconds.items()}
     return len(frames) / (time.perf_counter() - t0), stages
+
+
+def ssd_fps(frames: list[np.ndarray], model: Path) -> tuple[float, dict[str, float]]:
+    """(frames per second, ms per frame of each stage) of the SSD run by OpenCV DNN, the
+    horizon filter and the SORT-like tracker, frame by frame."""
+    from usvfast.shore.horizon import HorizonConfig, detect_horizon, horizon_keep
+    from usvfast.shore.pretrained import SsdDetector
+
+    det = SsdDetector(model)
+    hcfg = HorizonConfig()
+    tracker = SortTracker()
+    det.detect(frames[0])  # warm-up
+    sec = {"detect": 0.0, "horizon": 0.0, "track": 0.0}
+    t0 = time.perf_counter()
+    for f in frames:
+        t = time.perf_counter()
+        d = det.detect(f)
+        t1 = time.perf_counter()
+        d = d.subset(horizon_keep(d, detect_horizon(f, config=hcfg), f.shape[0], hcfg))
+        t2 = time.perf_counter()
+        tracker.step(f, d)
+        t3 = time.perf_counter()
+        sec["detect"] += t1 - t
+        sec["horizon"] += t2 - t1
+        sec["track"] += t3 - t2
+    fps = len(frames) / (time.perf_counter() - t0)
+    return fps, {k: 1e3 * v / len(frames) for k, v in sec.items()}
+
+
+def coco_ssd(folder: Path) -> Path | None:
+    """The zero-shot COCO SSD exported to ONNX (None without the weights or torch)."""
+    try:
+        from usvfast.shore.pretrained import coco_network, export_onnx
+
+        return export_onnx(coco_network(), folder / "coco-ssd.onnx", (300, 300))
+    except (ImportError, ValueError) as exc:
+        print(f"COCO SSD not timed: {exc}")
+        return None
 
 
 def mog2_fps(frames: list[np.ndarray]) -> float:
@@ -221,10 +265,12 @@ def main() -> None:
         "--cascade", type=Path, default=None, help="Cascade XML (usvfast shore-train) to time"
     )
     ap.add_argument("--cnn", type=Path, default=None, help="CNN ONNX (shore-train) to time")
+    ap.add_argument("--ssd", type=Path, default=None, help="Fine-tuned SSD ONNX (ssd_train)")
     ap.add_argument("--only", nargs="*", default=None, help="Time only these detector rows")
     a = ap.parse_args()
     cv2.setNumThreads(2)
     tmp = tempfile.TemporaryDirectory()
+    ssd_models = {"ssd coco 300": coco_ssd(Path(tmp.name)), "ssd fine-tuned": a.ssd}
     cnn = a.cnn or untrained_cnn(Path(tmp.name))
     cnn_name = "cnn onnx" if a.cnn else "cnn (untrained)"
     load = os.getloadavg()
@@ -263,6 +309,16 @@ def main() -> None:
                 f"{size[0]}x{size[1]:<8} {name:>16} {fps:>14.1f} {fps / PAPER_FPS:>8.2f}x"
                 f"   ms/frame: {ms}"
             )
+        if not a.only or "ssd" in a.only:
+            for name, model in ssd_models.items():
+                if model is None:
+                    continue
+                fps, stages = ssd_fps(frames, model)
+                ms = " ".join(f"{k} {v:.2f}" for k, v in stages.items())
+                print(
+                    f"{size[0]}x{size[1]:<8} {name:>16} {fps:>14.1f} {fps / PAPER_FPS:>8.2f}x"
+                    f"   ms/frame: {ms}"
+                )
         if not a.only or "change" in a.only:
             fps = mog2_fps(frames)
             print(f"{size[0]}x{size[1]:<8} {'opencv MOG2 alone':>16} {fps:>14.1f}")

@@ -31,8 +31,9 @@ def shore_command(
     model: Annotated[
         Path | None,
         typer.Option(
-            help="Cascade XML (--detector cascade) or CNN .onnx/.pt (--detector cnn; default "
-            "the model shore-train wrote, or $USVFAST_SHORE_MODEL)"
+            help="Cascade XML (--detector cascade), CNN .onnx/.pt (--detector cnn; default "
+            "the model shore-train wrote, or $USVFAST_SHORE_MODEL) or fine-tuned SSD .onnx "
+            "(--detector ssd; python -m usvfast.shore.ssd_train)"
         ),
     ] = None,
     reflection_filter: Annotated[
@@ -73,6 +74,7 @@ def shore_command(
             horizon_filter=horizon_filter,
             cascade_model=model if detector == "cascade" else None,
             cnn_model=model if detector in ("cnn", "auto", "fused") else None,
+            ssd_model=model if detector == "ssd" else None,
             reflection_filter=reflection_filter,
             wake_model=wake_model,
             sort=sort,

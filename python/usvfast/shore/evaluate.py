@@ -25,7 +25,10 @@ and `--detector fused` the fold's CNN rescored by it (:mod:`usvfast.shore.fused`
 default thresholds; `fused-nms` then also the overlap and containment suppression of
 :mod:`usvfast.shore.suppress`). `--detector change` scores the temporal change detector of
 :mod:`usvfast.shore.change` (online: each annotated frame against the registered median of
-the previous ones; default parameters).
+the previous ones; default parameters). `--detector ssd` scores the COCO-pretrained SSD
+fine-tuned without the video (`shore-ssd-without-VIDEO.onnx` of `--models`, from
+`python -m usvfast.shore.evaluate_det --detectors ssd --models DIR`) at its card's threshold,
+alone and after the suppression of :mod:`usvfast.shore.suppress` (its shipped pair).
 
 MarDCT boxes carry no identities: the ground-truth ids are derived by linking the boxes of
 consecutive annotated frames (optimal assignment on centre distance, gated at two box
@@ -191,6 +194,40 @@ class _Suppressed:
         return suppress(self.det.detect(image, horizon))
 
 
+def ssd_row(
+    frames: Sequence[AnnotatedFrame],
+    cache: FrameCache,
+    models: Path,
+    held: str,
+    sort: SortConfig | None = None,
+) -> dict:
+    """The fine-tuned SSD's detection and tracking rows of held-out video `held` (model
+    `shore-ssd-without-HELD.onnx` of `models`, its card's threshold; :mod:`usvfast.shore.
+    ssd_train`), alone and after the overlap and containment suppression of
+    :mod:`usvfast.shore.suppress` (its shipped pair). Adds the detections to `cache`."""
+    from usvfast.shore.pretrained import SsdDetector
+    from usvfast.shore.suppress import suppress
+
+    path = Path(models) / f"shore-ssd-without-{held}.onnx"
+    if not path.is_file():
+        raise ValueError(
+            f"models: no {path.name} in {models} "
+            f"(python -m usvfast.shore.evaluate_det --detectors ssd --models {models})"
+        )
+    det = SsdDetector(path)
+    cache.raw["ssd"] = [det.detect(read_image(f.path, cv2.IMREAD_COLOR)) for f in frames]
+    cache.raw["ssd-nms"] = [suppress(d) for d in cache.raw["ssd"]]
+    hcfg = HorizonConfig()
+    row: dict = {"ssd_model": path.name, "ssd_conf": det.conf_threshold, "tracking": {}}
+    for key in ("ssd", "ssd-nms"):
+        for use_h in (False, True):
+            c = count(frames, kept(frames, cache, key, use_h, hcfg))
+            row[f"{key}_{'horizon' if use_h else 'no_horizon'}"] = counts_dict(c)
+        dets = kept(frames, cache, key, True, hcfg)
+        row["tracking"][key] = tracking_rows(frames, dets, sort=sort)
+    return row
+
+
 def cue_row(
     frames: Sequence[AnnotatedFrame],
     cache: FrameCache,
@@ -259,13 +296,11 @@ def evaluate(
     the SORT-like tracker's parameters in every tracking row (default :class:`SortConfig`)."""
     if sort is not None:
         instance("sort", sort, SortConfig)
-    unknown = set(detectors) - {"bayes", "cnn", "contrast", "fused", "fused-nms", "change"}
+    known = {"bayes", "cnn", "contrast", "fused", "fused-nms", "change", "ssd"}
+    unknown = set(detectors) - known
     if unknown or not detectors:
-        raise ValueError(
-            "detectors: expected 'bayes', 'cnn', 'contrast', 'fused', 'fused-nms', 'change', got "
-            f"{list(detectors)}"
-        )
-    if {"cnn", "fused", "fused-nms"} & set(detectors) and models is None:
+        raise ValueError(f"detectors: expected some of {sorted(known)}, got {list(detectors)}")
+    if {"cnn", "fused", "fused-nms", "ssd"} & set(detectors) and models is None:
         raise ValueError("models: the cnn detector needs the folder of its fold models")
     all_videos = load_mardct(data)
     names = list(videos) if videos else list(all_videos)
@@ -279,6 +314,10 @@ def evaluate(
             row["tracking"] = {}
             if "cnn" in detectors:
                 extra = cnn_row(frames, cache, models or Path(), v, sort)
+                row["tracking"].update(extra.pop("tracking"))
+                row.update(extra)
+            if "ssd" in detectors:
+                extra = ssd_row(frames, cache, models or Path(), v, sort)
                 row["tracking"].update(extra.pop("tracking"))
                 row.update(extra)
             for name in ("contrast", "fused", "fused-nms", "change"):
@@ -352,6 +391,10 @@ def evaluate(
             extra = cnn_row(frames, caches[v], models or Path(), v, sort)
             row["tracking"].update(extra.pop("tracking"))
             row.update(extra)
+        if "ssd" in detectors:
+            extra = ssd_row(frames, caches[v], models or Path(), v, sort)
+            row["tracking"].update(extra.pop("tracking"))
+            row.update(extra)
         results[v] = row
     return results
 
@@ -371,6 +414,9 @@ def print_tables(results: dict, console: Console | None = None) -> None:
             ]
         if "cnn_horizon" in r:
             rows.append(("cnn", f"{r['cnn_model']} (confidence {r['cnn_conf']:g})"))
+        if "ssd_horizon" in r:
+            name = f"{r['ssd_model']} (confidence {r['ssd_conf']:g})"
+            rows += [("ssd", name), ("ssd-nms", f"{name} + suppression")]
         if "cascade_horizon" in r:
             rows.append(("cascade", f"cascade ({r['cascade_stages']} stages)"))
         if "contrast_horizon" in r:
@@ -449,7 +495,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         "--detector",
         nargs="+",
         default=["bayes"],
-        choices=["bayes", "cnn", "contrast", "fused", "fused-nms", "change"],
+        choices=["bayes", "cnn", "contrast", "fused", "fused-nms", "change", "ssd"],
         help="Detectors",
     )
     p.add_argument("--models", type=Path, default=None, help="CNN fold models (evaluate_det)")
@@ -468,8 +514,8 @@ def main(argv: Sequence[str] | None = None) -> None:
         "(at most --sort-high-score)",
     )
     a = p.parse_args(argv)
-    if {"cnn", "fused", "fused-nms"} & set(a.detector) and a.models is None:
-        p.error("--models: the cnn and fused detectors need the folder of its fold models")
+    if {"cnn", "fused", "fused-nms", "ssd"} & set(a.detector) and a.models is None:
+        p.error("--models: the cnn, fused and ssd detectors need the folder of their fold models")
     try:
         sort = sort_config_from_options(a.sort_high_score, a.sort_low_score)
     except ValueError as exc:

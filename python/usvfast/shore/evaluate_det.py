@@ -3,7 +3,8 @@ frames, in the layout of Bloisi et al.'s Tables I–II (per video: horizon filte
 FAR, real and detection size).
 
     python -m usvfast.shore.evaluate_det [--data DIR]
-        [--detectors bayes cnn contrast fused change verified verified-contrast cascade]
+        [--detectors bayes cnn contrast fused change verified verified-contrast cascade
+                     ssd-coco ssd]
         [--models DIR] [--steps N] [--hard-negatives] [--json OUT.json]
 
 For each video, every trained part is fitted on the three other videos only:
@@ -39,6 +40,10 @@ For each video, every trained part is fitted on the three other videos only:
 * cascade: the Haar cascade of :mod:`usvfast.shore.cascade` trained on the three other
   videos with 4 jittered copies of every boat as extra positives (slow: minutes per video),
   with and without the reflection filter.
+* ssd-coco / ssd: the COCO-pretrained SSD-MobileNetV2 (:mod:`usvfast.shore.pretrained`),
+  zero-shot (class "boat", threshold picked on the three other videos) and fine-tuned on the
+  three other videos (:mod:`usvfast.shore.ssd_train`, `shore-ssd-without-VIDEO.onnx` in
+  `--models`, trained when absent; its card's threshold), rows of :mod:`usvfast.shore.ssd_eval`.
 
 Scores (eqs. 4–5 of Bloisi et al.): TPR = TP/(TP+FN), FAR = FP/(TP+FP), one-to-one matching
 at IoU ≥ 0.5 per frame.
@@ -493,6 +498,18 @@ def evaluate(
             rows, info = cascade_rows(videos, mardct, held, hcfg)
             entry["rows"] += rows
             entry.update(info)
+        if "ssd-coco" in detectors:
+            from usvfast.shore.ssd_eval import coco_rows
+
+            rows, info = coco_rows(videos, held, hcfg, cache)
+            entry["rows"] += rows
+            entry.update(info)
+        if "ssd" in detectors:
+            from usvfast.shore.ssd_eval import ssd_rows
+
+            rows, info = ssd_rows(data, videos, held, hcfg, models, log)
+            entry["rows"] += rows
+            entry.update(info)
         out[held] = entry
         log(f"{held}: done")
     return out
@@ -529,6 +546,8 @@ def main(argv: Sequence[str] | None = None) -> None:
         "cascade",
         "verified",
         "verified-contrast",
+        "ssd-coco",
+        "ssd",
     }
     if unknown:
         p.error(f"--detectors: unknown {sorted(unknown)}")

@@ -37,9 +37,18 @@ from usvfast.shore.particle import ParticleConfig, ParticleTracker
 from usvfast.shore.pixel_kalman import AdaptiveConfig, AdaptiveTracker
 from usvfast.shore.sort import SortConfig, SortTracker
 
-DetectorName = Literal["auto", "bayes", "cascade", "cnn", "contrast", "fused", "change"]
+DetectorName = Literal["auto", "bayes", "cascade", "cnn", "contrast", "fused", "change", "ssd"]
 TrackerName = Literal["sort", "adaptive", "particle"]
-DETECTORS: tuple[str, ...] = ("auto", "bayes", "cascade", "cnn", "contrast", "fused", "change")
+DETECTORS: tuple[str, ...] = (
+    "auto",
+    "bayes",
+    "cascade",
+    "cnn",
+    "contrast",
+    "fused",
+    "change",
+    "ssd",
+)
 TRACKERS: tuple[str, ...] = ("sort", "adaptive", "particle")
 
 
@@ -53,7 +62,10 @@ class ShoreConfig:
     available, else 'bayes'; 'contrast': the training-free "object on the water" detector of
     :mod:`usvfast.shore.contrast`; 'fused': the CNN's boxes rescored by that contrast,
     :class:`usvfast.shore.fused.FusedDetector`; 'change': what moves against the registered
-    background of the previous frames, :class:`usvfast.shore.change.ChangeDetector`, online),
+    background of the previous frames, :class:`usvfast.shore.change.ChangeDetector`, online;
+    'ssd': the COCO-pretrained SSD fine-tuned on shore frames, `ssd_model` the ONNX file
+    `python -m usvfast.shore.ssd_train` writes, run by OpenCV DNN at its card's threshold,
+    :class:`usvfast.shore.pretrained.SsdDetector`),
     `reflection_filter` (drop boxes with few ORB
     keypoints), `wake_model` (a one-stage cascade XML from `WakeFilter`, drops wakes), `tracker`
     ('sort': Kalman + IoU assignment + colour re-identification; 'adaptive': the same paper's
@@ -67,6 +79,7 @@ class ShoreConfig:
     horizon_filter: bool = True
     cascade_model: Path | None = None
     cnn_model: Path | None = None
+    ssd_model: Path | None = None
     reflection_filter: bool = False
     wake_model: Path | None = None
     horizon: HorizonConfig = field(default_factory=HorizonConfig)
@@ -102,6 +115,11 @@ class ShoreConfig:
         if self.detector == "cascade" and self.cascade_model is None:
             raise ValueError(
                 "cascade_model: the cascade detector needs a model (usvfast shore-train)"
+            )
+        if self.detector == "ssd" and self.ssd_model is None:
+            raise ValueError(
+                "ssd_model: the ssd detector needs a fine-tuned model "
+                "(python -m usvfast.shore.ssd_train ANNOTATIONS --out MODEL_DIR)"
             )
 
 
@@ -140,6 +158,10 @@ class ShoreChain:
             from usvfast.shore.cnn import CnnDetector
 
             self.cnn = CnnDetector(cfg.cnn_model)
+        elif cfg.detector == "ssd":
+            from usvfast.shore.pretrained import SsdDetector
+
+            self.cnn = SsdDetector(cfg.ssd_model)
         self.contrast: ContrastDetector | FusedDetector | None = None
         if cfg.detector == "contrast":
             self.contrast = ContrastDetector(cfg.contrast)

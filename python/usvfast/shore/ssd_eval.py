@@ -1,0 +1,94 @@
+"""Rows of the COCO-pretrained SSD detectors for the leave-one-video-out detection evaluation
+(:mod:`usvfast.shore.evaluate_det`): zero-shot (`ssd-coco`: COCO's "boat" class, nothing
+learnt on MarDCT; its confidence threshold picked on the three other videos) and fine-tuned
+(`ssd`: :mod:`usvfast.shore.ssd_train` on the three other videos, cached as
+`shore-ssd-without-VIDEO.onnx` in the models folder and trained when absent; scored at its
+card's threshold, picked on those three videos)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from usvfast.shore.det_scoring import VideoFrames, both_horizons, pick, pooled_score, score
+from usvfast.shore.horizon import HorizonConfig
+
+#: Zero-shot confidence thresholds tried (COCO's boat scores run lower than a fine-tuned one).
+COCO_GRID: tuple[float, ...] = (0.05, 0.1, 0.15, 0.2, 0.3, 0.4, 0.5, 0.6)
+#: Fine-tuned confidence thresholds also scored (horizon on) beside the card's own.
+SSD_SWEEP: tuple[float, ...] = (0.3, 0.5, 0.7, 0.9)
+
+
+def _rows_at(name: str, videos, held, low, grid, hcfg, picked: float | None = None):
+    """Rows of thresholded detections `low[v]` (every score ≥ min(grid)): the threshold
+    `picked` (else the pick on the other videos), both horizons, then each grid value."""
+    train = [v for v in videos if v != held]
+
+    def at(c: float) -> dict:
+        return {v: [d.subset(d.scores >= c) for d in ds] for v, ds in low.items()}
+
+    if picked is None:
+        picked = float(pick(grid, lambda c: pooled_score(videos, train, at(c), hcfg)))  # pyright: ignore[reportArgumentType]
+        label = f"{name} ≥ {picked:g} (picked on the others)"
+    else:
+        label = f"{name} ≥ {picked:g} (card: picked on the others)"
+    rows = [{"detector": label, **r} for r in both_horizons(videos[held], at(picked)[held], hcfg)]
+    for c in grid:
+        if c != picked:
+            rows.append(
+                {
+                    "detector": f"{name} ≥ {c:g}",
+                    "horizon": True,
+                    "filters": "",
+                    **score(videos[held], at(c)[held], hcfg, True),
+                }
+            )
+    return picked, rows
+
+
+def coco_rows(
+    videos: dict[str, VideoFrames], held: str, hcfg: HorizonConfig, cache: dict
+) -> tuple[list[dict], dict]:
+    """Zero-shot COCO SSD rows for held-out video `held` (300 × 300 stretched, the graph's
+    own set-up; boxes of class "boat")."""
+    from usvfast.shore.pretrained import SsdDetector, coco_network
+
+    if "ssd-coco" not in cache:
+        det = SsdDetector(coco_network(), conf_threshold=min(COCO_GRID))
+        cache["ssd-coco"] = {v: [det.detect(im) for im in vf.images] for v, vf in videos.items()}
+    picked, rows = _rows_at("ssd COCO zero-shot", videos, held, cache["ssd-coco"], COCO_GRID, hcfg)
+    return rows, {"ssd_coco_conf": picked}
+
+
+def ssd_model(data: Path, held: str, models: Path, log) -> Path:
+    """The fine-tuned model trained without `held` (trained and saved when absent)."""
+    from usvfast.shore.ssd_train import train_and_export
+
+    name = f"shore-ssd-without-{held}"
+    path = models / f"{name}.onnx"
+    if not path.is_file():
+        train_and_export(data, models, exclude=[held], name=name, log=log)
+    return path
+
+
+def ssd_rows(
+    data: Path, videos: dict[str, VideoFrames], held: str, hcfg: HorizonConfig, models: Path, log
+) -> tuple[list[dict], dict]:
+    """Fine-tuned SSD rows for held-out video `held` (model trained without it), then with
+    the overlap and containment suppression of :mod:`usvfast.shore.suppress` (its pair picked
+    on the three other videos, which the model was trained on: an optimistic choice)."""
+    from usvfast.shore.evaluate_det import suppression_rows
+    from usvfast.shore.pretrained import SsdDetector
+
+    path = ssd_model(data, held, models, log)
+    card = json.loads(path.with_suffix(".json").read_text(encoding="utf-8"))
+    conf = float(card["conf_threshold"])
+    det = SsdDetector(path, conf_threshold=min(conf, *SSD_SWEEP))
+    low = {v: [det.detect(im) for im in vf.images] for v, vf in videos.items()}
+    sweep = tuple(sorted({conf, *SSD_SWEEP}))
+    only = {held: low[held]}
+    _, rows = _rows_at("ssd fine-tuned", {held: videos[held]}, held, only, sweep, hcfg, conf)
+    at_conf = {v: [d.subset(d.scores >= conf) for d in ds] for v, ds in low.items()}
+    sup, sup_rows = suppression_rows(videos, held, at_conf, hcfg, f"ssd fine-tuned ≥ {conf:g}")
+    info = {"ssd_model": path.name, "ssd_conf": conf, "ssd_train_s": card["train_seconds"]}
+    return rows + sup_rows, {**info, "ssd_suppression": list(sup)}
