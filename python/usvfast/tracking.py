@@ -63,8 +63,9 @@ track (no spatial grid: cost tracks × plots); ``initiate_in_gates=False`` and, 
 ``use_joseph_cov`` are refused.
 
 Also: ``tracker.add_track(state, covariance, time, existence=None)`` seeds a confirmed track
-(first state a prior, not an update; with its existence and visibility if given); ``tracker.add_sensor(Sensor(...))`` registers a sensor between steps
-(returns its id); ``tracker.tracks`` also carries each track's newest association data;
+(first state a prior, not an update; with its existence and visibility if given);
+``tracker.add_sensor(Sensor(...))`` registers a sensor between steps (returns its id);
+``tracker.tracks`` also carries each track's newest association data;
 ``tracker.tentative_tracks``, ``tracker.deleted_track_ids``,
 ``tracker.history(id).to_dataframe()``, ``tracker.dropped_scans``. Track ids are stable
 integers counted in order of confirmation. Kernels: ``usvfast._core.linear_sum_assignment``,
