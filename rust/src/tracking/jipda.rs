@@ -120,8 +120,10 @@ impl JointPrior {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::tracking::config::Existence;
+    use crate::tracking::config::{Association, Existence, TrackerConfig};
     use crate::tracking::jpda::{marginals_brute_force, marginals_ehm, TrackHypotheses};
+    use crate::tracking::track::Deleter;
+    use crate::tracking::tracker::Tracker;
     use rand::{Rng, SeedableRng};
 
     fn existence(survival: f64, vis_stay: f64, invis_stay: f64) -> Existence {
@@ -163,9 +165,7 @@ mod tests {
             let w0 = p.ln_missed().exp();
             let wd: Vec<f64> = c.iter().map(|cj| (p.ln_detectable()).exp() * cj).collect();
             let tot = w0 + wd.iter().sum::<f64>();
-            let post = p
-                .posterior(w0 / tot, wd.iter().sum::<f64>() / tot)
-                .unwrap();
+            let post = p.posterior(w0 / tot, wd.iter().sum::<f64>() / tot).unwrap();
             let ln_l = (1.0 - pd_pg + c.iter().sum::<f64>()).ln();
             let (r1, v1) = ex.update(rv, ln_l);
             assert!((post.existence - r1).abs() < 1e-12, "{post:?} {r1}");
@@ -177,6 +177,94 @@ mod tests {
                 assert!((w / tot * post.detection_scale - v0 * cj / z).abs() < 1e-12);
             }
         }
+    }
+
+    /// Code 5.7 with existence (`joint` as given), λ = 0.01, P_D = 0.9, P_G = 0.99.
+    fn tracker(joint: bool, vis_stay: f64) -> Tracker {
+        let mut c = TrackerConfig::code_5_7();
+        if let Association::Jpda(j) = &mut c.association {
+            j.clutter_density = Some(0.01);
+            j.prob_detect = 0.9;
+            j.prob_gate = 0.99;
+        }
+        c.deleter = Deleter::StepsSinceUpdate(1000);
+        c.existence = Some(Existence {
+            vis_stay,
+            invis_stay: 0.5,
+            ..existence(1.0, 1.0, 0.0)
+        });
+        c.existence.as_mut().unwrap().joint = joint;
+        Tracker::new(c).unwrap()
+    }
+
+    /// A lone track (clutter 30 m away) that stays visible: the same states and existence
+    /// with and without `joint` over a run.
+    #[test]
+    fn a_lone_visible_track_runs_as_under_ipda() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(5);
+        let (mut a, mut b) = (tracker(false, 1.0), tracker(true, 1.0));
+        let p0 = [
+            0.3, 0.0, 0.0, 0.0, 0.0, 0.05, 0.0, 0.0, 0.0, 0.0, 0.3, 0.0, 0.0, 0.0, 0.0, 0.05,
+        ];
+        for tr in [&mut a, &mut b] {
+            tr.add_track_with(&[0.0, 0.2, 0.0, 0.0], &p0, 0.0, Some((0.6, 1.0)))
+                .unwrap();
+        }
+        for k in 1..40 {
+            let t = k as f64;
+            let mut z = vec![];
+            if rng.random_bool(0.8) {
+                z.extend([
+                    0.2 * t + rng.random_range(-0.3..0.3),
+                    rng.random_range(-0.3..0.3),
+                ]);
+            }
+            for _ in 0..rng.random_range(0..3) {
+                z.extend([
+                    rng.random_range(-5.0..5.0),
+                    30.0 + rng.random_range(0.0..5.0),
+                ]);
+            }
+            let ids = vec![0; z.len() / 2];
+            a.step(t, &z, &ids).unwrap();
+            b.step(t, &z, &ids).unwrap();
+            let (ta, tb) = (&a.tracks[0], &b.tracks[0]);
+            assert_eq!((ta.id, tb.id), (0, 0));
+            for (x, y) in ta.x.iter().zip(tb.x.iter()) {
+                assert!((x - y).abs() < 1e-12, "scan {k}: {} {}", ta.x, tb.x);
+            }
+            let (ea, eb) = (ta.existence.unwrap(), tb.existence.unwrap());
+            assert!((ea.0 - eb.0).abs() < 1e-12 && ea.1 == 1.0 && eb.1 == 1.0);
+        }
+    }
+
+    /// Tracks A (r 0.95) and B (r 0.1) 1 m apart and one detection between them: under JIPDA
+    /// A takes it and B's existence falls; under IPDA both count it in full.
+    #[test]
+    fn a_doubtful_track_yields_its_detection_to_a_sure_one() {
+        let p0 = [
+            0.5, 0.0, 0.0, 0.0, 0.0, 0.1, 0.0, 0.0, 0.0, 0.0, 0.5, 0.0, 0.0, 0.0, 0.0, 0.1,
+        ];
+        let run = |joint: bool| {
+            let mut tr = tracker(joint, 1.0);
+            tr.add_track_with(&[-1.0, 1.0, 0.0, 0.0], &p0, 0.0, Some((0.95, 1.0)))
+                .unwrap();
+            tr.add_track_with(&[0.0, 1.0, 0.0, 0.0], &p0, 0.0, Some((0.1, 1.0)))
+                .unwrap();
+            tr.step(1.0, &[0.6, 0.0], &[0]).unwrap();
+            let r: Vec<f64> = tr.tracks.iter().map(|t| t.existence.unwrap().0).collect();
+            let missed_a = tr.tracks[0].history.missed_probability.last().copied();
+            (r, missed_a.unwrap())
+        };
+        let ((ri, ma_i), (rj, ma_j)) = (run(false), run(true));
+        assert!(ma_j < ma_i - 0.1, "A's missed probability {ma_j} vs {ma_i}");
+        assert!(
+            rj[1] < 0.1 && ri[1] > 0.5,
+            "B's existence {} vs {}",
+            rj[1],
+            ri[1]
+        );
+        assert!(rj[0] > 0.98);
     }
 
     /// Eqs. (2)–(5) against an enumeration of every joint event `(a, ε)` of model (1): the
@@ -263,13 +351,14 @@ mod tests {
                 .map(|t| TrackHypotheses {
                     missed: pri[t].ln_missed().exp(),
                     detections: (0..nd)
-                        .filter_map(|j| {
-                            c[t][j].map(|cj| (j, pri[t].ln_detectable().exp() * cj))
-                        })
+                        .filter_map(|j| c[t][j].map(|cj| (j, pri[t].ln_detectable().exp() * cj)))
                         .collect(),
                 })
                 .collect();
-            for m in [marginals_brute_force(&th).unwrap(), marginals_ehm(&th).unwrap()] {
+            for m in [
+                marginals_brute_force(&th).unwrap(),
+                marginals_ehm(&th).unwrap(),
+            ] {
                 for t in 0..nt {
                     let det: f64 = m[t].detections.iter().sum();
                     let want_r = p_exists[t] / total;
