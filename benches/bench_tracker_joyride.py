@@ -89,11 +89,11 @@ def main() -> None:
         "CV only (joyride-cv)": load_config("joyride-cv"),
         "IMM (joyride, no existence)": {k: v for k, v in cfg.items() if k != "existence"},
         "IMM + existence (joyride)": cfg,
-        "  the same, joint (JIPDA)": joint(cfg),
+        "  joyride + joint (JIPDA)": joint(cfg),
         "IMM + existence (-accurate)": load_config("joyride-accurate"),
         "IMM + existence + polar R": load_config("joyride-polar"),
         "CV + CT(ω) + existence (-ct)": load_config("joyride-ct"),
-        "  the same, joint (JIPDA)": joint(load_config("joyride-ct")),
+        "  joyride-ct + joint (JIPDA)": joint(load_config("joyride-ct")),
         "joyride, calibrated radar *": load_config("joyride-calibrated"),
     }
     t0 = time.perf_counter()
