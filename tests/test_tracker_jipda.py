@@ -385,3 +385,23 @@ def test_a_joint_tracker_pickles_and_continues_identically():
     assert len(a) > 0
     np.testing.assert_array_equal(a.states, b.states)
     np.testing.assert_array_equal(a.existence, b.existence)
+
+
+def test_tracks_that_cannot_exist_get_the_limit_of_lone_tracks():
+    """survival = 0 makes every r⁻ = 0: r⁺ = 0, and each state given existence is the limit
+    r⁻ → 0, where no other track of the cluster can take a detection: a lone track's weights
+    1 − P_D P_G v⁻ : v⁻ P_D N/λ (with v⁻ = 1 the PDA update, i.e. the track tracked alone)."""
+    rng = np.random.default_rng(4)
+    xs, ps, z = scene(rng, 2, 3)
+    tr = tracker(0.9, 0.99, 0.01, T.Existence(0.0, delete=0.0, joint=True))
+    for x, p in zip(xs, ps, strict=True):
+        tr.add_track(x, p, 0.0, existence=0.5)
+    got = tr.step(1.0, z)
+    assert got.assoc_offsets[-1] == 6  # every detection in both gates: one cluster
+    np.testing.assert_array_equal(got.existence, [0.0, 0.0])
+    for i, (x, p) in enumerate(zip(xs, ps, strict=True)):
+        alone = tracker(0.9, 0.99, 0.01, T.Existence(0.0, delete=0.0))
+        alone.add_track(x, p, 0.0, existence=0.5)
+        want = alone.step(1.0, z)
+        np.testing.assert_allclose(got.states[i], want.states[0], rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(got.missed_probability[i], want.missed_probability[0])

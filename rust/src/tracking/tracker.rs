@@ -654,8 +654,10 @@ impl Tracker {
                             .for_each(|b| *b = *b / tot * p.detection_scale);
                         return (p.existence, p.visibility);
                     }
-                    // r⁻ = 0: the state given existence is the limit r⁻ → 0 of a lone
-                    // track's, weights 1 − P_D P_G v⁻ : v⁻ P_D N(z; ẑ, S)/λ.
+                    // r⁻ = 0: the state given existence is undefined; take a lone track's
+                    // weights 1 − P_D P_G v⁻ : v⁻ P_D N(z; ẑ, S)/λ, the limit r⁻ → 0 when no
+                    // other track of the cluster can exist either (survival = 0), else an
+                    // approximation that leaves out their competition.
                     let v = pri[ti].visibility;
                     let (lm, lv) = ((-pd_pg * v).ln_1p(), v.ln());
                     let h = &hyps[range(ti)];
