@@ -115,6 +115,44 @@ impl JointPrior {
             detection_scale: 1.0 / r1,
         })
     }
+
+    /// Eqs. (3)–(5) in place for one track of a scan: `missed` and `detections` hold the
+    /// track's joint marginals `β` (any common scale) on entry and its association
+    /// probabilities given existence `β̃` on return (summing to 1); returns `(r⁺, v⁺)`.
+    /// `ln_pda` are the detections' PDA log weights `ln(P_D N(z; ẑ, S)/λ)` in the order of
+    /// `detections`, used only when `r⁺ = 0` (`r⁻ = 0`, where the state given existence is
+    /// undefined): then the track takes a lone track's weights `1 − P_D P_G v⁻ : v⁻ P_D N/λ`,
+    /// the limit `r⁻ → 0` when no other track of its cluster can exist either (e.g.
+    /// `survival = 0`), else an approximation that leaves out their competition, and
+    /// `(0, v)` with `v` the lone track's `v⁺` (eq. (4) in the limit).
+    pub fn condition(
+        &self,
+        missed: &mut f64,
+        detections: &mut [f64],
+        ln_pda: impl Iterator<Item = f64> + Clone,
+    ) -> (f64, f64) {
+        let det: f64 = detections.iter().sum();
+        let tot = *missed + det;
+        if let Some(p) = self.posterior(*missed / tot, det / tot) {
+            *missed = p.missed;
+            detections
+                .iter_mut()
+                .for_each(|b| *b = *b / tot * p.detection_scale);
+            return (p.existence, p.visibility);
+        }
+        let (g, v) = (self.pd_pg, self.visibility);
+        let (lm, lv) = ((-g * v).ln_1p(), v.ln());
+        let mx = ln_pda.clone().map(|w| w + lv).fold(lm, f64::max);
+        let w0 = (lm - mx).exp();
+        let tot = w0 + ln_pda.clone().map(|w| (w + lv - mx).exp()).sum::<f64>();
+        for (b, w) in detections.iter_mut().zip(ln_pda) {
+            *b = (w + lv - mx).exp() / tot;
+        }
+        *missed = w0 / tot;
+        // Eq. (4) of a lone track: β̃_0 v⁻(1 − P_D P_G)/(1 − P_D P_G v⁻) + Σ β̃_j.
+        let vis = 1.0 - *missed + *missed * v * (1.0 - g) / (1.0 - g * v);
+        (0.0, vis.clamp(0.0, 1.0))
+    }
 }
 
 #[cfg(test)]
@@ -177,6 +215,26 @@ mod tests {
                 assert!((w / tot * post.detection_scale - v0 * cj / z).abs() < 1e-12);
             }
         }
+    }
+
+    /// `r⁻ = 0`: `r⁺ = 0`, the lone-track weights and the lone track's `v⁺`.
+    #[test]
+    fn a_track_that_cannot_exist_takes_a_lone_tracks_weights() {
+        let p = JointPrior {
+            existence: 0.0,
+            visibility: 0.6,
+            pd_pg: 0.8,
+        };
+        let c = [2.0f64, 0.5];
+        let (mut missed, mut det) = (1.0, [0.0, 0.0]);
+        let (r, v) = p.condition(&mut missed, &mut det, c.iter().map(|c| c.ln()));
+        let z = 1.0 - 0.8 * 0.6 + 0.6 * 2.5;
+        assert_eq!(r, 0.0);
+        assert!((missed - (1.0 - 0.48) / z).abs() < 1e-15);
+        assert!((det[0] - 1.2 / z).abs() < 1e-15 && (det[1] - 0.3 / z).abs() < 1e-15);
+        // v⁺ = v⁻L / (v⁻L + 1 − v⁻), L = 1 − P_D P_G + Σ c.
+        let l = 1.0 - 0.8 + 2.5;
+        assert!((v - 0.6 * l / (0.6 * l + 0.4)).abs() < 1e-15);
     }
 
     /// Code 5.7 with existence (`joint` as given), λ = 0.01, P_D = 0.9, P_G = 0.99.

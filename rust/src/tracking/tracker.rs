@@ -642,36 +642,14 @@ impl Tracker {
         // JIPDA: posterior existence and visibility (`jipda`, eqs. (3)–(4)); the marginals
         // become the association probabilities given existence (eq. (5)), which the state
         // mixture, the IMM and the track's association record use below.
-        let posts: Option<Vec<(f64, f64)>> = joint.as_ref().map(|pri| {
+        let posts = joint.as_ref().map(|pri| {
             (0..pri.len())
                 .map(|ti| {
+                    let ln_pda = hyps[range(ti)].iter().map(|e| e.1);
                     let mg = &mut marg_det[range(ti)];
-                    let det: f64 = mg.iter().sum();
-                    let tot = marg_missed[ti] + det;
-                    if let Some(p) = pri[ti].posterior(marg_missed[ti] / tot, det / tot) {
-                        marg_missed[ti] = p.missed;
-                        mg.iter_mut()
-                            .for_each(|b| *b = *b / tot * p.detection_scale);
-                        return (p.existence, p.visibility);
-                    }
-                    // r⁻ = 0: the state given existence is undefined; take a lone track's
-                    // weights 1 − P_D P_G v⁻ : v⁻ P_D N(z; ẑ, S)/λ, the limit r⁻ → 0 when no
-                    // other track of the cluster can exist either (survival = 0), else an
-                    // approximation that leaves out their competition.
-                    let v = pri[ti].visibility;
-                    let (lm, lv) = ((-pd_pg * v).ln_1p(), v.ln());
-                    let h = &hyps[range(ti)];
-                    let mx = h.iter().map(|e| e.1 + lv).fold(lm, f64::max);
-                    let w0 = (lm - mx).exp();
-                    let tot = w0 + h.iter().map(|e| (e.1 + lv - mx).exp()).sum::<f64>();
-                    for (b, e) in mg.iter_mut().zip(h) {
-                        *b = (e.1 + lv - mx).exp() / tot;
-                    }
-                    marg_missed[ti] = w0 / tot;
-                    let vis = 1.0 - w0 / tot + w0 / tot * v * (1.0 - pd_pg) / (1.0 - pd_pg * v);
-                    (0.0, vis.clamp(0.0, 1.0))
+                    pri[ti].condition(&mut marg_missed[ti], mg, ln_pda)
                 })
-                .collect()
+                .collect::<Vec<_>>()
         });
         let mut associated = vec![false; k];
         let mut in_gate = vec![false; k];
