@@ -494,9 +494,11 @@ class Existence:
     that does; from the joint marginals β (β_0 missed) r⁺ = β_0 r⁻(1 − P_D P_G v⁻)/(1 − P_D P_G
     r⁻v⁻) + Σ_{j≥1} β_j, v⁺ = (β_0 r⁻v⁻(1 − P_D P_G)/(1 − P_D P_G r⁻v⁻) + Σ_{j≥1} β_j)/r⁺, and
     the state is the mixture with the association probabilities given existence
-    (β_0 r⁻(1 − P_D P_G v⁻)/((1 − P_D P_G r⁻v⁻) r⁺) missed, β_j/r⁺), which `Tracks`/
-    `TrackHistory` report as missed_probability and assoc_probability. A track alone in its
-    cluster gets the IPDA's r⁺ and v⁺; its state is the IPDA's PDA update when v⁻ = 1, and
+    (β_0 r⁻(1 − P_D P_G v⁻)/((1 − P_D P_G r⁻v⁻) r⁺) missed, β_j/r⁺), which also decide
+    whether the state is an update and which detections are kept from the initiator, and
+    which `Tracks`/`TrackHistory` report as missed_probability and assoc_probability. A track
+    alone in its cluster gets the IPDA's r⁺ and v⁺; its state is the IPDA's PDA update when
+    v⁻ = 1, and
     weights the missed hypothesis by 1 − P_D P_G v⁻ (against v⁻ P_D N/λ) when v⁻ < 1 (a target
     may exist unseen). Under an IMM the mode likelihoods are those given existence
     (1 − P_D P_G v⁻ + v⁻ Σ P_D N_mode(z)/λ). Default False (per-track IPDA, as before).

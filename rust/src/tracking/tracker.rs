@@ -10,9 +10,9 @@
 //!    Kalman updates; the new state is an update if some detection's marginal exceeds the
 //!    missed one, else a prediction. Detections whose marginal exceeds a track's missed
 //!    marginal are "associated". With joint existence (JIPDA, [`crate::tracking::jipda`])
-//!    the weights are scaled by each track's predicted existence and visibility and the
-//!    marginals then conditioned on existence. GNN: distance hypotheses (`d < missed_distance`), optimal
-//!    assignment, Kalman update or prediction;
+//!    the weights are scaled by each track's predicted existence and visibility, and the
+//!    marginals conditioned on existence take their place in all of the above. GNN: distance
+//!    hypotheses (`d < missed_distance`), optimal assignment, Kalman update or prediction;
 //! 3. delete confirmed tracks by the deleter;
 //! 4. the initiator takes the unassociated detections: its tentative tracks are predicted,
 //!    GNN-associated with its own distance gate and updated, confirmed once they hold
