@@ -1,9 +1,11 @@
 """Joyride (real radar, 238 scans): the usvfast tracker with a constant-velocity model only
 (preset `joyride-cv`), the IMM alone (preset `joyride` without its existence table),
-IMM + existence (preset `joyride`, `joyride-accurate` that trades coverage for RMSE, and
+IMM + existence (preset `joyride`, and the same with joint existence, JIPDA:
+`[tracker.existence] joint = true`; `joyride-accurate` that trades coverage for RMSE, and
 `joyride-polar` with per-plot range/bearing covariances, and `joyride-calibrated`: `joyride` on
 plots whose bearing bias was measured on the first half), the IMM with the turn rate in the
-state (preset `joyride-ct`: CV, CV-high and a `ConstantTurn` on [n, v_n, e, v_e, ω], EKF)
+state (preset `joyride-ct`: CV, CV-high and a `ConstantTurn` on [n, v_n, e, v_e, ω], EKF;
+and the same with JIPDA)
 against Stone Soup's JPDA with the anchor parameters, in
 one process: time per scan and the track-quality figures of `usvfast.metrics.track_quality`
 (gate 50 m) over the whole recording and over its two halves (scans 0-118 and 119-237, scored
@@ -57,6 +59,12 @@ def parts(truth, scan, ids, pos) -> list:
     return out
 
 
+def joint(cfg: dict) -> dict:
+    """`cfg` with joint existence (JIPDA): `[tracker.existence] joint = true`, nothing else
+    changed."""
+    return {**cfg, "existence": {**cfg["existence"], "joint": True}}
+
+
 def fmt(q) -> str:
     return f"{q.rmse:6.2f} {q.coverage * 100:5.1f} {q.fragments:3d} {q.tracks_elsewhere:3d}"
 
@@ -81,9 +89,11 @@ def main() -> None:
         "CV only (joyride-cv)": load_config("joyride-cv"),
         "IMM (joyride, no existence)": {k: v for k, v in cfg.items() if k != "existence"},
         "IMM + existence (joyride)": cfg,
+        "  joyride + joint (JIPDA)": joint(cfg),
         "IMM + existence (-accurate)": load_config("joyride-accurate"),
         "IMM + existence + polar R": load_config("joyride-polar"),
         "CV + CT(ω) + existence (-ct)": load_config("joyride-ct"),
+        "  joyride-ct + joint (JIPDA)": joint(load_config("joyride-ct")),
         "joyride, calibrated radar *": load_config("joyride-calibrated"),
     }
     t0 = time.perf_counter()

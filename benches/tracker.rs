@@ -7,10 +7,13 @@
 //! `imm_scan`: one scan of IMM trackers (1 and 20 separated targets): the 4-D bank of the
 //! `joyride` preset (CV, CV-high, known-rate turns at ±0.09 and ±0.16 rad/s) against the
 //! 5-D bank with the turn rate in the state (CV5, CV5-high and a `ConstantTurn`, EKF or UKF).
+//! `existence_scan`: one scan of a cluster (the parallel scenes, 8 and 20 tracks) with
+//! existence and visibility per track (IPDA) and joint (JIPDA).
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
 use nalgebra::{DMatrix, DVector};
 use std::hint::black_box;
 use usvfast_core::models::{Component, MotionModel};
+use usvfast_core::tracking::config::Existence;
 use usvfast_core::tracking::imm::{ConstantTurn, ImmConfig, Mode, TurnPredictor};
 use usvfast_core::tracking::tracker::{Tracker, TrackerConfig};
 
@@ -54,6 +57,10 @@ const VEL: (f64, f64) = (0.0, 0.2);
 
 impl Scene {
     fn new(n: usize, spacing: f64, two_sensors: bool) -> Self {
+        Self::with_config(n, spacing, two_sensors, config())
+    }
+
+    fn with_config(n: usize, spacing: f64, two_sensors: bool, mut cfg: TrackerConfig) -> Self {
         let mut rng = Lcg(42);
         let side = (n as f64).sqrt().ceil() as usize;
         let pos: Vec<(f64, f64)> = (0..n)
@@ -65,7 +72,6 @@ impl Scene {
                 }
             })
             .collect();
-        let mut cfg = config();
         if two_sensors {
             let mut second = cfg.sensors[0].clone();
             second.r *= 2.0;
@@ -188,6 +194,45 @@ fn bench_scan(c: &mut Criterion) {
                 BatchSize::LargeInput,
             )
         });
+    }
+    g.finish();
+}
+
+/// One scan of the 0.3 m parallel scenes (one cluster of 8 or 20 tracks) with existence and
+/// visibility per track (IPDA) and joint (JIPDA): survival 0.99, vis_stay 0.95, invis_stay 0.5.
+fn bench_existence_scan(c: &mut Criterion) {
+    let mut g = c.benchmark_group("existence_scan");
+    g.sample_size(10);
+    for n in [8, 20] {
+        for joint in [false, true] {
+            let mut cfg = config();
+            cfg.existence = Some(Existence {
+                survival: 0.99,
+                initial: 0.9,
+                delete: 0.0,
+                vis_stay: 0.95,
+                invis_stay: 0.5,
+                confirm: None,
+                birth: 0.5,
+                joint,
+            });
+            let scene = Scene::with_config(n, 0.3, false, cfg);
+            let name = format!("parallel_0.3m_{n}_{}", if joint { "jipda" } else { "ipda" });
+            g.bench_function(name, |b| {
+                b.iter_batched(
+                    || {
+                        let mut s = scene.clone();
+                        s.tracker.reserve_history(8);
+                        s
+                    },
+                    |mut s| {
+                        s.step();
+                        s
+                    },
+                    BatchSize::LargeInput,
+                )
+            });
+        }
     }
     g.finish();
 }
@@ -326,5 +371,5 @@ fn bench_imm_scan(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, bench_scan, bench_imm_scan);
+criterion_group!(benches, bench_scan, bench_imm_scan, bench_existence_scan);
 criterion_main!(benches);

@@ -63,7 +63,7 @@ _IMM = {
     "ct_predictor",
     "cv_q_turn",
 }
-_EXIST = {"survival", "initial", "delete", "vis_stay", "invis_stay", "confirm", "birth"}
+_EXIST = {"survival", "initial", "delete", "vis_stay", "invis_stay", "confirm", "birth", "joint"}
 
 
 def load_config(config: str | Path) -> dict[str, Any]:
@@ -110,7 +110,10 @@ def tracker_from_config(cfg: dict[str, Any]) -> tk.Tracker:
     if "existence" in cfg:
         e = dict(cfg["existence"])
         _check_keys(e, _EXIST, "tracker.existence")
-        existence = tk.Existence(**{k: float(v) for k, v in e.items()})
+        joint = e.pop("joint", False)
+        if not isinstance(joint, bool):
+            raise ValueError(f"tracker.existence.joint: true or false, got {joint!r}")
+        existence = tk.Existence(**{k: float(v) for k, v in e.items()}, joint=joint)
     pvv = float(init.get("prior_velocity_var", 100.0))
     prior = [0.0, pvv, 0.0, pvv]
     motion: Any = constant_velocity_2d(q)

@@ -62,9 +62,10 @@ sensors mix in one tracker (all have m = 2). A polar sensor's plots are gated ag
 track (no spatial grid: cost tracks × plots); ``initiate_in_gates=False`` and, with "ukf",
 ``use_joseph_cov`` are refused.
 
-Also: ``tracker.add_track(state, covariance, time)`` seeds a confirmed track (first state a
-prior, not an update); ``tracker.add_sensor(Sensor(...))`` registers a sensor between steps
-(returns its id); ``tracker.tracks`` also carries each track's newest association data;
+Also: ``tracker.add_track(state, covariance, time, existence=None)`` seeds a confirmed track
+(first state a prior, not an update; with its existence and visibility if given);
+``tracker.add_sensor(Sensor(...))`` registers a sensor between steps (returns its id);
+``tracker.tracks`` also carries each track's newest association data;
 ``tracker.tentative_tracks``, ``tracker.deleted_track_ids``,
 ``tracker.history(id).to_dataframe()``, ``tracker.dropped_scans``. Track ids are stable
 integers counted in order of confirmation. Kernels: ``usvfast._core.linear_sum_assignment``,
@@ -484,7 +485,23 @@ class Existence:
     v⁺ = v⁻L / (v⁻L + 1 − v⁻). A confirmed track starts at r = initial, v = 1 and is deleted
     once r < delete (besides `deleter`). The defaults vis_stay = 1, invis_stay = 0 keep v = 1
     (plain IPDA); vis_stay < 1 lets a target exist unseen (behind another ship) without losing
-    its existence. Per track, not joint (JIPDA would also weight the association by r).
+    its existence.
+
+    joint: JIPDA (Mušicki and Evans, IEEE Trans. AES 40(3), 2004, with the VIMMJIPDA's
+    visibility) for the confirmed tracks instead of the per-track IPDA: in each JPDA cluster a
+    track's hypotheses are weighted by its predicted r⁻v⁻ — missed 1 − P_D P_G r⁻v⁻, detection
+    r⁻v⁻ P_D N(z; ẑ, S)/λ — so a track that probably does not exist yields its detections to one
+    that does; from the joint marginals β (β_0 missed) r⁺ = β_0 r⁻(1 − P_D P_G v⁻)/(1 − P_D P_G
+    r⁻v⁻) + Σ_{j≥1} β_j, v⁺ = (β_0 r⁻v⁻(1 − P_D P_G)/(1 − P_D P_G r⁻v⁻) + Σ_{j≥1} β_j)/r⁺, and
+    the state is the mixture with the association probabilities given existence
+    (β_0 r⁻(1 − P_D P_G v⁻)/((1 − P_D P_G r⁻v⁻) r⁺) missed, β_j/r⁺), which also decide
+    whether the state is an update and which detections are kept from the initiator, and
+    which `Tracks`/`TrackHistory` report as missed_probability and assoc_probability. A track
+    alone in its cluster gets the IPDA's r⁺ and v⁺; its state is the IPDA's PDA update when
+    v⁻ = 1, and
+    weights the missed hypothesis by 1 − P_D P_G v⁻ (against v⁻ P_D N/λ) when v⁻ < 1 (a target
+    may exist unseen). Under an IMM the mode likelihoods are those given existence
+    (1 − P_D P_G v⁻ + v⁻ Σ P_D N_mode(z)/λ). Default False (per-track IPDA, as before).
 
     confirm: confirmation by existence. Tentative tracks then start at r = birth, are updated
     each scan with the likelihood ratio of their GNN-assigned detection
@@ -501,12 +518,20 @@ class Existence:
     invis_stay: float = 0.0
     confirm: float | None = None
     birth: float = 0.5
+    joint: bool = False
 
 
 #: The largest count the native core takes (a signed 64-bit integer).
 _MAX_COUNT = 2**63 - 1
 #: The largest state dimension a sensor is built for (its H is allocated here).
 _MAX_NDIM = 4096
+
+
+def _probability(name: str, v: Any) -> float:
+    """`v` as a float, else TypeError naming `name` (the core checks its range)."""
+    if isinstance(v, bool) or not isinstance(v, int | float | np.integer | np.floating):
+        raise TypeError(f"{name}: expected a float, got {v!r}")
+    return float(v)
 
 
 def _non_negative_int(name: str, v: Any, high: int = _MAX_COUNT) -> int:
@@ -900,14 +925,30 @@ class Tracker:
         self.sensors = (*self.sensors, sensor)
         return idx
 
-    def add_track(self, state: ArrayLike, covariance: ArrayLike, time: float) -> int:
+    def add_track(
+        self,
+        state: ArrayLike,
+        covariance: ArrayLike,
+        time: float,
+        *,
+        existence: float | None = None,
+        visibility: float = 1.0,
+    ) -> int:
         """Add a confirmed track (state (ndim,), covariance (ndim, ndim) at `time`); its first
-        state is a prior, not an update. Returns its id."""
+        state is a prior, not an update. existence: its probability r in (0, 1] of existing,
+        with visibility v in [0, 1] (needs the tracker's `Existence` model); None: the
+        model's `initial`, visible. Returns its id."""
+        rv = None
+        if existence is not None:
+            rv = (_probability("existence", existence), _probability("visibility", visibility))
+        elif visibility != 1.0:
+            raise ValueError("visibility: needs existence (the track's r) as well")
         with self._exclusive():
             return self._core.add_track(
                 as_float_array("state", state, ndim=1),
                 as_float_array("covariance", covariance, ndim=2),
                 float(time),
+                rv,
             )
 
     @property

@@ -390,18 +390,22 @@ impl TrackerCore {
         self.inner.measurement_dim()
     }
 
-    /// Adds a confirmed track; returns its id.
+    /// Adds a confirmed track, with its existence and visibility `(r, v)` if given; returns
+    /// its id.
+    #[pyo3(signature = (state, covariance, time, existence=None))]
     fn add_track(
         &mut self,
         state: PyReadonlyArray1<'_, f64>,
         covariance: PyReadonlyArray2<'_, f64>,
         time: f64,
+        existence: Option<(f64, f64)>,
     ) -> PyResult<u64> {
         self.inner
-            .add_track(
+            .add_track_with(
                 slice("state", &state)?,
                 slice("covariance", &covariance)?,
                 time,
+                existence,
             )
             .map_err(to_py_err)
     }

@@ -513,6 +513,7 @@ pub(crate) struct ExistenceArgs {
     invis_stay: f64,
     confirm: Option<f64>,
     birth: f64,
+    joint: bool,
 }
 
 impl ExistenceArgs {
@@ -525,6 +526,7 @@ impl ExistenceArgs {
             invis_stay: self.invis_stay,
             confirm: self.confirm,
             birth: self.birth,
+            joint: self.joint,
         }
     }
 }

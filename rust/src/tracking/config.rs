@@ -221,8 +221,12 @@ pub struct InitiatorConfig {
 /// with the scan's likelihood ratio `L = 1 − P_D P_G + Σ_i P_D N(z_i; ẑ, S) / λ` over the
 /// track's gated detections, `r⁺ ∝ r⁻ (v⁻ L + 1 − v⁻)` against `1 − r⁻`, and
 /// `v⁺ = v⁻ L / (v⁻ L + 1 − v⁻)`. A confirmed track starts at `initial` (visible) and is deleted
-/// when `r < delete` (besides the deleter). Per track (IPDA), not joint: the JPDA association
-/// itself does not weight tracks by existence.
+/// when `r < delete` (besides the deleter). Per track (IPDA) unless `joint`.
+///
+/// With `joint` (JIPDA, [`crate::tracking::jipda`]): the JPDA association of confirmed tracks
+/// weights each track by `r⁻v⁻` (missed `1 − P_D P_G r⁻v⁻`, detection `r⁻v⁻ P_D N(z; ẑ, S)/λ`),
+/// and `r⁺`, `v⁺` and the state (given existence) follow from the cluster's joint marginals;
+/// a track alone in its cluster gets the same `r⁺`, `v⁺` as without `joint`.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Existence {
     pub survival: f64,
@@ -235,14 +239,25 @@ pub struct Existence {
     /// would confirm it and `r ≥ confirm`, and dropped once `r < delete`; it keeps its `r`.
     pub confirm: Option<f64>,
     pub birth: f64,
+    /// Joint existence (JIPDA) for confirmed tracks; `false`: per track (IPDA). Tentative
+    /// tracks (GNN) always use the per-track update.
+    #[serde(default)]
+    pub joint: bool,
 }
 
 impl Existence {
-    /// One scan of the existence/visibility recursion from `(r, v)` with the scan's
-    /// log-likelihood ratio `ln L` (computed in the log domain).
-    pub fn update(&self, (r, v): (f64, f64), ln_l: f64) -> (f64, f64) {
+    /// The prediction `(r⁻, v⁻)` of `(r, v)` over one scan: `r⁻ = survival · r`,
+    /// `v⁻ = v · vis_stay + (1 − v)(1 − invis_stay)`.
+    pub fn predict(&self, (r, v): (f64, f64)) -> (f64, f64) {
         let r0 = self.survival * r;
         let v0 = v * self.vis_stay + (1.0 - v) * (1.0 - self.invis_stay);
+        (r0, v0)
+    }
+
+    /// One scan of the existence/visibility recursion from `(r, v)` with the scan's
+    /// log-likelihood ratio `ln L` (computed in the log domain).
+    pub fn update(&self, rv: (f64, f64), ln_l: f64) -> (f64, f64) {
+        let (r0, v0) = self.predict(rv);
         let a = v0.ln() + ln_l; // ln(v0 L)
         let b = (1.0 - v0).ln(); // ln(1 − v0)
         let m2 = a.max(b);

@@ -6,6 +6,7 @@
 //! | gating | [`gating`] (χ² gate, spatial grid), [`hypothesise`] (`gate_pairs`) | `PDAHypothesiser` / `DistanceHypothesiser` gates |
 //! | clustering | [`clustering`] | `JPDA` clusters |
 //! | JPDA | [`jpda`] (EHM, brute force, belief propagation past a budget), [`kbest`] (Murty k-best) | `JPDA`, `JPDAwithEHM` |
+//! | existence | [`config::Existence`] (IPDA per track), [`jipda`] (JIPDA: joint existence and visibility) | — |
 //! | GNN | [`gnn`], [`assign`] | `GNNWith2DAssignment` |
 //! | initiator | [`initiator`] | `MultiMeasurementInitiator` |
 //! | deleters | [`deleters`] | `UpdateTimeStepsDeleter`, `CovarianceBasedDeleter`, ... |
@@ -20,6 +21,7 @@ pub mod gnn;
 pub mod hypothesise;
 pub mod imm;
 mod initiator;
+pub mod jipda;
 pub mod jpda;
 pub mod kbest;
 pub mod polar;

@@ -9,8 +9,10 @@
 //!    marginals per cluster and a moment-matched Gaussian mixture of the prediction and the
 //!    Kalman updates; the new state is an update if some detection's marginal exceeds the
 //!    missed one, else a prediction. Detections whose marginal exceeds a track's missed
-//!    marginal are "associated". GNN: distance hypotheses (`d < missed_distance`), optimal
-//!    assignment, Kalman update or prediction;
+//!    marginal are "associated". With joint existence (JIPDA, [`crate::tracking::jipda`])
+//!    the weights are scaled by each track's predicted existence and visibility, and the
+//!    marginals conditioned on existence take their place in all of the above. GNN: distance
+//!    hypotheses (`d < missed_distance`), optimal assignment, Kalman update or prediction;
 //! 3. delete confirmed tracks by the deleter;
 //! 4. the initiator takes the unassociated detections: its tentative tracks are predicted,
 //!    GNN-associated with its own distance gate and updated, confirmed once they hold
@@ -33,6 +35,7 @@ use crate::tracking::hypothesise::{
     axis_orders, gate_pairs, gnn_step, order_cluster, posterior_cov, predict_all, sensors_t, Alloc,
     CovForm, Dets, Innovations, SensorT, NO_OWN,
 };
+use crate::tracking::jipda::JointPrior;
 use crate::tracking::jpda::{
     clusters, ehm_size_estimate, marginals_within, Exactness, Method, TrackHypotheses,
 };
@@ -218,6 +221,39 @@ impl Tracker {
     /// Adds a confirmed track with state `x`, covariance `p` at time `t` (its first state is a
     /// prior, not an update). Returns its id.
     pub fn add_track(&mut self, x: &[f64], p: &[f64], t: f64) -> Result<u64> {
+        self.add_track_with(x, p, t, None)
+    }
+
+    /// [`Tracker::add_track`] with the track's existence and visibility probabilities
+    /// `(r, v)` (`r` in (0, 1], `v` in [0, 1]; needs an existence model). `None`: the model's
+    /// `initial` existence, visible.
+    pub fn add_track_with(
+        &mut self,
+        x: &[f64],
+        p: &[f64],
+        t: f64,
+        existence: Option<(f64, f64)>,
+    ) -> Result<u64> {
+        if let Some((r, v)) = existence {
+            if self.cfg.existence.is_none() {
+                return Err(Error::param(
+                    "existence",
+                    "needs a tracker with an existence model",
+                ));
+            }
+            if !(r > 0.0 && r <= 1.0) {
+                return Err(Error::param(
+                    "existence",
+                    format!("must be in (0, 1], got {r}"),
+                ));
+            }
+            if !(0.0..=1.0).contains(&v) {
+                return Err(Error::param(
+                    "visibility",
+                    format!("must be in [0, 1], got {v}"),
+                ));
+            }
+        }
         let n = self.cfg.motion_model.ndim();
         if x.len() != n {
             return Err(Error::dim("state", n, x.len()));
@@ -246,6 +282,7 @@ impl Tracker {
             },
         );
         tr.confirmed_time = t;
+        tr.existence = existence;
         self.tracks.push(tr);
         Ok(id)
     }
@@ -521,13 +558,40 @@ impl Tracker {
                 }
             }
         }
+        // JIPDA: each track's predicted existence and visibility weight its hypotheses
+        // (`jipda`, eq. (2)): missed 1 − P_D P_G r⁻v⁻, detections × r⁻v⁻.
+        let pd_pg = j.prob_detect * j.prob_gate;
+        let joint: Option<Vec<JointPrior>> = match &self.cfg.existence {
+            Some(ex) if ex.joint => Some(
+                self.tracks
+                    .iter()
+                    .map(|tr| {
+                        let (r, v) = ex.predict(tr.existence.unwrap_or((ex.initial, 1.0)));
+                        JointPrior {
+                            existence: r,
+                            visibility: v,
+                            pd_pg,
+                        }
+                    })
+                    .collect(),
+            ),
+            _ => None,
+        };
         let th: Vec<TrackHypotheses> = (0..preds.len())
             .map(|t| {
                 let h = &hyps[range(t)];
-                let mx = h.iter().map(|e| e.1).fold(ln_missed, f64::max);
+                let Some(pri) = &joint else {
+                    let mx = h.iter().map(|e| e.1).fold(ln_missed, f64::max);
+                    return TrackHypotheses {
+                        missed: (ln_missed - mx).exp(),
+                        detections: h.iter().map(|e| (e.0, (e.1 - mx).exp())).collect(),
+                    };
+                };
+                let (lm, lq) = (pri[t].ln_missed(), pri[t].ln_detectable());
+                let mx = h.iter().map(|e| e.1 + lq).fold(lm, f64::max);
                 TrackHypotheses {
-                    missed: (ln_missed - mx).exp(),
-                    detections: h.iter().map(|e| (e.0, (e.1 - mx).exp())).collect(),
+                    missed: (lm - mx).exp(),
+                    detections: h.iter().map(|e| (e.0, (e.1 + lq - mx).exp())).collect(),
                 }
             })
             .collect();
@@ -575,6 +639,18 @@ impl Tracker {
                 }
             }
         }
+        // JIPDA: posterior existence and visibility (`jipda`, eqs. (3)–(4)); the marginals
+        // become the association probabilities given existence (eq. (5)), which the state
+        // mixture, the IMM and the track's association record use below.
+        let posts = joint.as_ref().map(|pri| {
+            (0..pri.len())
+                .map(|ti| {
+                    let ln_pda = hyps[range(ti)].iter().map(|e| e.1);
+                    let mg = &mut marg_det[range(ti)];
+                    pri[ti].condition(&mut marg_missed[ti], mg, ln_pda)
+                })
+                .collect::<Vec<_>>()
+        });
         let mut associated = vec![false; k];
         let mut in_gate = vec![false; k];
         let form = CovForm {
@@ -629,7 +705,9 @@ impl Tracker {
                 let dx = xu - &mean;
                 cov += pu * *w + (&dx * dx.transpose()) * *w;
             }
-            if let Some(ex) = &self.cfg.existence {
+            if let Some(ps) = &posts {
+                tr.existence = Some(ps[ti]);
+            } else if let Some(ex) = &self.cfg.existence {
                 // ln L = logsumexp(ln(1 − P_D P_G), ln w_i) over the track's gated detections.
                 let mx = h.iter().map(|e| e.1).fold(ln_missed, f64::max);
                 let ln_l = mx
@@ -658,7 +736,16 @@ impl Tracker {
                 .extend(h.iter().zip(mg).map(|(e, &b)| (e.0 as i64, b / tot)));
             if let Some(ip) = &imm_preds {
                 // Mode-conditioned PDA with the track's association weights; the clutter term
-                // ln(P_D/λ) of each detection is the one of its combined weight.
+                // ln(P_D/λ) of each detection is the one of its combined weight. Under JIPDA
+                // the mode likelihoods are those of the track given existence (`jipda`, eq.
+                // (5)): missed 1 − P_D P_G v⁻, detections × v⁻.
+                let (imm_missed, ln_vis) = match &joint {
+                    Some(pri) => {
+                        let v = pri[ti].visibility;
+                        ((-pd_pg * v).ln_1p(), Some(v.ln()))
+                    }
+                    None => (ln_missed, None),
+                };
                 let hy: Vec<(usize, f64, f64)> = h
                     .iter()
                     .zip(mg)
@@ -666,7 +753,8 @@ impl Tracker {
                         let p = &pairs[e.3];
                         let inn = innov.of(p, det_sensor[p.d])?;
                         let logpdf = -0.5 * (p.d2 + inn.ln_det + m as f64 * LN_2PI);
-                        Ok((e.0, b / tot, e.1 - logpdf))
+                        let ln_c = e.1 - logpdf;
+                        Ok((e.0, b / tot, ln_vis.map_or(ln_c, |lv| ln_c + lv)))
                     })
                     .collect::<Result<_>>()?;
                 let (st, (xu, pu)) = crate::tracking::hypothesise::imm_update(
@@ -677,7 +765,7 @@ impl Tracker {
                     form,
                     b0 / tot,
                     &hy,
-                    ln_missed,
+                    imm_missed,
                 )?;
                 tr.imm = Some(st);
                 tr.append_slices(xu.as_slice(), pu.as_slice(), &entry);
