@@ -88,6 +88,8 @@ _LIDAR = {
     "low_profile_width": ("float", 0.3),
     "low_profile_height": ("float", 0.15),
     "min_cluster_points": ("int", 15),
+    "small_cluster_points": ("int", None),
+    "small_cluster_std": ("float", 0.1),
     "core_radius": ("float", None),
     "min_position_std": ("float", 0.1),
     "vessels": ("bool", False),
