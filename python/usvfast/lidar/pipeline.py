@@ -307,7 +307,9 @@ class LidarDetection:
     the finder's, not a cluster centroid's; spread : (2, 2) m², the members' sample
     covariance without the `min_position_std` floor (the cluster's shape; None when not
     known, e.g. for a vessel); top : the highest member's height above the water, m (None
-    when the points' heights were not given).
+    when the points' heights were not given); small : the cluster had fewer than
+    `min_cluster_points` members and was kept by the small-cluster rule
+    (`LidarConfig.small_cluster_points`).
     """
 
     time: float
@@ -318,6 +320,7 @@ class LidarDetection:
     extended: bool = False
     spread: np.ndarray | None = None
     top: float | None = None
+    small: bool = False
 
 
 def cluster_detections(
@@ -405,7 +408,14 @@ def cluster_detections(
         top = None if heights is None else float(heights[members].max())
         detections.append(
             LidarDetection(
-                float(time), m.mean(axis=0), cov, count, sensor_id, spread=spread, top=top
+                float(time),
+                m.mean(axis=0),
+                cov,
+                count,
+                sensor_id,
+                spread=spread,
+                top=top,
+                small=count < min_cluster_points,
             )
         )
     return detections, labels, np.asarray(centres, dtype=np.float64).reshape(-1, 2)
