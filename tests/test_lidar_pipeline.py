@@ -253,7 +253,8 @@ def test_small_compact_clusters_are_kept():
     bottle = _arc([6.0, 2.0], 4, 0.2, rng)  # one rotation's hits on a 0.24 m bottle
     box = _arc([-5.0, 4.0], 5, 0.36, rng, across=0.02)  # 5 hits over 0.36 m: spread 0.14 m
     # 4 sparse crest returns, all within the 0.5 m core: spread 0.2-0.25 m
-    water = np.array([2.0, -7.0]) + [[-0.25, -0.2], [0.25, -0.15], [0.2, 0.25], [-0.2, 0.2]]
+    corners = np.array([[-0.25, -0.2], [0.25, -0.15], [0.2, 0.25], [-0.2, 0.2]])
+    water = np.array([2.0, -7.0]) + corners
     pair = _arc([-3.0, -6.0], 3, 0.1, rng)  # 3 points: below small_cluster_points
     big = np.array([8.0, -4.0]) + rng.normal(0, 0.1, (9, 2))  # >= min_cluster_points
     pts = np.vstack([bottle, box, water, pair, big])
@@ -306,7 +307,7 @@ def test_small_cluster_rule_property(clusters, small, std):
     pts = np.vstack(parts)
     kw = dict(time=0.0, min_cluster_points=7, bandwidth=1.0, backend="sklearn")
     dets, _, _ = cluster_detections(pts, small_cluster_points=small, small_cluster_std=std, **kw)
-    got = sorted(int(round(d.position[0] / 6.0)) for d in dets)
+    got = sorted(round(float(d.position[0]) / 6.0) for d in dets)
     assert got == [k for k, e in enumerate(expected) if e]
     thesis, _, _ = cluster_detections(pts, **kw)
     assert {round(d.position[0] / 6.0) for d in thesis} <= set(got)

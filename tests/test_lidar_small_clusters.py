@@ -6,7 +6,7 @@ object of the truth."""
 
 from __future__ import annotations
 
-import tomllib
+import sys
 
 import numpy as np
 import pytest
@@ -23,6 +23,11 @@ from usvfast.sim.camera import WATERLINE_HEIGHT
 from usvfast.sim.recording import _SENSOR_MODELS, EPOCH
 from usvfast.sim.scene import FLOAT_KINDS, make_world
 from usvfast.sim.velodyne import LIDAR_LEVER_ARM, Vlp16Recorder
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
 
 SEED, DURATION = 9, 30.0
 
