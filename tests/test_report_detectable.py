@@ -15,7 +15,14 @@ from rich.console import Console
 
 from usvfast.metrics.tables import Truth
 from usvfast.report import write_report
-from usvfast.report.detectable import DetectableRule, Visibility, read_visibility, seen_mask
+from usvfast.report.detectable import (
+    MIN_SEEN_S,
+    DetectableRule,
+    Visibility,
+    read_visibility,
+    seen_mask,
+    seen_seconds,
+)
 
 T0 = 1.7e9
 STEPS = np.round(np.arange(0.0, 20.0 + 1e-9, 0.1), 1)
@@ -81,10 +88,11 @@ def test_detectable_targets_beside_the_range_rule(tmp_path):
     assert targets == {1, 2, 3} and m["thesis"]["targets_tracked"] == 1
     det = m["detectable"]
     assert det["rule"]["lidar_min_returns"] == 2 and det["rule"]["camera_min_height_px"] == 3
+    assert det["rule"]["min_seen_s"] == MIN_SEEN_S
     seen = {o["object_id"]: o for o in det["objects"]}
-    assert seen[1]["detectable_time"] == pytest.approx(6.9)  # rows 2.0 ... 8.9
-    assert seen[3]["detectable_time"] == pytest.approx(5.9)  # rows 0.0 ... 5.9
-    assert seen[2]["detectable_time"] == 0.0 and seen[4]["detectable_time"] == 0.0
+    assert seen[1]["seen_seconds"] == pytest.approx(7.0)  # 70 rows, 2.0 ... 8.9
+    assert seen[3]["seen_seconds"] == pytest.approx(6.0)  # 60 rows, 0.0 ... 5.9
+    assert seen[2]["seen_seconds"] == 0.0 and seen[4]["seen_seconds"] == 0.0
     assert {o for o, s in seen.items() if s["target"]} == {1, 3}
     assert (det["n_targets"], det["targets_tracked"]) == (2, 1)
     assert det["groups"]["floats"]["n_targets"] == 2
@@ -103,6 +111,15 @@ def test_detectable_targets_beside_the_range_rule(tmp_path):
     )
     assert strict["detectable"]["n_targets"] == 1
     assert strict["thesis"]["n_targets"] == 3  # the range rule does not move
+    longer = write_report(
+        out,
+        truth=tmp_path / "truth.csv",
+        coverage=COVERAGE,
+        animation=False,
+        print_table=False,
+        detectable_rule=DetectableRule(min_seen_s=6.5),
+    )
+    assert [o["object_id"] for o in longer["detectable"]["objects"] if o["target"]] == [1]
 
 
 def test_without_a_visibility_file_there_is_no_detectable_rule(tmp_path):
@@ -140,8 +157,10 @@ def test_seen_mask_equals_its_definition(truth_t, stamps, frames):
     )
     got = seen_mask(truth, vis, rule)
     for i, t in enumerate(truth_t):
-        lidar = any(s - 0.1 <= t < s for s, c in stamps if c >= 2)
-        camera = any(f - 0.05 <= t < f + 0.05 for f, h in frames if h >= 3.0)
+        # the sample's span, both ends 1/1000 of the 0.1 s period early
+        eps = 0.1 * 1e-3
+        lidar = any((s - eps) - 0.1 <= t < (s - eps) + 0.0 for s, c in stamps if c >= 2)
+        camera = any((f - eps) - 0.05 <= t < (f - eps) + 0.05 for f, h in frames if h >= 3.0)
         assert got["lidar"][i] == lidar and got["camera"][i] == camera
 
 
@@ -168,3 +187,15 @@ def test_read_visibility_and_rule_checks(tmp_path):
         DetectableRule(lidar_min_returns=1.5)  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="camera_min_height_px"):
         DetectableRule(camera_min_height_px=0.0)
+    with pytest.raises(ValueError, match="min_seen_s"):
+        DetectableRule(min_seen_s=-1.0)
+
+
+def test_seen_seconds_counts_rows():
+    t = np.r_[np.arange(0.0, 3.0, 0.5), np.arange(0.0, 1.0, 0.1)]
+    ids = np.r_[np.zeros(6, np.int64), np.ones(10, np.int64)]
+    truth = Truth(t, ids, np.full(16, "box"), np.zeros((16, 2)))
+    mask = np.r_[[True, False, True, True, False, False], np.ones(10, bool)]
+    assert seen_seconds(truth, mask) == pytest.approx({0: 1.5, 1: 1.0})
+    with pytest.raises(ValueError, match="mask"):
+        seen_seconds(truth, mask[:-1])

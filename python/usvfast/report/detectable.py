@@ -1,22 +1,23 @@
 """A second target rule, beside "within some sensor's range and field of view for ≥ 5 s":
-an object counts as a *detectable* target when some sensor physically saw it, while it was
-within that sensor's coverage, for ≥ 5 s in total.
+a target of that rule counts as a *detectable* target when some sensor physically saw it,
+while it lay within that sensor's coverage, for at least `min_seen_s` seconds in total.
 
 What each sensor saw comes from a `visibility.csv` (written by the simulator,
 `usvfast.sim.visibility`: LiDAR returns per rotation, camera pixels and box size per frame).
 A truth row (time t, object) is *seen* by
 
-- the LiDAR when the rotation that spans t (the 0.1 s before its stamp) has at least
-  `lidar_min_returns` returns from the object — fewer cannot be told from a wave crest, and
-  the chain clusters a few rotations' returns (5-6 points per cycle at the least);
-- the camera when the frame exposed within half a frame period of t shows the object at
-  least `camera_min_height_px` pixels tall (the demo network boxes no float under 5 visible
-  pixels on the held-out recordings and ~40-50 % of those 2-4 px tall);
+- the LiDAR when the rotation that spans t (the `lidar_period` before its stamp) has at
+  least `lidar_min_returns` returns from the object: one return cannot be told from a wave
+  crest;
+- the camera when the frame exposed within half a `camera_period` of t (a row halfway
+  between two frames: the later one) shows the object at least `camera_min_height_px`
+  pixels tall (the demo network boxed ~50 % of the floats
+  3-4 px tall on held-out recordings, none under 5 visible pixels);
 
-and it is *detectable* when some sensor sees it while the object lies within that sensor's
-coverage (range, field of view) as in `evaluate_run`'s range rule. The seconds are counted
-as the range rule counts them (`usvfast.metrics.protocol.thesis_metrics`: runs of rows with
-gaps up to the matching window, 1 s, summed).
+and a row counts when some sensor sees the object while it lies within that sensor's
+coverage (range, field of view, as `evaluate_run`'s range rule). An object's seconds seen
+are its counted rows times the truth's row spacing (summed, however scattered: a LiDAR
+ring meets a low float in bursts).
 """
 
 from __future__ import annotations
@@ -32,7 +33,18 @@ from usvfast._validate import instance, integer, real
 from usvfast.metrics.protocol import in_range
 from usvfast.metrics.tables import Nav, Truth
 
-__all__ = ["DetectableRule", "Visibility", "detectable_mask", "read_visibility", "seen_mask"]
+__all__ = [
+    "DetectableRule",
+    "Visibility",
+    "detectable_mask",
+    "read_visibility",
+    "seen_mask",
+    "seen_seconds",
+]
+
+
+#: Default `DetectableRule.min_seen_s` (see its choice in the README).
+MIN_SEEN_S = 2.0
 
 
 @dataclass(frozen=True)
@@ -41,17 +53,20 @@ class DetectableRule:
 
     lidar_min_returns : returns from the object in one rotation (>= 1).
     camera_min_height_px : the object's box height in the image, px (> 0).
+    min_seen_s : seconds seen in total that make a target detectable (>= 0).
     lidar_period, camera_period : s one rotation / one frame stands for (> 0).
     """
 
     lidar_min_returns: int = 2
     camera_min_height_px: float = 3.0
+    min_seen_s: float = MIN_SEEN_S
     lidar_period: float = 0.1
     camera_period: float = 0.1
 
     def __post_init__(self) -> None:
         integer("lidar_min_returns", self.lidar_min_returns, low=1)
         real("camera_min_height_px", self.camera_min_height_px, positive=True)
+        real("min_seen_s", self.min_seen_s, low=0.0)
         real("lidar_period", self.lidar_period, positive=True)
         real("camera_period", self.camera_period, positive=True)
 
@@ -60,6 +75,7 @@ class DetectableRule:
         return {
             "lidar_min_returns": self.lidar_min_returns,
             "camera_min_height_px": self.camera_min_height_px,
+            "min_seen_s": self.min_seen_s,
             "lidar_period_s": self.lidar_period,
             "camera_period_s": self.camera_period,
         }
@@ -152,14 +168,18 @@ def seen_mask(truth: Truth, visibility: Visibility, rule: DetectableRule) -> dic
         "lidar": (v.sensor == "lidar") & (v.count >= rule.lidar_min_returns),
         "camera": (v.sensor == "camera") & (v.height_px >= rule.camera_min_height_px),
     }
+    # [sample - before, sample + after), both ends moved back by a thousandth of the
+    # period: a truth row that falls exactly on a boundary (the frames lie halfway between
+    # the truth's 0.1 s rows) goes to one sample, whatever the rounding of the times
     before = {"lidar": rule.lidar_period, "camera": rule.camera_period / 2}
     after = {"lidar": 0.0, "camera": rule.camera_period / 2}
+    shift = {"lidar": rule.lidar_period * 1e-3, "camera": rule.camera_period * 1e-3}
     out = {}
     for sensor, sel in good.items():
         mask = np.zeros(len(truth.time), bool)
         for oid in np.unique(truth.object_id):
             rows = truth.object_id == oid
-            at = np.sort(v.time[sel & (v.object_id == oid)])
+            at = np.sort(v.time[sel & (v.object_id == oid)]) - shift[sensor]
             mask[rows] = _covered(truth.time[rows], at - before[sensor], at + after[sensor])
         out[sensor] = mask
     return out
@@ -190,4 +210,20 @@ def detectable_mask(
                 f"coverage[{name!r}]: expected (range m, fov deg, yaw deg), got {spec!r}"
             ) from None
         out |= seen[name] & in_range(truth, nav, rng, fov, yaw)
+    return out
+
+
+def seen_seconds(truth: Truth, mask: np.ndarray) -> dict[int, float]:
+    """Per object id, the seconds of its truth rows in `mask` (N,): their count times the
+    object's median row spacing (0 for an object with fewer than two rows)."""
+    instance("truth", truth, Truth)
+    mask = np.asarray(mask, bool)
+    if mask.shape != truth.time.shape:
+        raise ValueError(f"mask: expected shape {truth.time.shape}, got {mask.shape}")
+    out = {}
+    for oid in np.unique(truth.object_id):
+        rows = truth.object_id == oid
+        t = np.sort(truth.time[rows])
+        step = float(np.median(np.diff(t))) if len(t) > 1 else 0.0
+        out[int(oid)] = float(mask[rows].sum()) * step
     return out

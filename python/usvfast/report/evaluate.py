@@ -22,9 +22,10 @@ returns `metrics.json`'s content:
   "floats", the floating objects (every kind but the vessels), and "vessels", the boats under
   way (`group_metrics`). "thesis" stays the pooled figure over every target;
 - "detectable" (with a visibility file: what each sensor physically saw): the targets by a
-  second rule, beside the range rule's (`usvfast.report.detectable`): objects a sensor saw
-  (LiDAR returns per rotation, camera box height) while they lay within its coverage, for
-  at least 5 s; pooled and per group, and each object's detectable seconds.
+  second rule, beside the range rule's (`usvfast.report.detectable`): the range rule's
+  targets that a sensor saw (LiDAR returns per rotation, camera box height) while they lay
+  within its coverage, for `min_seen_s` in total; pooled and per group, and each object's
+  seconds seen.
 """
 
 from __future__ import annotations
@@ -50,7 +51,12 @@ from usvfast.metrics import (
     truth_at,
 )
 from usvfast.metrics.tables import Detections, Innovations, Nav, Tracks, Truth
-from usvfast.report.detectable import DetectableRule, Visibility, detectable_mask
+from usvfast.report.detectable import (
+    DetectableRule,
+    Visibility,
+    detectable_mask,
+    seen_seconds,
+)
 
 #: Truth kinds of the "vessels" group (boats under way); every other target kind is a
 #: floating object ("floats").
@@ -281,25 +287,30 @@ def _detectable(
     rule: DetectableRule | None,
     coverage: dict[str, tuple[float, float, float]] | None,
     max_range: float,
+    visible: np.ndarray,
     protocol: dict[str, Any],
 ) -> dict[str, Any]:
-    """metrics.json's "detectable": the rule, the targets it gives (pooled and per group:
-    targets, tracked, TPD, TRF, RMSE) and every object's detectable seconds. Without
+    """metrics.json's "detectable": the rule; every object's seconds seen by a sensor within
+    its coverage (`seen_seconds`) and whether it is a detectable target (a target of the
+    range rule seen for at least `rule.min_seen_s`); those targets' figures, pooled and per
+    group (targets, tracked, TPD, TRF, RMSE over the rows of the range rule). Without
     `coverage` every sensor of the visibility file covers max_range all round."""
     rule = rule or DetectableRule()
     cov = coverage or {s: (max_range, 360.0, 0.0) for s in np.unique(visibility.sensor)}
-    mask = detectable_mask(truth, nav, cov, visibility, rule)
+    seconds = seen_seconds(truth, detectable_mask(truth, nav, cov, visibility, rule))
+    ok = [oid for oid, sec in seconds.items() if sec >= rule.min_seen_s - 1e-9]
+    mask = visible & np.isin(truth.object_id, ok)
     th = thesis_metrics(truth, tracks, innovations=innovations, visible=mask, **protocol)
     groups = group_metrics(th, innovations, protocol["confidence"])
     return {
-        "rule": {**rule.as_dict(), "min_seen_s": protocol["min_visible"]},
+        "rule": rule.as_dict(),
         **{k: getattr(th, k) for k in _SUMMARY_KEYS},
         "groups": {k: {f: g[f] for f in ("label", *_SUMMARY_KEYS)} for k, g in groups.items()},
         "objects": [
             {
                 "object_id": o.object_id,
                 "kind": o.kind,
-                "detectable_time": o.visible_time,
+                "seen_seconds": seconds.get(o.object_id, 0.0),
                 "target": o.target,
                 "tracked_time": o.tracked_time,
             }
@@ -402,6 +413,7 @@ def evaluate_run(
         "groups": group_metrics(th, innovations, confidence),
     }
     if visibility is not None and nav is not None:
+        vis_range = np.ones(len(truth.time), bool) if visible is None else visible
         out["detectable"] = _detectable(
             truth,
             tracks,
@@ -411,6 +423,7 @@ def evaluate_run(
             detectable_rule,
             coverage,
             max_range,
+            vis_range,
             dict(window=window, cap=cap, min_visible=min_visible, confidence=confidence),
         )
     if len(allt):

@@ -73,8 +73,8 @@ def _detectable_rows(det: dict[str, Any] | None) -> list[tuple[str, str]]:
         return []
     r = det["rule"]
     rule = (
-        f"seen ≥ {r['min_seen_s']:g} s: LiDAR ≥ {r['lidar_min_returns']} returns / rotation"
-        f" or camera ≥ {r['camera_min_height_px']:g} px tall"
+        f"of them seen ≥ {r['min_seen_s']:g} s: LiDAR ≥ {r['lidar_min_returns']} returns /"
+        f" rotation or camera ≥ {r['camera_min_height_px']:g} px tall"
     )
     rows = [
         (f"targets ({rule})", str(det["n_targets"])),
@@ -161,8 +161,8 @@ def summary_tables(metrics: dict[str, Any]) -> list[Table]:
     per = Table(title="Per object")
     det = {o["object_id"]: o for o in (metrics.get("detectable") or {}).get("objects", [])}
     cols = ["id", "kind", "target", "seen s", "TPD", "TT s", "TRF", "RMSE m", "ANEES"]
-    if det:
-        cols[4:4] = ["detectable s"]
+    if det:  # seconds some sensor physically saw it (visibility.csv; "(no)": not detectable)
+        cols[4:4] = ["sensed s"]
     for col in cols:
         per.add_column(col, justify="right" if col not in ("kind",) else "left")
     for o in th.get("objects", []):
@@ -170,11 +170,9 @@ def summary_tables(metrics: dict[str, Any]) -> list[Table]:
         extra = []
         if det:
             d = det.get(o["object_id"])
-            extra = [
-                "–"
-                if d is None
-                else _f(d["detectable_time"], "{:.1f}") + ("" if d["target"] else " (no)")
-            ]
+            # the range rule's targets that are not detectable ones are marked
+            short = d is not None and o["target"] and not d["target"]
+            extra = ["–" if d is None else _f(d["seen_seconds"], "{:.1f}") + (" (no)" * short)]
         per.add_row(
             str(o.get("name", o["object_id"])),
             o["kind"].replace("moored_boat", "moored"),
