@@ -38,11 +38,18 @@ from usvfast.metrics.tables import (
     read_tracks,
     read_truth,
 )
-from usvfast.report.detectable import read_visibility
+from usvfast.report.detectable import DetectableRule, read_visibility
 from usvfast.report.evaluate import evaluate_run
 from usvfast.report.table import print_summary, summary_tables
 
-__all__ = ["evaluate_run", "print_summary", "summary_tables", "write_report"]
+__all__ = [
+    "DetectableRule",
+    "evaluate_run",
+    "print_summary",
+    "read_visibility",
+    "summary_tables",
+    "write_report",
+]
 
 
 def _clean(v: Any) -> Any:
