@@ -73,11 +73,11 @@ def _detectable_rows(det: dict[str, Any] | None) -> list[tuple[str, str]]:
         return []
     r = det["rule"]
     rule = (
-        f"of them seen ≥ {r['min_seen_s']:g} s: LiDAR ≥ {r['lidar_min_returns']} returns /"
+        f"seen ≥ {r['min_seen_s']:g} s: LiDAR ≥ {r['lidar_min_returns']} returns /"
         f" rotation or camera ≥ {r['camera_min_height_px']:g} px tall"
     )
     rows = [
-        (f"targets ({rule})", str(det["n_targets"])),
+        (f"detectable targets ({rule})", str(det["n_targets"])),
         ("  of them tracked", str(det["targets_tracked"])),
     ]
     for g in (det.get("groups") or {}).values():
