@@ -241,6 +241,96 @@ def test_core_radius_keeps_a_small_object_and_drops_sparse_clutter():
         LidarConfig(core_radius=-1.0)
 
 
+def _arc(centre, n, length, rng, across=0.005):
+    """n returns of one ring across a small float: along a line `length` m long through
+    `centre`, a few mm of range noise across it."""
+    t = np.linspace(-length / 2, length / 2, n)
+    return np.asarray(centre) + np.column_stack([t, rng.normal(0, across, n)])
+
+
+def test_small_compact_clusters_are_kept():
+    rng = np.random.default_rng(3)
+    bottle = _arc([6.0, 2.0], 4, 0.2, rng)  # one rotation's hits on a 0.24 m bottle
+    box = _arc([-5.0, 4.0], 5, 0.36, rng, across=0.02)  # 5 hits over 0.36 m: spread 0.14 m
+    # 4 sparse crest returns, all within the 0.5 m core: spread 0.2-0.25 m
+    corners = np.array([[-0.25, -0.2], [0.25, -0.15], [0.2, 0.25], [-0.2, 0.2]])
+    water = np.array([2.0, -7.0]) + corners
+    pair = _arc([-3.0, -6.0], 3, 0.1, rng)  # 3 points: below small_cluster_points
+    big = np.array([8.0, -4.0]) + rng.normal(0, 0.1, (9, 2))  # >= min_cluster_points
+    pts = np.vstack([bottle, box, water, pair, big])
+    kw = dict(time=1.0, min_cluster_points=6, core_radius=0.5, backend="sklearn")
+    thesis, _, _ = cluster_detections(pts, **kw)
+    assert [d.n_points for d in thesis] == [9]
+    dets, labels, _ = cluster_detections(pts, small_cluster_points=4, small_cluster_std=0.1, **kw)
+    assert sorted(d.n_points for d in dets) == [4, 9]
+    (small,) = [d for d in dets if d.n_points == 4]
+    np.testing.assert_allclose(small.position, bottle.mean(axis=0), atol=1e-12)
+    np.testing.assert_allclose(small.spread, np.cov(bottle, rowvar=False), atol=1e-12)
+    assert (labels[:4] >= 0).all() and (labels[4:16] == -1).all()
+    # the major-axis spread is scikit-learn's first principal component's
+    for group, kept in ((bottle, True), (box, False), (water, False)):
+        from sklearn.decomposition import PCA
+
+        major = float(np.sqrt(PCA(n_components=1).fit(group).explained_variance_[0]))
+        assert (major <= 0.1) == kept
+    # a wider tolerance takes the box too; a lower count the 3-point pair
+    wide, _, _ = cluster_detections(pts, small_cluster_points=4, small_cluster_std=0.15, **kw)
+    assert sorted(d.n_points for d in wide) == [4, 5, 9]
+    three, _, _ = cluster_detections(pts, small_cluster_points=3, small_cluster_std=0.1, **kw)
+    assert sorted(d.n_points for d in three) == [3, 4, 9]
+    # the water patch was dropped for its spread, not its count
+    loose, _, _ = cluster_detections(pts, small_cluster_points=4, small_cluster_std=1.0, **kw)
+    assert sorted(d.n_points for d in loose) == [4, 4, 5, 9]
+
+
+@given(
+    clusters=st.lists(
+        st.tuples(st.integers(1, 9), st.floats(0.001, 0.4), st.floats(0.0, np.pi)),
+        min_size=1,
+        max_size=6,
+    ),
+    small=st.one_of(st.none(), st.integers(2, 6)),
+    std=st.floats(0.02, 0.3),
+)
+def test_small_cluster_rule_property(clusters, small, std):
+    """Clusters 6 m apart: each is kept iff it has min_cluster_points members, or (with the
+    rule) at least small_cluster_points and a major-axis standard deviation <= std (numpy's
+    eigenvalues of the sample covariance); the rule only ever adds detections."""
+    parts, expected = [], []
+    for k, (n, length, yaw) in enumerate(clusters):
+        t = np.linspace(-length / 2, length / 2, n)
+        line = np.column_stack([t * np.cos(yaw), t * np.sin(yaw)])
+        line += np.array([6.0 * k, 0.0])
+        parts.append(line)
+        major = np.sqrt(np.linalg.eigvalsh(np.cov(line, rowvar=False))[-1]) if n > 1 else 0.0
+        expected.append(n >= 7 or (small is not None and n >= small and major <= std))
+    pts = np.vstack(parts)
+    kw = dict(time=0.0, min_cluster_points=7, bandwidth=1.0, backend="sklearn")
+    dets, _, _ = cluster_detections(pts, small_cluster_points=small, small_cluster_std=std, **kw)
+    got = sorted(round(float(d.position[0]) / 6.0) for d in dets)
+    assert got == [k for k, e in enumerate(expected) if e]
+    thesis, _, _ = cluster_detections(pts, **kw)
+    assert {round(d.position[0] / 6.0) for d in thesis} <= set(got)
+
+
+@pytest.mark.parametrize(
+    ("kw", "error"),
+    [
+        ({"small_cluster_points": 1}, ValueError),
+        ({"small_cluster_points": 3.5}, TypeError),
+        ({"small_cluster_points": True}, TypeError),
+        ({"small_cluster_points": 4, "small_cluster_std": 0.0}, ValueError),
+        ({"small_cluster_std": float("nan")}, ValueError),
+    ],
+)
+def test_small_cluster_validation(kw, error):
+    pts = np.zeros((3, 2))
+    with pytest.raises(error, match="small_cluster"):
+        cluster_detections(pts, time=0.0, backend="sklearn", **kw)
+    with pytest.raises(error, match="small_cluster"):
+        LidarConfig(**kw)
+
+
 # ------------------------------------------------------------------------- the detector
 def test_detector_cycles_and_intermediates():
     scene = harbour_scene(seed=2, floats=6)

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from usvfast._core import DimensionError
-from usvfast._validate import as_float_array, real
+from usvfast._validate import as_float_array, integer, real
 from usvfast.lidar.frame import LidarFrame
 from usvfast.lidar.lines import LineMemory, blur, detect_segments, extend_segments, rasterize
 from usvfast.lidar.vessels import VesselFinder
@@ -46,7 +46,13 @@ class LidarConfig:
     los_tolerance : points within this distance of a segment are dropped, m.
     buffer_frames : frames buffered in the world frame before clustering (K).
     bandwidth, bin_seeding, cluster_all, backend : mean shift parameters.
-    min_cluster_points : clusters with fewer points are dropped.
+    min_cluster_points : clusters with fewer points are dropped (but see small_cluster_points).
+    small_cluster_points, small_cluster_std : None (the thesis): no exception to
+        min_cluster_points. An integer k >= 2 (points) and a length s (m): a cluster of
+        k to min_cluster_points − 1 points is kept when it is compact, the standard deviation
+        of its members along their major axis <= s. A small float that one ring grazes in a
+        single rotation returns a few points within centimetres of each other, while sparse
+        water returns that fall into a small cluster scatter over decimetres.
     core_radius : None (the thesis): a detection is the mean of all its cluster's members.
         A number (m): only the members within this distance of the cluster's core count —
         the core found from the members' median by a mean shift of this flat radius — so
@@ -81,6 +87,8 @@ class LidarConfig:
     cluster_all: bool = False
     backend: str = "rust"
     min_cluster_points: int = 15
+    small_cluster_points: int | None = None
+    small_cluster_std: float = 0.1
     core_radius: float | None = None
     min_position_std: float = 0.1
     vessels: bool = False
@@ -114,6 +122,9 @@ class LidarConfig:
             np.isfinite(self.core_radius) and self.core_radius > 0
         ):
             raise ValueError(f"core_radius: expected a positive number, got {self.core_radius}")
+        self.small_cluster_points, self.small_cluster_std = _check_small_cluster(
+            self.small_cluster_points, self.small_cluster_std
+        )
         if not self.slice_min < self.slice_max:
             raise ValueError(
                 f"slice_min/slice_max: expected slice_min < slice_max, got "
@@ -130,6 +141,13 @@ class LidarConfig:
             v = getattr(self, name)
             if not (np.isfinite(v) and v >= 0):
                 raise ValueError(f"{name}: expected a number >= 0, got {v}")
+
+
+def _check_small_cluster(points: Any, std: Any) -> tuple[int | None, float]:
+    """(small_cluster_points, small_cluster_std) checked: None or an integer >= 2 (TypeError
+    for a non-integer, ValueError below 2) and a number > 0 m (ValueError otherwise)."""
+    count = None if points is None else integer("small_cluster_points", points, low=2)
+    return count, real("small_cluster_std", std, positive=True)
 
 
 # --------------------------------------------------------------------------------------
@@ -289,7 +307,9 @@ class LidarDetection:
     the finder's, not a cluster centroid's; spread : (2, 2) m², the members' sample
     covariance without the `min_position_std` floor (the cluster's shape; None when not
     known, e.g. for a vessel); top : the highest member's height above the water, m (None
-    when the points' heights were not given).
+    when the points' heights were not given); small : the cluster had fewer than
+    `min_cluster_points` members and was kept by the small-cluster rule
+    (`LidarConfig.small_cluster_points`).
     """
 
     time: float
@@ -300,6 +320,7 @@ class LidarDetection:
     extended: bool = False
     spread: np.ndarray | None = None
     top: float | None = None
+    small: bool = False
 
 
 def cluster_detections(
@@ -310,6 +331,8 @@ def cluster_detections(
     min_cluster_points: int = 15,
     min_position_std: float = 0.1,
     core_radius: float | None = None,
+    small_cluster_points: int | None = None,
+    small_cluster_std: float = 0.1,
     bin_seeding: bool = False,
     cluster_all: bool = False,
     backend: str = "rust",
@@ -325,6 +348,10 @@ def cluster_detections(
     members within core_radius of where a flat-kernel mean shift of that radius settles from
     the members' median (`_core_members`); the count, mean and covariance are the core's (two
     floats in one cluster: one of them, where the thesis's mean lies between them).
+    With `small_cluster_points` (an integer >= 2) a cluster (core) of at least that many but
+    fewer than `min_cluster_points` members is kept when compact: the standard deviation
+    of its members along their major axis (the square root of their sample covariance's
+    largest eigenvalue) is at most `small_cluster_std` m.
     heights: optional (n,) height of each point above the water, m; each detection's `top`
     is then its members' highest.
 
@@ -337,6 +364,9 @@ def cluster_detections(
     min_position_std = real("min_position_std", min_position_std, positive=True)
     if core_radius is not None:
         core_radius = real("core_radius", core_radius, positive=True)
+    small_cluster_points, small_cluster_std = _check_small_cluster(
+        small_cluster_points, small_cluster_std
+    )
     pts = as_float_array("points", points, ndim=2)
     if heights is not None:
         heights = as_float_array("heights", heights, ndim=1)
@@ -363,18 +393,29 @@ def cluster_detections(
             members[outer] = _core_members(pts[outer], core_radius)
             labels[outer & ~members] = -1
         count = int(members.sum())
-        if count < min_cluster_points:
+        small = small_cluster_points is not None and small_cluster_points <= count
+        if count < min_cluster_points and not small:
             labels[members] = -1
             continue
         m = pts[members]
         spread = np.cov(m, rowvar=False)
         spread = (spread + spread.T) / 2
         w, v = np.linalg.eigh(spread)
+        if count < min_cluster_points and not np.sqrt(max(w[-1], 0.0)) <= small_cluster_std:
+            labels[members] = -1
+            continue
         cov = (v * np.maximum(w, floor)) @ v.T
         top = None if heights is None else float(heights[members].max())
         detections.append(
             LidarDetection(
-                float(time), m.mean(axis=0), cov, count, sensor_id, spread=spread, top=top
+                float(time),
+                m.mean(axis=0),
+                cov,
+                count,
+                sensor_id,
+                spread=spread,
+                top=top,
+                small=count < min_cluster_points,
             )
         )
     return detections, labels, np.asarray(centres, dtype=np.float64).reshape(-1, 2)
@@ -574,6 +615,8 @@ class LidarDetector:
             min_cluster_points=cfg.min_cluster_points,
             min_position_std=cfg.min_position_std,
             core_radius=cfg.core_radius,
+            small_cluster_points=cfg.small_cluster_points,
+            small_cluster_std=cfg.small_cluster_std,
             bin_seeding=cfg.bin_seeding,
             cluster_all=cfg.cluster_all,
             backend=cfg.backend,

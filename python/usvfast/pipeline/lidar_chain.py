@@ -99,9 +99,10 @@ class LidarChain:
     floored at min_position_std², or "model": the measurement model of `_measurement_model`
     (keys surface_offset, range_std, cross_range_std, low_profile_std, low_profile_width,
     low_profile_height, metres; surface_offset_share, dimensionless; reference_points));
-    mount: the
-    stream's mount (None: at the reference point, level); timer: a StageTimer for the
-    per-stage times.
+    `small_cluster_variance` (> 0, default 1): the factor on the covariance, in any of
+    these modes, of a detection kept by the small-cluster rule (`small_cluster_points`);
+    mount: the stream's mount (None: at the reference point, level); timer: a StageTimer
+    for the per-stage times.
     """
 
     def __init__(self, settings: dict[str, Any], mount: Mount | None, timer: StageTimer) -> None:
@@ -135,6 +136,7 @@ class LidarChain:
         self.low_profile_std = float(settings.get("low_profile_std", 0.0))
         self.low_profile_width = float(settings.get("low_profile_width", 0.3))
         self.low_profile_height = float(settings.get("low_profile_height", 0.15))
+        self.small_cluster_variance = float(settings.get("small_cluster_variance", 1.0))
         for key in (
             "surface_offset",
             "range_std",
@@ -145,7 +147,7 @@ class LidarChain:
         ):
             if not getattr(self, key) >= 0:
                 raise ValueError(f"lidar.{key}: expected a number >= 0, got {getattr(self, key)}")
-        for key in ("low_profile_width", "low_profile_height"):
+        for key in ("low_profile_width", "low_profile_height", "small_cluster_variance"):
             value = getattr(self, key)
             if not (value > 0 and np.isfinite(value)):
                 raise ValueError(f"lidar.{key}: expected a number > 0, got {value}")
@@ -195,6 +197,12 @@ class LidarChain:
                     continue
                 w, v = np.linalg.eigh(d.covariance / max(d.n_points, 1))
                 d.covariance = (v * np.maximum(w, floor)) @ v.T
+        if self.small_cluster_variance != 1.0:
+            # A cluster kept by the small-cluster rule is one ring's partial hit: its centroid
+            # lies somewhere on the object's seen outline, not where many hits average out.
+            for d in dets:
+                if d.small:
+                    d.covariance = d.covariance * self.small_cluster_variance
         return dets
 
     def _measurement_model(self, dets: list[LidarDetection], pose: VesselPose) -> None:

@@ -8,6 +8,9 @@ camera_frames/) and writes
 - `map.png` (harbour, USV path, detections by sensor, truth, tracks with 2σ ellipses; north
   up, metres), `nis.png` (NIS/ANIS with the χ² band, the thesis's Fig. 6.5), `errors.png`
   (per-object position error and NEES over time, with a truth),
+- with a visibility.csv beside the truth (simulated recordings), metrics.json's
+  "detectable" and its printed rows: the targets some sensor physically saw within its
+  coverage for >= 5 s, beside the targets by range and field of view;
 - `map.html` with `html=True` (the map, interactive; plotly, the `report` extra),
 - `animation.gif` (the global tracking animation with the camera image inset; by default
   when the run wrote camera_frames/).
@@ -35,10 +38,18 @@ from usvfast.metrics.tables import (
     read_tracks,
     read_truth,
 )
+from usvfast.report.detectable import DetectableRule, read_visibility
 from usvfast.report.evaluate import evaluate_run
 from usvfast.report.table import print_summary, summary_tables
 
-__all__ = ["evaluate_run", "print_summary", "summary_tables", "write_report"]
+__all__ = [
+    "DetectableRule",
+    "evaluate_run",
+    "print_summary",
+    "read_visibility",
+    "summary_tables",
+    "write_report",
+]
 
 
 def _clean(v: Any) -> Any:
@@ -98,6 +109,7 @@ def write_report(
     html: bool = False,
     print_table: bool = True,
     console: Console | None = None,
+    visibility: str | Path | None = None,
     **metric_options: Any,
 ) -> dict[str, Any]:
     """Write the report of the run in `out_dir` (module doc) and return the metrics dict
@@ -106,8 +118,11 @@ def write_report(
     truth: path of a truth.csv (columns time,object_id,kind,north,east). scene: scene.json
     path or its dict (walls, moored boats). origin: (lat deg, lon deg, height m) of the NED
     frame, shown on the map (default: origin.json beside the truth). animation: write
-    animation.gif. metric_options: keywords of `evaluate_run` (max_range, cap, ...). Raises
-    FileNotFoundError naming a missing tracks.csv, truth or scene."""
+    animation.gif. visibility: a visibility.csv (what each sensor physically saw; default:
+    visibility.csv beside the truth when there is one) for the detectable-target rule
+    (`usvfast.report.detectable`). metric_options: keywords of `evaluate_run` (max_range,
+    cap, ...). Raises FileNotFoundError naming a missing tracks.csv, truth, scene or
+    visibility file."""
     out = Path(out_dir)
     if not (out / "tracks.csv").is_file():
         raise FileNotFoundError(f"out_dir: no tracks.csv in {out}")
@@ -121,12 +136,30 @@ def write_report(
     gt = read_truth(truth) if truth is not None else None
     sc = _load_scene(scene)
     org = _origin(origin, truth)
+    if visibility is None and truth is not None:
+        beside = Path(truth).with_name("visibility.csv")
+        visibility = beside if beside.is_file() else None
+    vis = read_visibility(visibility) if visibility is not None else None
     metrics: dict[str, Any] = {}
     if gt is not None:
         metrics = evaluate_run(
-            gt, tracks, detections=det, nav=nav, innovations=inn, scene=sc, **metric_options
+            gt,
+            tracks,
+            detections=det,
+            nav=nav,
+            innovations=inn,
+            scene=sc,
+            visibility=vis,
+            **metric_options,
         )
-        tables = {"truth": gt, "tracks": tracks, "detections": det, "nav": nav, "innovations": inn}
+        tables = {
+            "truth": gt,
+            "tracks": tracks,
+            "detections": det,
+            "nav": nav,
+            "innovations": inn,
+            "visibility": vis,
+        }
         metrics["inputs"] = {
             name: {"rows": len(t.time), "skipped_lines": t.skipped}
             for name, t in tables.items()

@@ -20,7 +20,12 @@ returns `metrics.json`'s content:
   "object_tracks_near_moored_boats");
 - "groups": the thesis's run figures again for each group of target kinds (`GROUPS`):
   "floats", the floating objects (every kind but the vessels), and "vessels", the boats under
-  way (`group_metrics`). "thesis" stays the pooled figure over every target.
+  way (`group_metrics`). "thesis" stays the pooled figure over every target;
+- "detectable" (with a visibility file: what each sensor physically saw): the targets by a
+  second rule, beside the range rule's (`usvfast.report.detectable`): the range rule's
+  targets that a sensor saw (LiDAR returns per rotation, camera box height) while they lay
+  within its coverage, for `min_seen_s` in total; pooled and per group, and each object's
+  seconds seen.
 """
 
 from __future__ import annotations
@@ -46,6 +51,12 @@ from usvfast.metrics import (
     truth_at,
 )
 from usvfast.metrics.tables import Detections, Innovations, Nav, Tracks, Truth
+from usvfast.report.detectable import (
+    DetectableRule,
+    Visibility,
+    detectable_mask,
+    seen_seconds,
+)
 
 #: Truth kinds of the "vessels" group (boats under way); every other target kind is a
 #: floating object ("floats").
@@ -264,6 +275,50 @@ def tracks_on_walls(
     return [int(i) for i in ids[near]]
 
 
+_SUMMARY_KEYS = ("n_targets", "targets_tracked", "tpd", "mean_trf", "max_trf", "rmse")
+
+
+def _detectable(
+    truth: Truth,
+    tracks: Tracks,
+    nav: Nav,
+    innovations: Innovations | None,
+    visibility: Visibility,
+    rule: DetectableRule | None,
+    coverage: dict[str, tuple[float, float, float]] | None,
+    max_range: float,
+    visible: np.ndarray,
+    protocol: dict[str, Any],
+) -> dict[str, Any]:
+    """metrics.json's "detectable": the rule; every object's seconds seen by a sensor within
+    its coverage (`seen_seconds`) and whether it is a detectable target (a target of the
+    range rule seen for at least `rule.min_seen_s`); those targets' figures, pooled and per
+    group (targets, tracked, TPD, TRF, RMSE over the rows of the range rule). Without
+    `coverage` every sensor of the visibility file covers max_range all round."""
+    rule = rule or DetectableRule()
+    cov = coverage or {s: (max_range, 360.0, 0.0) for s in np.unique(visibility.sensor)}
+    seconds = seen_seconds(truth, detectable_mask(truth, nav, cov, visibility, rule))
+    ok = [oid for oid, sec in seconds.items() if sec >= rule.min_seen_s - 1e-9]
+    mask = visible & np.isin(truth.object_id, ok)
+    th = thesis_metrics(truth, tracks, innovations=innovations, visible=mask, **protocol)
+    groups = group_metrics(th, innovations, protocol["confidence"])
+    return {
+        "rule": rule.as_dict(),
+        **{k: getattr(th, k) for k in _SUMMARY_KEYS},
+        "groups": {k: {f: g[f] for f in ("label", *_SUMMARY_KEYS)} for k, g in groups.items()},
+        "objects": [
+            {
+                "object_id": o.object_id,
+                "kind": o.kind,
+                "seen_seconds": seconds.get(o.object_id, 0.0),
+                "target": o.target,
+                "tracked_time": o.tracked_time,
+            }
+            for o in th.objects
+        ],
+    }
+
+
 def _visible(
     truth: Truth,
     nav: Nav,
@@ -310,6 +365,8 @@ def evaluate_run(
     wall_distance: float = 2.0,
     confidence: float = 0.95,
     coverage: dict[str, tuple[float, float, float]] | None = None,
+    visibility: Visibility | None = None,
+    detectable_rule: DetectableRule | None = None,
 ) -> dict[str, Any]:
     """All metrics of a run (module doc). max_range: metres from the USV within which an
     object is visible (all visible without `nav`); window, cap, min_visible: the thesis's
@@ -320,7 +377,10 @@ def evaluate_run(
     coverage: per sensor name, (range m, horizontal field of view deg, axis yaw deg clockwise
     from the heading): an object is then visible while it lies within some sensor's coverage
     (instead of within max_range all round), and each detector is scored within its own
-    (unless sensor_range / sensor_fov_deg say otherwise)."""
+    (unless sensor_range / sensor_fov_deg say otherwise). visibility (with nav): what each
+    sensor physically saw (`usvfast.report.detectable.read_visibility`); the result then
+    also holds "detectable": the targets by the detectable rule (`detectable_rule`, default
+    `DetectableRule()`), beside the range rule's."""
     visible = None if nav is None else _visible(truth, nav, max_range, coverage)
     th = thesis_metrics(
         truth,
@@ -352,6 +412,20 @@ def evaluate_run(
         "thesis": th.as_dict(),
         "groups": group_metrics(th, innovations, confidence),
     }
+    if visibility is not None and nav is not None:
+        vis_range = np.ones(len(truth.time), bool) if visible is None else visible
+        out["detectable"] = _detectable(
+            truth,
+            tracks,
+            nav,
+            innovations,
+            visibility,
+            detectable_rule,
+            coverage,
+            max_range,
+            vis_range,
+            dict(window=window, cap=cap, min_visible=min_visible, confidence=confidence),
+        )
     if len(allt):
         seq = frame_sequence(
             truth,

@@ -67,6 +67,26 @@ def group_table(metrics: dict[str, Any]) -> Table | None:
     return t
 
 
+def _detectable_rows(det: dict[str, Any] | None) -> list[tuple[str, str]]:
+    """The printed rows of metrics.json's "detectable" (none without it)."""
+    if not det:
+        return []
+    r = det["rule"]
+    rule = (
+        f"seen ≥ {r['min_seen_s']:g} s: LiDAR ≥ {r['lidar_min_returns']} returns /"
+        f" rotation or camera ≥ {r['camera_min_height_px']:g} px tall"
+    )
+    rows = [
+        (f"detectable targets ({rule})", str(det["n_targets"])),
+        ("  of them tracked", str(det["targets_tracked"])),
+    ]
+    for g in (det.get("groups") or {}).values():
+        rows.append(
+            (f"  {g['label']}: tracked / targets", f"{g['targets_tracked']} / {g['n_targets']}")
+        )
+    return rows
+
+
 def summary_tables(metrics: dict[str, Any]) -> list[Table]:
     """The run table, the by-group table (when the metrics have groups) and the per-object
     table of a `metrics.json` dict."""
@@ -78,6 +98,7 @@ def summary_tables(metrics: dict[str, Any]) -> list[Table]:
     rows = [
         ("targets (visible ≥ 5 s)", str(th.get("n_targets", "–"))),
         ("targets tracked", str(th.get("targets_tracked", "–"))),
+        *_detectable_rows(metrics.get("detectable")),
         ("TPD (tracked / targets)", _f(th.get("tpd"))),
         ("mean time fraction tracked", _f(th.get("mean_tpd"))),
         (
@@ -138,15 +159,26 @@ def summary_tables(metrics: dict[str, Any]) -> list[Table]:
     for name, value in rows:
         run.add_row(name, value)
     per = Table(title="Per object")
-    for col in ("id", "kind", "target", "seen s", "TPD", "TT s", "TRF", "RMSE m", "ANEES"):
+    det = {o["object_id"]: o for o in (metrics.get("detectable") or {}).get("objects", [])}
+    cols = ["id", "kind", "target", "seen s", "TPD", "TT s", "TRF", "RMSE m", "ANEES"]
+    if det:  # seconds some sensor physically saw it (visibility.csv; "(no)": not detectable)
+        cols[4:4] = ["sensed s"]
+    for col in cols:
         per.add_column(col, justify="right" if col not in ("kind",) else "left")
     for o in th.get("objects", []):
         a = o.get("anees")
+        extra = []
+        if det:
+            d = det.get(o["object_id"])
+            # the range rule's targets that are not detectable ones are marked
+            short = d is not None and o["target"] and not d["target"]
+            extra = ["–" if d is None else _f(d["seen_seconds"], "{:.1f}") + (" (no)" * short)]
         per.add_row(
             str(o.get("name", o["object_id"])),
             o["kind"].replace("moored_boat", "moored"),
             "yes" if o["target"] else "no",
             _f(o["visible_time"], "{:.1f}"),
+            *extra,
             _f(o["tpd"], "{:.2f}"),
             _f(o["tt"], "{:.1f}"),
             str(o["trf"]),
