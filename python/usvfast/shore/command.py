@@ -26,7 +26,7 @@ def shore_command(
         str,
         typer.Option(
             help=f"Detector: {', '.join(DETECTORS)} (auto: a fine-tuned SSD, else a trained "
-            "CNN, else the zero-shot COCO SSD when usvfast[pretrained] is installed, else bayes)"
+            "CNN, else the zero-shot COCO SSD when the pretrained extra is installed, else bayes)"
         ),
     ] = "auto",
     model: Annotated[
@@ -91,7 +91,7 @@ def shore_command(
     except ValueError as exc:
         raise typer.BadParameter(str(exc)) from exc
     console = Console()
-    console.print(f"detector: {s.detector}, {s.detector_choice}", highlight=False)
+    console.print(f"detector: {s.detector}, {s.detector_choice}", markup=False, highlight=False)
     console.print(
         f"{s.frames} frames ({s.undecoded_frames} undecoded) at {s.processing_fps:.1f} FPS; "
         f"{s.detections} detections ({s.detections_raw} before the horizon filter), "
@@ -119,7 +119,7 @@ def shore_train_command(
     detector: Annotated[
         str | None,
         typer.Option(
-            help="What to train: cnn, ssd (fine-tune the COCO SSD; needs usvfast[pretrained]) "
+            help="What to train: cnn, ssd (fine-tune the COCO SSD; needs the pretrained extra) "
             "or cascade (default: cascade for --out *.xml, else cnn)"
         ),
     ] = None,
@@ -244,5 +244,6 @@ def _train_ssd(
         f"SSD fine-tuned on {', '.join(card['videos'])} in {card['train_seconds']:.1f} s "
         f"(confidence threshold {card['conf_threshold']:g}, picked on those videos); "
         f"wrote {Path(folder) / SSD_MODEL_FILE}",
+        markup=False,
         highlight=False,
     )
