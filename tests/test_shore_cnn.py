@@ -121,6 +121,7 @@ def test_cnn_learns_synthetic_hulls_and_the_command_runs_it(tmp_path, monkeypatc
     # the default model is the one in the user model folder
     monkeypatch.setenv("USVFAST_MODELS", str(tmp_path / "models"))
     monkeypatch.delenv("USVFAST_SHORE_MODEL", raising=False)
+    monkeypatch.delenv("USVFAST_SHORE_SSD_MODEL", raising=False)
     assert default_model() == tmp_path / "models" / "shore-cnn.onnx"
     assert ShoreConfig().detector == "cnn"
     folder = tmp_path / "frames"
@@ -135,7 +136,7 @@ def test_cnn_learns_synthetic_hulls_and_the_command_runs_it(tmp_path, monkeypatc
     assert json.loads((out / "summary.json").read_text())["detector"] == "cnn"
     assert len(read_mot(out / "detections.txt")) >= 3
     monkeypatch.setenv("USVFAST_MODELS", str(tmp_path / "empty"))
-    assert default_model() is None and ShoreConfig().detector == "bayes"
+    assert default_model() is None and ShoreConfig().detector != "cnn"  # (test_shore_defaults)
     with pytest.raises(ValueError, match="cnn_model"):
         ShoreConfig(detector="cnn")
     monkeypatch.setenv("USVFAST_SHORE_MODEL", str(tmp_path / "missing.onnx"))

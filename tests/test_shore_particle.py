@@ -238,7 +238,7 @@ def test_shore_command_runs_both_trackers_on_one_video(tmp_path):
     for tracker in ("sort", "particle"):
         out = tmp_path / tracker
         args = ["shore", str(frames), "--out", str(out), "--tracker", tracker, "--no-progress"]
-        res = CliRunner().invoke(app, [*args, "--no-video"])
+        res = CliRunner().invoke(app, [*args, "--no-video", "--detector", "bayes"])
         assert res.exit_code == 0, res.output
         tracks[tracker] = read_mot(out / "tracks.txt")
     det = read_mot(tmp_path / "particle" / "detections.txt")

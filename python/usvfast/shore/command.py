@@ -11,6 +11,7 @@ import typer
 from rich.console import Console
 
 from usvfast.shore.cascade import CascadeConfig, save_cascade, train_detector
+from usvfast.shore.defaults import model_kind
 from usvfast.shore.mardct import load_mardct
 from usvfast.shore.pipeline import DETECTORS, TRACKERS, ShoreConfig, run_shore
 from usvfast.shore.sort import SortConfig, sort_config_from_options
@@ -24,16 +25,18 @@ def shore_command(
     detector: Annotated[
         str,
         typer.Option(
-            help=f"Detector: {', '.join(DETECTORS)} (auto: the CNN when a model is trained, "
-            "else bayes)"
+            help=f"Detector: {', '.join(DETECTORS)} (auto: a fine-tuned SSD, else a trained "
+            "CNN, else the zero-shot COCO SSD when the pretrained extra is installed, else bayes)"
         ),
     ] = "auto",
     model: Annotated[
         Path | None,
         typer.Option(
             help="Cascade XML (--detector cascade), CNN .onnx/.pt (--detector cnn; default "
-            "the model shore-train wrote, or $USVFAST_SHORE_MODEL) or fine-tuned SSD .onnx "
-            "(--detector ssd; python -m usvfast.shore.ssd_train)"
+            "the model shore-train wrote, or $USVFAST_SHORE_MODEL) or SSD .onnx (--detector "
+            "ssd; default the model shore-train --detector ssd wrote, or "
+            "$USVFAST_SHORE_SSD_MODEL, else the zero-shot COCO SSD); with auto, the kind "
+            "named by the model's card"
         ),
     ] = None,
     reflection_filter: Annotated[
@@ -68,13 +71,16 @@ def shore_command(
     detections.txt (MOTChallenge), an annotated video and summary.json into OUT."""
     try:
         sort = sort_config_from_options(sort_high_score, sort_low_score)
+        kind = detector
+        if detector == "auto" and model is not None:
+            kind = model_kind(model)
         config = ShoreConfig(
             detector=detector,  # pyright: ignore[reportArgumentType]  # (ShoreConfig checks it)
             tracker=tracker,  # pyright: ignore[reportArgumentType]
             horizon_filter=horizon_filter,
-            cascade_model=model if detector == "cascade" else None,
-            cnn_model=model if detector in ("cnn", "auto", "fused") else None,
-            ssd_model=model if detector == "ssd" else None,
+            cascade_model=model if kind == "cascade" else None,
+            cnn_model=model if kind in ("cnn", "fused") else None,
+            ssd_model=model if kind == "ssd" else None,
             reflection_filter=reflection_filter,
             wake_model=wake_model,
             sort=sort,
@@ -85,6 +91,7 @@ def shore_command(
     except ValueError as exc:
         raise typer.BadParameter(str(exc)) from exc
     console = Console()
+    console.print(f"detector: {s.detector}, {s.detector_choice}", markup=False, highlight=False)
     console.print(
         f"{s.frames} frames ({s.undecoded_frames} undecoded) at {s.processing_fps:.1f} FPS; "
         f"{s.detections} detections ({s.detections_raw} before the horizon filter), "
@@ -105,16 +112,25 @@ def shore_train_command(
         Path | None,
         typer.Option(
             "--out",
-            help="Cascade: the XML file to write. CNN: the model folder (default: the user "
-            "model folder `usvfast shore` looks in)",
+            help="Cascade: the XML file to write. CNN, SSD: the model folder (default: the "
+            "user model folder `usvfast shore` looks in)",
         ),
     ] = None,
     detector: Annotated[
         str | None,
-        typer.Option(help="What to train: cnn or cascade (default: cascade for --out *.xml)"),
+        typer.Option(
+            help="What to train: cnn, ssd (fine-tune the COCO SSD; needs the pretrained extra) "
+            "or cascade (default: cascade for --out *.xml, else cnn)"
+        ),
     ] = None,
     max_stages: Annotated[int, typer.Option(help="Cascade: most stages (the last on wakes)")] = 14,
-    steps: Annotated[int, typer.Option(help="CNN: training steps")] = 900,
+    steps: Annotated[
+        int | None, typer.Option(help="CNN, SSD: training steps (default: CNN 900, SSD 600)")
+    ] = None,
+    views: Annotated[
+        int | None,
+        typer.Option(help="SSD: augmented views run once through the frozen stem (default 1200)"),
+    ] = None,
     wake_filter: Annotated[
         bool, typer.Option(help="CNN: also train the wake-filter stage (wake-filter.xml)")
     ] = False,
@@ -128,19 +144,27 @@ def shore_train_command(
     ] = False,
 ) -> None:
     """Train a boat detector on annotated frames: the CNN (HarbourNet, ONNX + TorchScript +
-    model card, found by `usvfast shore` by default) or the Haar cascade (60 × 30 window,
-    OpenCV XML loadable by `cv2.CascadeClassifier` and `usvfast shore --detector cascade`)."""
+    model card), the SSD (the COCO SSD-MobileNetV2 fine-tuned by
+    :mod:`usvfast.shore.ssd_train`: shore-ssd.onnx + card, threshold picked on the training
+    videos) — both written to the model folder where `usvfast shore` finds them by default —
+    or the Haar cascade (60 × 30 window, OpenCV XML loadable by `cv2.CascadeClassifier` and
+    `usvfast shore --detector cascade`)."""
     console = Console()
     if detector is None:
         detector = "cascade" if out is not None and out.suffix == ".xml" else "cnn"
     try:
+        if detector != "ssd" and views is not None:
+            raise ValueError("views: only for --detector ssd")
+        if detector == "ssd":
+            _train_ssd(annotations, out, steps, views, seed, hard_negatives, wake_filter, console)
+            return
         if detector == "cnn":
             from usvfast.shore.cnn import CnnDetector, user_model_dir
             from usvfast.shore.cnn_train import CnnTrainConfig, train_and_export
             from usvfast.shore.filters import WakeFilter
 
             folder = out or user_model_dir()
-            cfg = CnnTrainConfig(seed=seed, steps=steps)
+            cfg = CnnTrainConfig(seed=seed, steps=900 if steps is None else steps)
             first = "shore-cnn-round1" if hard_negatives else "shore-cnn"
             card = train_and_export(annotations, folder, cfg, name=first, log=console.print)
             if hard_negatives:
@@ -167,7 +191,7 @@ def shore_train_command(
                 console.print(f"wrote {Path(folder) / 'wake-filter.xml'}")
             return
         if detector != "cascade":
-            raise ValueError(f"detector: expected 'cnn' or 'cascade', got {detector!r}")
+            raise ValueError(f"detector: expected 'cnn', 'ssd' or 'cascade', got {detector!r}")
         if out is None:
             raise ValueError("out: the cascade needs --out FILE.xml")
         frames = [f for v in load_mardct(annotations).values() for f in v]
@@ -179,4 +203,47 @@ def shore_train_command(
     console.print(
         f"{len(report['stages'])} stages from {report['positives']} positive windows in "
         f"{time.perf_counter() - t0:.1f} s; wrote {out}"
+    )
+
+
+def _train_ssd(
+    annotations: Path,
+    out: Path | None,
+    steps: int | None,
+    views: int | None,
+    seed: int,
+    hard_negatives: bool,
+    wake_filter: bool,
+    console: Console,
+) -> None:
+    """`shore-train --detector ssd`: :func:`usvfast.shore.ssd_train.train_and_export` into
+    `out` (default the user model folder) as shore-ssd.onnx + shore-ssd.json."""
+    from usvfast._extras import require
+    from usvfast.shore.cnn import user_model_dir
+    from usvfast.shore.defaults import SSD_MODEL_FILE
+    from usvfast.shore.ssd_train import MODEL_NAME, SsdTrainConfig, train_and_export
+
+    if hard_negatives:
+        raise ValueError("hard_negatives: only for --detector cnn")
+    if wake_filter:
+        raise ValueError("wake_filter: only for --detector cnn")
+    if out is not None and out.suffix in (".xml", ".onnx"):
+        raise ValueError(f"out: the SSD is written into a model folder, got the file name {out}")
+    base = SsdTrainConfig()
+    cfg = SsdTrainConfig(
+        seed=seed,
+        steps=base.steps if steps is None else steps,
+        views=base.views if views is None else views,
+    )
+    load_mardct(annotations)  # bad annotations fail before torch is imported
+    for module in ("torch", "onnx"):
+        require(module, "pretrained", "fine-tuning the SSD")
+    folder = out or user_model_dir()
+    card = train_and_export(annotations, folder, cfg, name=MODEL_NAME, log=console.print)
+    console.print(
+        f"SSD fine-tuned on {', '.join(card['videos'])} in {card['train_seconds']:.1f} s "
+        f"(confidence threshold {card['conf_threshold']:g}, picked on those videos); "
+        f"wrote {Path(folder) / SSD_MODEL_FILE}",
+        markup=False,
+        highlight=False,
     )

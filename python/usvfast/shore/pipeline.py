@@ -13,7 +13,7 @@ import time
 from collections import Counter
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Literal
+from typing import Literal, cast
 
 import cv2
 import numpy as np
@@ -28,6 +28,7 @@ from usvfast.shore.cascade import CascadeConfig, CascadeDetector
 from usvfast.shore.change import ChangeConfig, ChangeDetector
 from usvfast.shore.contrast import ContrastConfig, ContrastDetector
 from usvfast.shore.daynight import DayNightClassifier
+from usvfast.shore.defaults import DetectorChoice, coco_export, is_coco_export, resolve_detector
 from usvfast.shore.filters import ReflectionFilter, WakeFilter
 from usvfast.shore.frames import FrameSource
 from usvfast.shore.fused import FUSED_CNN_FLOOR, FUSED_RELATIVE, FUSED_THRESHOLD, FusedDetector
@@ -54,25 +55,31 @@ TRACKERS: tuple[str, ...] = ("sort", "adaptive", "particle")
 
 @dataclass
 class ShoreConfig:
-    """The chain: `detector` ('bayes': Kim, Chung and Lee's threshold + keypoints; 'cascade':
+    """The chain: `detector` ('auto': the best detector with weights at hand, in the order of
+    :mod:`usvfast.shore.defaults` — a fine-tuned SSD, a trained CNN, the zero-shot COCO SSD,
+    else 'bayes'; 'bayes': Kim, Chung and Lee's threshold + keypoints; 'cascade':
     Bloisi et al.'s Haar cascade, from the OpenCV XML file `cascade_model` that
     `usvfast shore-train` writes; 'cnn': a YOLO-layout network, `cnn_model` an ONNX or
-    TorchScript file,
-    default :func:`usvfast.shore.cnn.default_model`; 'auto': 'cnn' when a CNN model is
-    available, else 'bayes'; 'contrast': the training-free "object on the water" detector of
-    :mod:`usvfast.shore.contrast`; 'fused': the CNN's boxes rescored by that contrast,
-    :class:`usvfast.shore.fused.FusedDetector`; 'change': what moves against the registered
-    background of the previous frames, :class:`usvfast.shore.change.ChangeDetector`, online;
-    'ssd': the COCO-pretrained SSD fine-tuned on shore frames, `ssd_model` the ONNX file
-    `python -m usvfast.shore.ssd_train` writes, run by OpenCV DNN at its card's threshold,
-    :class:`usvfast.shore.pretrained.SsdDetector`),
+    TorchScript file, default :func:`usvfast.shore.cnn.default_model`; 'contrast': the
+    training-free "object on the water" detector of :mod:`usvfast.shore.contrast`; 'fused':
+    the CNN's boxes rescored by that contrast, :class:`usvfast.shore.fused.FusedDetector`;
+    'change': what moves against the registered background of the previous frames,
+    :class:`usvfast.shore.change.ChangeDetector`, online; 'ssd': the COCO-pretrained
+    SSD-MobileNetV2, `ssd_model` the ONNX file `usvfast shore-train --detector ssd` writes,
+    default the fine-tuned one in the user model folder, else the zero-shot COCO export, run by
+    OpenCV DNN at its card's threshold, :class:`usvfast.shore.pretrained.SsdDetector`),
     `reflection_filter` (drop boxes with few ORB
     keypoints), `wake_model` (a one-stage cascade XML from `WakeFilter`, drops wakes), `tracker`
     ('sort': Kalman + IoU assignment + colour re-identification; 'adaptive': the same paper's
     single-vessel adaptive Kalman tracker; 'particle': Bloisi et al.'s two-tier particle
     filter), `horizon_filter` (drop detections well above the horizon line) and the parameters
     of each part (`sort`: :class:`usvfast.shore.sort.SortConfig`, whose `high_score` and
-    `low_score` turn on ByteTrack's two-stage association)."""
+    `low_score` turn on ByteTrack's two-stage association).
+
+    After construction `detector` and the model fields hold what runs ('auto' resolved) and
+    `choice` (:class:`usvfast.shore.defaults.DetectorChoice`) says which weights and why.
+    Raises ValueError when the named detector has no usable model (the message says what to
+    train or install)."""
 
     detector: DetectorName = "auto"
     tracker: TrackerName = "sort"
@@ -92,6 +99,7 @@ class ShoreConfig:
     change: ChangeConfig = field(default_factory=ChangeConfig)
     fused_threshold: float = FUSED_THRESHOLD
     fused_relative: float = FUSED_RELATIVE
+    choice: DetectorChoice | None = field(default=None, init=False, compare=False)
 
     def __post_init__(self) -> None:
         instance("sort", self.sort, SortConfig)
@@ -99,28 +107,14 @@ class ShoreConfig:
             raise ValueError(f"detector: expected one of {DETECTORS}, got {self.detector!r}")
         if self.tracker not in TRACKERS:
             raise ValueError(f"tracker: expected one of {TRACKERS}, got {self.tracker!r}")
-        if self.detector in ("auto", "cnn", "fused") and self.cnn_model is None:
-            from usvfast.shore.cnn import default_model
-
-            self.cnn_model = default_model()
-            if self.detector == "auto":
-                self.detector = "cnn" if self.cnn_model is not None else "bayes"
-            elif self.cnn_model is None:
-                raise ValueError(
-                    "cnn_model: no CNN model given and none trained "
-                    "(usvfast shore-train --detector cnn ANNOTATIONS --out MODEL_DIR)"
-                )
-        elif self.detector == "auto":
-            self.detector = "cnn"
-        if self.detector == "cascade" and self.cascade_model is None:
-            raise ValueError(
-                "cascade_model: the cascade detector needs a model (usvfast shore-train)"
-            )
-        if self.detector == "ssd" and self.ssd_model is None:
-            raise ValueError(
-                "ssd_model: the ssd detector needs a fine-tuned model "
-                "(python -m usvfast.shore.ssd_train ANNOTATIONS --out MODEL_DIR)"
-            )
+        self.choice = resolve_detector(
+            self.detector, self.cnn_model, self.ssd_model, self.cascade_model
+        )
+        self.detector = cast(DetectorName, self.choice.detector)  # (a DETECTORS name)
+        if self.detector in ("cnn", "fused"):
+            self.cnn_model = self.choice.model
+        elif self.detector == "ssd":
+            self.ssd_model = self.choice.model
 
 
 @dataclass
@@ -161,7 +155,10 @@ class ShoreChain:
         elif cfg.detector == "ssd":
             from usvfast.shore.pretrained import SsdDetector
 
-            self.cnn = SsdDetector(cfg.ssd_model)
+            model = cfg.ssd_model
+            if is_coco_export(model):  # the zero-shot SSD: exported once, then cached
+                model = coco_export(model)
+            self.cnn = SsdDetector(model)
         self.contrast: ContrastDetector | FusedDetector | None = None
         if cfg.detector == "contrast":
             self.contrast = ContrastDetector(cfg.contrast)
@@ -241,12 +238,16 @@ class ShoreChain:
 
 @dataclass
 class ShoreSummary:
-    """What a run did: frames processed and undecoded, processing frames per second (whole
-    chain, excluding reading and writing), seconds per stage, counts of detections (before and
-    after the horizon filter) and tracks, frame classes and horizon kinds seen."""
+    """What a run did: the detector run (`detector_choice`: which weights, and whether
+    `--detector auto` chose them; `model`: the weights file or None), frames processed and
+    undecoded, processing frames per second (whole chain, excluding reading and writing),
+    seconds per stage, counts of detections (before and after the horizon filter) and tracks,
+    frame classes and horizon kinds seen."""
 
     input: str
     detector: str
+    detector_choice: str
+    model: str | None
     tracker: str
     horizon_filter: bool
     frames: int
@@ -348,6 +349,8 @@ def run_shore(
     summary = ShoreSummary(
         input=str(input_path),
         detector=cfg.detector,
+        detector_choice=cfg.choice.describe() if cfg.choice else cfg.detector,
+        model=str(cfg.choice.model) if cfg.choice and cfg.choice.model else None,
         tracker=cfg.tracker,
         horizon_filter=cfg.horizon_filter,
         frames=frames,

@@ -71,8 +71,12 @@ class SsdTrainConfig:
         w, h = self.input_size
         if w % 16 or h % 16 or w < 64 or h < 64:
             raise ValueError(f"input_size: multiples of 16, at least 64, got {self.input_size}")
-        if self.steps < 1 or self.batch < 1 or self.views < self.batch:
-            raise ValueError("steps: steps, batch >= 1 and views >= batch expected")
+        if self.steps < 1 or self.batch < 1:
+            raise ValueError(
+                f"steps: steps and batch >= 1 expected, got {self.steps}, {self.batch}"
+            )
+        if self.views < self.batch:
+            raise ValueError(f"views: at least batch ({self.batch}) expected, got {self.views}")
         if not 0 <= self.unfrozen_before_tap <= 13:
             raise ValueError(f"unfrozen_before_tap: expected 0..13, got {self.unfrozen_before_tap}")
         if not 0 < self.match_iou < 1:
