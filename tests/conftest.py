@@ -54,6 +54,21 @@ def shared_data(name: str) -> Path:
     return path
 
 
+@pytest.fixture(scope="session", autouse=True)
+def _user_model_folder(tmp_path_factory: pytest.TempPathFactory):
+    """No test reads or writes the user's model folder (`usvfast shore` caches and finds
+    models there): $USVFAST_MODELS points at a temporary folder and the model variables of
+    the developer's shell are cleared. Tests that need their own folder monkeypatch it."""
+    names = ("USVFAST_MODELS", "USVFAST_SHORE_MODEL", "USVFAST_SHORE_SSD_MODEL")
+    saved = {n: os.environ.pop(n, None) for n in names}
+    os.environ["USVFAST_MODELS"] = str(tmp_path_factory.mktemp("user-models"))
+    yield
+    for n, v in saved.items():
+        os.environ.pop(n, None)
+        if v is not None:
+            os.environ[n] = v
+
+
 @pytest.fixture(scope="session")
 def mardct_annotations() -> Path:
     """MarDCT's annotated training frames (GPL, in shared/data only): skipped or failed as
