@@ -175,21 +175,27 @@ class SsdDetector:
                 out = self._anchors(torch.from_numpy(x))[0].numpy()
         return out[:, :4], out[:, 4:], geo
 
-    def detect(self, image: np.ndarray) -> Detections:
-        """Boats of one BGR uint8 frame (h, w, 3): x, y, w, h px, scores, keypoints −1."""
+    def candidates(self, image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Every anchor box scoring at least `conf_threshold` on one BGR uint8 frame, before
+        NMS: corners (n, 4) x1, y1, x2, y2 image px (clipped, non-empty) and best class
+        scores (n,)."""
         corners, scores, (sx, sy, ox, oy) = self.raw(image)
         iw, ih = self.input_size
         best = scores.max(axis=1)
         keep = np.flatnonzero(best >= self.conf_threshold)
-        if not len(keep):
-            return Detections()
         b = corners[keep] * [iw, ih, iw, ih]
         b = (b - [ox, oy, ox, oy]) / [sx, sy, sx, sy]
         h, w = image.shape[:2]
-        b = np.clip(b, 0, [w, h, w, h])
+        b = np.clip(b, 0, [w, h, w, h]).reshape(-1, 4)
         s = best[keep].astype(float)
         ok = (b[:, 2] > b[:, 0]) & (b[:, 3] > b[:, 1])
-        b, s = b[ok], s[ok]
+        return b[ok], s[ok]
+
+    def detect(self, image: np.ndarray) -> Detections:
+        """Boats of one BGR uint8 frame (h, w, 3): x, y, w, h px, scores, keypoints −1."""
+        b, s = self.candidates(image)
+        if not len(s):
+            return Detections()
         idx = nms(b, s, self.iou_threshold)[: self.top_k]
         b, s = b[idx], s[idx]
         xywh = np.concatenate([b[:, :2], b[:, 2:] - b[:, :2]], axis=1)
