@@ -29,6 +29,11 @@ the previous ones; default parameters). `--detector ssd` scores the COCO-pretrai
 fine-tuned without the video (`shore-ssd-without-VIDEO.onnx` of `--models`, from
 `python -m usvfast.shore.evaluate_det --detectors ssd --models DIR`) at its card's threshold,
 alone and after the suppression of :mod:`usvfast.shore.suppress` (its shipped pair).
+`--detector ssd-nested` scores the fine-tuned SSD whose recipe, test-time views, threshold
+and suppression, and then the SORT and particle trackers' settings, are all picked by inner
+leave-one-video-out on the three other videos (:mod:`usvfast.shore.ssd_nested`,
+:mod:`usvfast.shore.ssd_nested_track`; its inner models are trained into `--models` when
+absent). Without `bayes` in `--detector` only.
 
 MarDCT boxes carry no identities: the ground-truth ids are derived by linking the boxes of
 consecutive annotated frames (optimal assignment on centre distance, gated at two box
@@ -296,16 +301,17 @@ def evaluate(
     the SORT-like tracker's parameters in every tracking row (default :class:`SortConfig`)."""
     if sort is not None:
         instance("sort", sort, SortConfig)
-    known = {"bayes", "cnn", "contrast", "fused", "fused-nms", "change", "ssd"}
+    known = {"bayes", "cnn", "contrast", "fused", "fused-nms", "change", "ssd", "ssd-nested"}
     unknown = set(detectors) - known
     if unknown or not detectors:
         raise ValueError(f"detectors: expected some of {sorted(known)}, got {list(detectors)}")
-    if {"cnn", "fused", "fused-nms", "ssd"} & set(detectors) and models is None:
+    if {"cnn", "fused", "fused-nms", "ssd", "ssd-nested"} & set(detectors) and models is None:
         raise ValueError("models: the cnn detector needs the folder of its fold models")
     all_videos = load_mardct(data)
     names = list(videos) if videos else list(all_videos)
     hcfg = HorizonConfig()
     results = {}
+    shared: dict = {}
     if "bayes" not in detectors:
         for v in names:
             frames = all_videos[v]
@@ -318,6 +324,12 @@ def evaluate(
                 row.update(extra)
             if "ssd" in detectors:
                 extra = ssd_row(frames, cache, models or Path(), v, sort)
+                row["tracking"].update(extra.pop("tracking"))
+                row.update(extra)
+            if "ssd-nested" in detectors:
+                from usvfast.shore.ssd_nested_track import evaluate_row
+
+                extra = evaluate_row(data, models or Path(), v, shared)
                 row["tracking"].update(extra.pop("tracking"))
                 row.update(extra)
             for name in ("contrast", "fused", "fused-nms", "change"):
@@ -417,6 +429,9 @@ def print_tables(results: dict, console: Console | None = None) -> None:
         if "ssd_horizon" in r:
             name = f"{r['ssd_model']} (confidence {r['ssd_conf']:g})"
             rows += [("ssd", name), ("ssd-nms", f"{name} + suppression")]
+        if "ssd-nested_horizon" in r:
+            u = r["ssd_nested_setup"]
+            rows.append(("ssd-nested", f"ssd nested ({u['recipe']}, {u['view']}, ≥ {u['conf']:g})"))
         if "cascade_horizon" in r:
             rows.append(("cascade", f"cascade ({r['cascade_stages']} stages)"))
         if "contrast_horizon" in r:
@@ -495,7 +510,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         "--detector",
         nargs="+",
         default=["bayes"],
-        choices=["bayes", "cnn", "contrast", "fused", "fused-nms", "change", "ssd"],
+        choices=["bayes", "cnn", "contrast", "fused", "fused-nms", "change", "ssd", "ssd-nested"],
         help="Detectors",
     )
     p.add_argument("--models", type=Path, default=None, help="CNN fold models (evaluate_det)")
@@ -514,7 +529,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         "(at most --sort-high-score)",
     )
     a = p.parse_args(argv)
-    if {"cnn", "fused", "fused-nms", "ssd"} & set(a.detector) and a.models is None:
+    if {"cnn", "fused", "fused-nms", "ssd", "ssd-nested"} & set(a.detector) and a.models is None:
         p.error("--models: the cnn, fused and ssd detectors need the folder of their fold models")
     try:
         sort = sort_config_from_options(a.sort_high_score, a.sort_low_score)

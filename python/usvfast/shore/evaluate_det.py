@@ -4,7 +4,7 @@ FAR, real and detection size).
 
     python -m usvfast.shore.evaluate_det [--data DIR]
         [--detectors bayes cnn contrast fused change verified verified-contrast cascade
-                     ssd-coco ssd]
+                     ssd-coco ssd ssd-nested]
         [--models DIR] [--steps N] [--hard-negatives] [--json OUT.json]
 
 For each video, every trained part is fitted on the three other videos only:
@@ -44,6 +44,9 @@ For each video, every trained part is fitted on the three other videos only:
   zero-shot (class "boat", threshold picked on the three other videos) and fine-tuned on the
   three other videos (:mod:`usvfast.shore.ssd_train`, `shore-ssd-without-VIDEO.onnx` in
   `--models`, trained when absent; its card's threshold), rows of :mod:`usvfast.shore.ssd_eval`.
+* ssd-nested: the fine-tuned SSD with its recipe (frozen depth), test-time views, threshold
+  and suppression picked by inner leave-one-video-out on the three other videos (models
+  trained on two of them, scored on the third; :mod:`usvfast.shore.ssd_nested`).
 
 Scores (eqs. 4–5 of Bloisi et al.): TPR = TP/(TP+FN), FAR = FP/(TP+FP), one-to-one matching
 at IoU ≥ 0.5 per frame.
@@ -510,6 +513,12 @@ def evaluate(
             rows, info = ssd_rows(data, videos, held, hcfg, models, log)
             entry["rows"] += rows
             entry.update(info)
+        if "ssd-nested" in detectors:
+            from usvfast.shore.ssd_eval import nested_rows
+
+            rows, info = nested_rows(data, videos, held, hcfg, models, cache, log)
+            entry["rows"] += rows
+            entry.update(info)
         out[held] = entry
         log(f"{held}: done")
     return out
@@ -548,6 +557,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         "verified-contrast",
         "ssd-coco",
         "ssd",
+        "ssd-nested",
     }
     if unknown:
         p.error(f"--detectors: unknown {sorted(unknown)}")

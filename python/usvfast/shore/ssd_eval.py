@@ -92,3 +92,49 @@ def ssd_rows(
     sup, sup_rows = suppression_rows(videos, held, at_conf, hcfg, f"ssd fine-tuned ≥ {conf:g}")
     info = {"ssd_model": path.name, "ssd_conf": conf, "ssd_train_s": card["train_seconds"]}
     return rows + sup_rows, {**info, "ssd_suppression": list(sup)}
+
+
+def nested_rows(
+    data: Path,
+    videos: dict[str, VideoFrames],
+    held: str,
+    hcfg: HorizonConfig,
+    models: Path,
+    cache: dict,
+    log,
+) -> tuple[list[dict], dict]:
+    """Rows of the fine-tuned SSD whose whole set-up (recipe, test-time views, threshold,
+    suppression) is picked by inner leave-one-video-out on the other videos
+    (:mod:`usvfast.shore.ssd_nested`; nothing chosen on `held` or on frames a model saw):
+    the picked set-up with both horizons, then the default recipe with the card's threshold
+    alone for comparison. Needs 2 × 3 inner models and the held-out models (trained when
+    absent in `models`)."""
+    from usvfast.shore.ssd_nested import (
+        CandidateCache,
+        fold_model,
+        nested_choice,
+        setup_detections,
+    )
+
+    cc = cache.setdefault("ssd-nested", CandidateCache())
+    setup, inner = nested_choice(data, models, videos, held, hcfg, cc, log=log)
+    path = fold_model(data, models, setup.recipe, [held], log)
+    dets = setup_detections(cc, path, held, videos[held], setup)
+    label = (
+        f"ssd nested: {setup.recipe}, {setup.view}, ≥ {setup.conf:g}"
+        f"{', suppression' if setup.suppression else ''} (picked by inner LOVO)"
+    )
+    rows = [{"detector": label, **r} for r in both_horizons(videos[held], dets, hcfg)]
+    tp, fp, fn = inner["tp"], inner["fp"], inner["fn"]
+    info = {
+        "ssd_nested": {
+            "recipe": setup.recipe,
+            "view": setup.view,
+            "conf": setup.conf,
+            "suppression": setup.suppression,
+            "model": path.name,
+            "inner_tpr": tp / max(tp + fn, 1),
+            "inner_far": fp / max(tp + fp, 1),
+        }
+    }
+    return rows, info

@@ -1,0 +1,182 @@
+"""Nested choice of the tracker set-up on the fine-tuned SSD's boxes (:mod:`usvfast.shore.
+ssd_nested`), so that no choice looks at the held-out video.
+
+For held-out video H: the detection set-up is the one :func:`usvfast.shore.ssd_nested.
+nested_choice` picked; every tracker setting of :data:`SORT_GRID` (the SORT-like tracker of
+:mod:`usvfast.shore.sort`, with and without ByteTrack's two-stage association) and of
+:data:`PARTICLE_GRID` (:mod:`usvfast.shore.particle`) runs on each other video W with the
+boxes of the model trained without H and W (horizon filter on), and the setting with the
+highest pooled MOTA on those W (errors summed over the videos over their boxes; ties: the
+first, the trackers' defaults come first) is run on H with the boxes of the model trained
+without H. Scores: :func:`usvfast.shore.mot_eval.mot_scores` (CLEAR MOT at IoU ≥ 0.5).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, replace
+from pathlib import Path
+
+import numpy as np
+
+from usvfast.shore.boxes import Detections
+from usvfast.shore.det_scoring import VideoFrames
+from usvfast.shore.horizon import HorizonConfig, horizon_keep
+from usvfast.shore.mot_eval import mot_scores
+from usvfast.shore.particle import ParticleConfig, ParticleTracker
+from usvfast.shore.sort import SortConfig, SortTracker
+from usvfast.shore.ssd_nested import (
+    CandidateCache,
+    SsdSetup,
+    fold_model,
+    nested_choice,
+    setup_detections,
+)
+
+#: Score floor of the second-stage (low-score) detections when two-stage association is on.
+LOW_SCORE = 0.1
+#: SORT settings tried: (two-stage, min_hits, max_age, iou_threshold); the default first.
+SORT_GRID: tuple[tuple[bool, int, int, float], ...] = tuple(
+    (two, hits, age, iou)
+    for two in (False, True)
+    for hits in (2, 1)
+    for age in (3, 6)
+    for iou in (0.3, 0.1)
+)
+#: Particle settings tried: (confirm_hits, max_age); the default first.
+PARTICLE_GRID: tuple[tuple[int, int], ...] = ((2, 3), (2, 6), (1, 3), (1, 6))
+
+
+def sort_config(setting: tuple[bool, int, int, float], conf: float) -> SortConfig:
+    """The SortConfig of a :data:`SORT_GRID` setting for detections thresholded at `conf`
+    (two-stage: `conf` is the first stage's score, :data:`LOW_SCORE` the second's floor)."""
+    two, hits, age, iou = setting
+    kw: dict = {"min_hits": hits, "max_age": age, "iou_threshold": iou}
+    if two:
+        kw.update(high_score=conf, low_score=min(LOW_SCORE, conf))
+    return SortConfig(**kw)
+
+
+def _horizon(video: VideoFrames, dets: Sequence[Detections], hcfg: HorizonConfig) -> list:
+    return [
+        d.subset(horizon_keep(d, hz, im.shape[0], hcfg))
+        for d, hz, im in zip(dets, video.horizons, video.images, strict=True)
+    ]
+
+
+def run(video: VideoFrames, dets: Sequence[Detections], tracker: object) -> dict:
+    """mot_scores of a SortConfig or ParticleConfig `tracker` over a video's detections."""
+    return mot_scores(video.frames, track(video, dets, tracker))
+
+
+def track(video: VideoFrames, dets: Sequence[Detections], tracker: object) -> tuple:
+    """(frame numbers from 1, ids, boxes (n, 4) px) of a SortConfig or ParticleConfig
+    `tracker` over a video's detections (the particle tracker told the frame gaps, as
+    :func:`usvfast.shore.mot_eval.run_tracker`)."""
+    t = SortTracker(tracker) if isinstance(tracker, SortConfig) else ParticleTracker(tracker)  # pyright: ignore[reportArgumentType]
+    fr, ids, boxes = [], [], []
+    prev = None
+    for n, (f, d, im) in enumerate(zip(video.frames, dets, video.images, strict=True), 1):
+        if isinstance(t, ParticleTracker):
+            dt = 1.0 if prev is None else float(max(f.index - prev, 1))
+            i, b, _ = t.step(im, d, dt)
+        else:
+            i, b, _ = t.step(im, d)
+        prev = f.index
+        fr += [n] * len(i)
+        ids.append(np.asarray(i, np.int64))
+        boxes.append(np.asarray(b, float).reshape(-1, 4))
+    return np.array(fr, np.int64), np.concatenate(ids), np.concatenate(boxes)
+
+
+def _make(tracker: str, setting: tuple, setup: SsdSetup) -> object:
+    """The tracker config of a grid `setting`."""
+    if tracker == "sort":
+        return sort_config(setting, setup.conf)
+    return replace(ParticleConfig(), confirm_hits=setting[0], max_age=setting[1])
+
+
+def _floor(tracker: str, setting: tuple, setup: SsdSetup) -> float:
+    """Least detection score a tracker setting is given (lower for two-stage SORT)."""
+    return min(LOW_SCORE, setup.conf) if tracker == "sort" and setting[0] else setup.conf
+
+
+def pooled_mota(rows: Sequence[dict]) -> float:
+    """1 − (misses + false positives + switches) / boxes, summed over videos."""
+    errors = sum(r["misses"] + r["false_positives"] + r["switches"] for r in rows)
+    return 1.0 - errors / max(sum(r["n_truth"] for r in rows), 1)
+
+
+def nested_tracking(
+    data: Path,
+    models: Path,
+    videos: dict[str, VideoFrames],
+    held: str,
+    hcfg: HorizonConfig,
+    cache: CandidateCache,
+    setup: SsdSetup | None = None,
+    log: Callable = print,
+) -> dict:
+    """Per tracker ('sort', 'particle'): the setting picked on the other videos (module
+    doc), its pooled inner MOTA, and its mot_scores on `held`; also 'setup', the detection
+    set-up (`setup`, else :func:`usvfast.shore.ssd_nested.nested_choice`)."""
+    if setup is None:
+        setup, _ = nested_choice(data, models, videos, held, hcfg, cache, log=log)
+    inner = [v for v in videos if v != held]
+
+    def boxes(video: str, excluded: list[str], floor: float) -> list[Detections]:
+        path = fold_model(data, models, setup.recipe, excluded, log)
+        d = setup_detections(cache, path, video, videos[video], replace(setup, conf=floor))
+        return _horizon(videos[video], d, hcfg)
+
+    out: dict = {"setup": asdict(setup)}
+    for name, grid in (("sort", SORT_GRID), ("particle", PARTICLE_GRID)):
+        scored = []
+        for g in grid:
+            rows = [
+                run(videos[w], boxes(w, [held, w], _floor(name, g, setup)), _make(name, g, setup))
+                for w in inner
+            ]
+            scored.append((pooled_mota(rows), g))
+        best_m = max(m for m, _ in scored)
+        best = next(g for m, g in scored if m == best_m)
+        outer = run(
+            videos[held], boxes(held, [held], _floor(name, best, setup)), _make(name, best, setup)
+        )
+        out[name] = {"setting": list(best), "inner_mota": best_m, "scores": outer}
+    return out
+
+
+def evaluate_row(data: Path, models: Path, held: str, shared: dict, log: Callable = print) -> dict:
+    """The `python -m usvfast.shore.evaluate --detector ssd-nested` row of `held`: detection
+    counts of the nested set-up (horizon off and on) and the nested trackers' scores.
+    `shared` keeps the videos and candidates between held-out videos."""
+    from usvfast.shore.det_scoring import load_video, score
+    from usvfast.shore.mardct import load_mardct
+
+    hcfg = HorizonConfig()
+    if "videos" not in shared:
+        shared["videos"] = {v: load_video(f, hcfg) for v, f in load_mardct(data).items()}
+        shared["cache"] = CandidateCache()
+    videos, cache = shared["videos"], shared["cache"]
+    setup, _ = nested_choice(data, models, videos, held, hcfg, cache, log=log)
+    tr = nested_tracking(data, models, videos, held, hcfg, cache, setup, log)
+    path = fold_model(data, models, setup.recipe, [held], log)
+    dets = setup_detections(cache, path, held, videos[held], setup)
+    row: dict = {"ssd_nested_setup": asdict(setup)}
+    for use_h in (False, True):
+        s = score(videos[held], dets, hcfg, use_h)
+        row[f"ssd-nested_{'horizon' if use_h else 'no_horizon'}"] = {
+            k: s[k] for k in ("tpr", "far", "tp", "fp", "fn")
+        }
+    label = f"ssd nested ({setup.recipe}, {setup.view}, ≥ {setup.conf:g}" + (
+        ", suppression)" if setup.suppression else ")"
+    )
+    row["tracking"] = {
+        f"{label}, sort {tuple(tr['sort']['setting'])}": {"sort": tr["sort"]["scores"]},
+        f"{label}, particle {tuple(tr['particle']['setting'])}": {
+            "particle": tr["particle"]["scores"]
+        },
+    }
+    row["ssd_nested_inner_mota"] = {k: tr[k]["inner_mota"] for k in ("sort", "particle")}
+    return row
