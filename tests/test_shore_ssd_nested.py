@@ -165,3 +165,24 @@ def test_bad_input_raises(world):
     two = {v: videos[v] for v in ("a", "b")}
     with pytest.raises(ValueError, match="videos"):
         nested_choice(Path("x"), models, two, "a", HorizonConfig(), CandidateCache())
+
+
+def test_the_candidate_cache_reads_back_what_it_wrote(world, tmp_path, monkeypatch):
+    videos, models = world
+    model = models / f"{model_name('default', ['a'])}.onnx"
+    made = StandInCache(twist="none").get(model, "a", videos["a"])
+    calls = []
+
+    def compute(m, v):
+        calls.append(m)
+        return made
+
+    monkeypatch.setattr(CandidateCache, "_compute", staticmethod(compute))
+    first = CandidateCache(tmp_path / "cache").get(model, "a", videos["a"])
+    again = CandidateCache(tmp_path / "cache").get(model, "a", videos["a"])  # from disk
+    assert len(calls) == 1
+    for x, y in zip(first, again, strict=True):
+        assert x.keys() == y.keys()
+        for k in x:
+            np.testing.assert_array_equal(x[k][0].reshape(-1, 4), y[k][0])
+            np.testing.assert_array_equal(x[k][1], y[k][1])

@@ -116,7 +116,7 @@ def nested_rows(
         setup_detections,
     )
 
-    cc = cache.setdefault("ssd-nested", CandidateCache())
+    cc = cache.setdefault("ssd-nested", CandidateCache(Path(models) / "candidates"))
     setup, inner = nested_choice(data, models, videos, held, hcfg, cc, log=log)
     path = fold_model(data, models, setup.recipe, [held], log)
     dets = setup_detections(cc, path, held, videos[held], setup)

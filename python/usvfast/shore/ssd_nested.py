@@ -89,32 +89,75 @@ def fold_model(
     return path
 
 
+#: The views a candidate cache holds per frame.
+CACHED_VIEWS: tuple[str, ...] = ("frame", "mirror", "zoom1.5", "zoom2")
+
+
 class CandidateCache:
     """Per-frame candidates of every test-time view of a model on a video (computed once):
     `get(model, video_name, video)` -> list over frames of {"frame", "mirror", "zoom1.5",
     "zoom2"} -> (corners (n, 4) x1, y1, x2, y2 px, scores (n,)) above
-    :data:`CANDIDATE_FLOOR`."""
+    :data:`CANDIDATE_FLOOR`. With `folder`, they are also kept there as
+    `MODEL.VIDEO.candidates.npz` (read back when newer than the model)."""
 
-    def __init__(self) -> None:
+    def __init__(self, folder: Path | None = None) -> None:
+        self.folder = None if folder is None else Path(folder)
         self._raw: dict[tuple[str, str], list[dict]] = {}
         self._merged: dict[tuple[str, str, str], list[Detections]] = {}
 
+    def _file(self, model: Path, name: str) -> Path | None:
+        if self.folder is None:
+            return None
+        return self.folder / f"{Path(model).stem}.{name}.candidates.npz"
+
     def get(self, model: Path, name: str, video: VideoFrames) -> list[dict]:
         """The candidates of `model` on `video` (named `name`)."""
+        key = (str(model), name)
+        if key in self._raw:
+            return self._raw[key]
+        f = self._file(model, name)
+        if f is not None and f.is_file() and f.stat().st_mtime >= Path(model).stat().st_mtime:
+            with np.load(f, allow_pickle=False) as z:
+                out: list[dict] = [{} for _ in video.images]
+                for v in CACHED_VIEWS:
+                    cut = np.cumsum(z[f"{v}_counts"])[:-1]
+                    boxes = np.split(z[f"{v}_boxes"], cut)
+                    scores = np.split(z[f"{v}_scores"], cut)
+                    for i, (b, sc) in enumerate(zip(boxes, scores, strict=True)):
+                        out[i][v] = (b.reshape(-1, 4), sc)
+            self._raw[key] = out
+            return out
+        out = self._compute(model, video)
+        self._raw[key] = out
+        if f is not None:
+            f.parent.mkdir(parents=True, exist_ok=True)
+            arrays = {}
+            for v in CACHED_VIEWS:
+                arrays[f"{v}_boxes"] = np.concatenate([fr[v][0].reshape(-1, 4) for fr in out])
+                arrays[f"{v}_scores"] = np.concatenate([fr[v][1] for fr in out])
+                arrays[f"{v}_counts"] = np.array([len(fr[v][1]) for fr in out], np.int64)
+            np.savez(f, **arrays)
+        return out
+
+    @staticmethod
+    def _compute(model: Path, video: VideoFrames) -> list[dict]:
         from usvfast.shore.pretrained import SsdDetector
         from usvfast.shore.ssd_tta import SsdTta
 
-        key = (str(model), name)
-        if key not in self._raw:
-            det = SsdDetector(model, conf_threshold=CANDIDATE_FLOOR)
-            out = []
-            for im in video.images:
-                a = SsdTta(det, flip=True, zoom=1.5).views(im)
-                b = SsdTta(det, flip=False, zoom=2.0).views(im)
-                out.append({**{k: a[k] for k in ("frame", "mirror")}, "zoom1.5": a["tiles"]})
-                out[-1]["zoom2"] = b["tiles"]
-            self._raw[key] = out
-        return self._raw[key]
+        det = SsdDetector(model, conf_threshold=CANDIDATE_FLOOR)
+        out = []
+        for im in video.images:
+            a = SsdTta(det, flip=True, zoom=1.5).views(im)
+            b = SsdTta(det, flip=False, zoom=2.0).views(im)
+            out.append(
+                {
+                    "frame": a["frame"],
+                    "mirror": a["mirror"],
+                    "zoom1.5": a["tiles"],
+                    "zoom2": b["tiles"],
+                }
+            )
+        return out
 
     def detections(self, model: Path, name: str, video: VideoFrames, view: str, iou: float):
         """Per-frame detections of `view`: the views' candidates pooled, one NMS at `iou`."""

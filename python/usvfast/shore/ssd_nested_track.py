@@ -157,7 +157,7 @@ def evaluate_row(data: Path, models: Path, held: str, shared: dict, log: Callabl
     hcfg = HorizonConfig()
     if "videos" not in shared:
         shared["videos"] = {v: load_video(f, hcfg) for v, f in load_mardct(data).items()}
-        shared["cache"] = CandidateCache()
+        shared["cache"] = CandidateCache(Path(models) / "candidates")
     videos, cache = shared["videos"], shared["cache"]
     setup, _ = nested_choice(data, models, videos, held, hcfg, cache, log=log)
     tr = nested_tracking(data, models, videos, held, hcfg, cache, setup, log)
