@@ -69,7 +69,7 @@ class StandInCache(CandidateCache):
                 b = np.concatenate([b, [[150.0, 90.0, 170.0, 100.0]]])
                 s = np.append(s, 0.35)
             empty = (np.zeros((0, 4)), np.zeros(0))
-            out.append({"frame": (b, s), "mirror": empty, "zoom1.5": empty, "zoom2": empty})
+            out.append({"frame": (b, s), "mirror": empty, "zoom1.5": empty})
         return out
 
 

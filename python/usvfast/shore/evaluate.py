@@ -294,11 +294,13 @@ def evaluate(
     detectors: Sequence[str] = ("bayes",),
     models: Path | None = None,
     sort: SortConfig | None = None,
+    ssd_recipes: Sequence[str] | None = None,
 ) -> dict:
     """Leave-one-video-out results per video (module doc); a JSON-ready dict. With `cascade`,
     a Haar cascade is also trained on the three other videos and scored. `detectors`:
     'bayes' and/or 'cnn' (the latter needs `models`, see :func:`cnn_fold_model`). `sort`:
-    the SORT-like tracker's parameters in every tracking row (default :class:`SortConfig`)."""
+    the SORT-like tracker's parameters in every tracking row (default :class:`SortConfig`);
+    `ssd_recipes`: the training recipes 'ssd-nested' compares (default all)."""
     if sort is not None:
         instance("sort", sort, SortConfig)
     known = {"bayes", "cnn", "contrast", "fused", "fused-nms", "change", "ssd", "ssd-nested"}
@@ -307,6 +309,8 @@ def evaluate(
         raise ValueError(f"detectors: expected some of {sorted(known)}, got {list(detectors)}")
     if {"cnn", "fused", "fused-nms", "ssd", "ssd-nested"} & set(detectors) and models is None:
         raise ValueError("models: the cnn detector needs the folder of its fold models")
+    if "ssd-nested" in detectors and "bayes" in detectors:
+        raise ValueError("detectors: 'ssd-nested' runs without 'bayes'")
     all_videos = load_mardct(data)
     names = list(videos) if videos else list(all_videos)
     hcfg = HorizonConfig()
@@ -329,7 +333,7 @@ def evaluate(
             if "ssd-nested" in detectors:
                 from usvfast.shore.ssd_nested_track import evaluate_row
 
-                extra = evaluate_row(data, models or Path(), v, shared)
+                extra = evaluate_row(data, models or Path(), v, shared, recipes=ssd_recipes)
                 row["tracking"].update(extra.pop("tracking"))
                 row.update(extra)
             for name in ("contrast", "fused", "fused-nms", "change"):
@@ -528,6 +532,12 @@ def main(argv: Sequence[str] | None = None) -> None:
         help="SORT two-stage association: least score of a second-stage detection "
         "(at most --sort-high-score)",
     )
+    p.add_argument(
+        "--ssd-recipes",
+        nargs="*",
+        default=None,
+        help="ssd-nested: training recipes compared (default: all, see usvfast.shore.ssd_nested)",
+    )
     a = p.parse_args(argv)
     if {"cnn", "fused", "fused-nms", "ssd", "ssd-nested"} & set(a.detector) and a.models is None:
         p.error("--models: the cnn, fused and ssd detectors need the folder of their fold models")
@@ -543,6 +553,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         detectors=a.detector,
         models=a.models,
         sort=sort,
+        ssd_recipes=a.ssd_recipes,
     )
     print_tables(results)
     if a.json:

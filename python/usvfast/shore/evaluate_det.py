@@ -455,8 +455,11 @@ def evaluate(
     held_out: Sequence[str] | None = None,
     log=print,
     hard_negatives: bool = False,
+    ssd_recipes: Sequence[str] | None = None,
 ) -> dict:
-    """Leave-one-video-out rows per video (module doc); a JSON-ready dict."""
+    """Leave-one-video-out rows per video (module doc); a JSON-ready dict. `ssd_recipes`:
+    the training recipes ssd-nested compares (default every one of
+    :data:`usvfast.shore.ssd_nested.RECIPES`)."""
     mardct = load_mardct(data)
     hcfg = HorizonConfig()
     videos = {v: load_video(f, hcfg) for v, f in mardct.items()}
@@ -516,7 +519,7 @@ def evaluate(
         if "ssd-nested" in detectors:
             from usvfast.shore.ssd_eval import nested_rows
 
-            rows, info = nested_rows(data, videos, held, hcfg, models, cache, log)
+            rows, info = nested_rows(data, videos, held, hcfg, models, cache, log, ssd_recipes)
             entry["rows"] += rows
             entry.update(info)
         out[held] = entry
@@ -543,6 +546,12 @@ def main(argv: Sequence[str] | None = None) -> None:
     )
     p.add_argument("--json", type=Path, default=None, help="Write the results as JSON here")
     p.add_argument(
+        "--ssd-recipes",
+        nargs="*",
+        default=None,
+        help="ssd-nested: training recipes compared (default: all, see usvfast.shore.ssd_nested)",
+    )
+    p.add_argument(
         "--breakdown", action="store_true", help="Also print where each row's errors are"
     )
     a = p.parse_args(argv)
@@ -568,6 +577,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         a.steps,
         a.videos,
         hard_negatives=a.hard_negatives,
+        ssd_recipes=a.ssd_recipes,
     )
     print_tables(results)
     if a.breakdown:

@@ -102,13 +102,14 @@ def nested_rows(
     models: Path,
     cache: dict,
     log,
+    recipes=None,
 ) -> tuple[list[dict], dict]:
     """Rows of the fine-tuned SSD whose whole set-up (recipe, test-time views, threshold,
     suppression) is picked by inner leave-one-video-out on the other videos
     (:mod:`usvfast.shore.ssd_nested`; nothing chosen on `held` or on frames a model saw):
     the picked set-up with both horizons, then the default recipe with the card's threshold
-    alone for comparison. Needs 2 × 3 inner models and the held-out models (trained when
-    absent in `models`)."""
+    alone for comparison. Needs 3 inner models per recipe of `recipes` (default every one)
+    and the held-out model of the recipe picked (trained when absent in `models`)."""
     from usvfast.shore.ssd_nested import (
         CandidateCache,
         fold_model,
@@ -117,7 +118,7 @@ def nested_rows(
     )
 
     cc = cache.setdefault("ssd-nested", CandidateCache(Path(models) / "candidates"))
-    setup, inner = nested_choice(data, models, videos, held, hcfg, cc, log=log)
+    setup, inner = nested_choice(data, models, videos, held, hcfg, cc, recipes, log)
     path = fold_model(data, models, setup.recipe, [held], log)
     dets = setup_detections(cc, path, held, videos[held], setup)
     label = (

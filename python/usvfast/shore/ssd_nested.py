@@ -38,8 +38,6 @@ VIEWS: dict[str, tuple[bool, float]] = {
     "flip": (True, 1.0),
     "zoom1.5": (False, 1.5),
     "flip+zoom1.5": (True, 1.5),
-    "zoom2": (False, 2.0),
-    "flip+zoom2": (True, 2.0),
 }
 #: Confidence thresholds tried.
 CONF_GRID: tuple[float, ...] = (0.1, 0.15, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8)
@@ -90,15 +88,15 @@ def fold_model(
 
 
 #: The views a candidate cache holds per frame.
-CACHED_VIEWS: tuple[str, ...] = ("frame", "mirror", "zoom1.5", "zoom2")
+CACHED_VIEWS: tuple[str, ...] = ("frame", "mirror", "zoom1.5")
 
 
 class CandidateCache:
     """Per-frame candidates of every test-time view of a model on a video (computed once):
-    `get(model, video_name, video)` -> list over frames of {"frame", "mirror", "zoom1.5",
-    "zoom2"} -> (corners (n, 4) x1, y1, x2, y2 px, scores (n,)) above
-    :data:`CANDIDATE_FLOOR`. With `folder`, they are also kept there as
-    `MODEL.VIDEO.candidates.npz` (read back when newer than the model)."""
+    `get(model, video_name, video)` -> list over frames of {"frame", "mirror", "zoom1.5"}
+    -> (corners (n, 4) x1, y1, x2, y2 px, scores (n,)) above :data:`CANDIDATE_FLOOR`. With
+    `folder`, they are also kept there as `MODEL.VIDEO.candidates.npz` (read back when newer
+    than the model)."""
 
     def __init__(self, folder: Path | None = None) -> None:
         self.folder = None if folder is None else Path(folder)
@@ -148,15 +146,7 @@ class CandidateCache:
         out = []
         for im in video.images:
             a = SsdTta(det, flip=True, zoom=1.5).views(im)
-            b = SsdTta(det, flip=False, zoom=2.0).views(im)
-            out.append(
-                {
-                    "frame": a["frame"],
-                    "mirror": a["mirror"],
-                    "zoom1.5": a["tiles"],
-                    "zoom2": b["tiles"],
-                }
-            )
+            out.append({"frame": a["frame"], "mirror": a["mirror"], "zoom1.5": a["tiles"]})
         return out
 
     def detections(self, model: Path, name: str, video: VideoFrames, view: str, iou: float):

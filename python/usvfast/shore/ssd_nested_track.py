@@ -147,10 +147,18 @@ def nested_tracking(
     return out
 
 
-def evaluate_row(data: Path, models: Path, held: str, shared: dict, log: Callable = print) -> dict:
+def evaluate_row(
+    data: Path,
+    models: Path,
+    held: str,
+    shared: dict,
+    log: Callable = print,
+    recipes: Sequence[str] | None = None,
+) -> dict:
     """The `python -m usvfast.shore.evaluate --detector ssd-nested` row of `held`: detection
     counts of the nested set-up (horizon off and on) and the nested trackers' scores.
-    `shared` keeps the videos and candidates between held-out videos."""
+    `shared` keeps the videos and candidates between held-out videos; `recipes`: those
+    compared (default every one)."""
     from usvfast.shore.det_scoring import load_video, score
     from usvfast.shore.mardct import load_mardct
 
@@ -159,7 +167,7 @@ def evaluate_row(data: Path, models: Path, held: str, shared: dict, log: Callabl
         shared["videos"] = {v: load_video(f, hcfg) for v, f in load_mardct(data).items()}
         shared["cache"] = CandidateCache(Path(models) / "candidates")
     videos, cache = shared["videos"], shared["cache"]
-    setup, _ = nested_choice(data, models, videos, held, hcfg, cache, log=log)
+    setup, _ = nested_choice(data, models, videos, held, hcfg, cache, recipes, log)
     tr = nested_tracking(data, models, videos, held, hcfg, cache, setup, log)
     path = fold_model(data, models, setup.recipe, [held], log)
     dets = setup_detections(cache, path, held, videos[held], setup)
