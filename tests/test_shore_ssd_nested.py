@@ -89,7 +89,9 @@ def test_the_choice_never_sees_the_held_out_video_and_is_the_designed_best(world
     videos, models = world
     held = "c"
     cache = StandInCache(twist=held)
-    setup, inner = nested_choice(Path("unused"), models, videos, held, HorizonConfig(), cache)
+    setup, inner = nested_choice(
+        Path("unused"), models, videos, held, HorizonConfig(), cache, ("default", "deep")
+    )
     for stem, video in cache.calls:
         assert video != held
         assert video in _excluded(stem) and held in _excluded(stem)  # never a training video
@@ -103,7 +105,9 @@ def test_the_tracker_choice_never_sees_the_held_out_video(world):
     videos, models = world
     held = "b"
     cache = StandInCache(twist=held)
-    out = nested_tracking(Path("unused"), models, videos, held, HorizonConfig(), cache)
+    out = nested_tracking(
+        Path("unused"), models, videos, held, HorizonConfig(), cache, recipes=("default", "deep")
+    )
     held_calls = [stem for stem, v in cache.calls if v == held]
     assert set(held_calls) == {model_name(out["setup"]["recipe"], [held])}  # the outer model
     for stem, video in cache.calls:

@@ -300,7 +300,7 @@ def evaluate(
     a Haar cascade is also trained on the three other videos and scored. `detectors`:
     'bayes' and/or 'cnn' (the latter needs `models`, see :func:`cnn_fold_model`). `sort`:
     the SORT-like tracker's parameters in every tracking row (default :class:`SortConfig`);
-    `ssd_recipes`: the training recipes 'ssd-nested' compares (default all)."""
+    `ssd_recipes`: the training recipes 'ssd-nested' compares (default: 'default')."""
     if sort is not None:
         instance("sort", sort, SortConfig)
     known = {"bayes", "cnn", "contrast", "fused", "fused-nms", "change", "ssd", "ssd-nested"}
@@ -536,7 +536,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         "--ssd-recipes",
         nargs="*",
         default=None,
-        help="ssd-nested: training recipes compared (default: all, see usvfast.shore.ssd_nested)",
+        help="ssd-nested: training recipes compared: default (the default) and/or deep",
     )
     a = p.parse_args(argv)
     if {"cnn", "fused", "fused-nms", "ssd", "ssd-nested"} & set(a.detector) and a.models is None:

@@ -458,8 +458,8 @@ def evaluate(
     ssd_recipes: Sequence[str] | None = None,
 ) -> dict:
     """Leave-one-video-out rows per video (module doc); a JSON-ready dict. `ssd_recipes`:
-    the training recipes ssd-nested compares (default every one of
-    :data:`usvfast.shore.ssd_nested.RECIPES`)."""
+    the training recipes ssd-nested compares (default
+    :data:`usvfast.shore.ssd_nested.DEFAULT_RECIPES`)."""
     mardct = load_mardct(data)
     hcfg = HorizonConfig()
     videos = {v: load_video(f, hcfg) for v, f in mardct.items()}
@@ -549,7 +549,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         "--ssd-recipes",
         nargs="*",
         default=None,
-        help="ssd-nested: training recipes compared (default: all, see usvfast.shore.ssd_nested)",
+        help="ssd-nested: training recipes compared: default (the default) and/or deep",
     )
     p.add_argument(
         "--breakdown", action="store_true", help="Also print where each row's errors are"

@@ -1,8 +1,8 @@
 """Nested (inner leave-one-video-out) choice of the fine-tuned SSD's set-up for a held-out
 video, so that no choice looks at that video's scores.
 
-For held-out video H among the annotated videos V: every training recipe of :data:`RECIPES`
-is fine-tuned on V − {H, W} for each other video W (`PREFIX-without-A+B.onnx` in the models
+For held-out video H among the annotated videos V: every training recipe compared
+(:data:`DEFAULT_RECIPES`, or any of :data:`RECIPES`) is fine-tuned on V − {H, W} for each other video W (`PREFIX-without-A+B.onnx` in the models
 folder, trained when absent) and run on W, a video it has not seen. The set-up (recipe,
 test-time views of :mod:`usvfast.shore.ssd_tta`, confidence threshold, overlap and
 containment suppression of :mod:`usvfast.shore.suppress`) with the highest pooled TPR at
@@ -32,6 +32,8 @@ RECIPES: dict[str, tuple[str, dict]] = {
     "default": ("shore-ssd", {}),
     "deep": ("shore-ssd-deep", {"unfrozen_before_tap": 7}),
 }
+#: Recipes compared unless told otherwise (each recipe costs 3 inner models per held-out video).
+DEFAULT_RECIPES: tuple[str, ...] = ("default",)
 #: Test-time views (:class:`usvfast.shore.ssd_tta.SsdTta`): name -> (flip, zoom).
 VIEWS: dict[str, tuple[bool, float]] = {
     "plain": (False, 1.0),
@@ -184,7 +186,7 @@ def setup_detections(
 
 def grid(recipes: Sequence[str] | None = None) -> list[SsdSetup]:
     """Every set-up tried, in order (recipe, view, threshold, suppression off then on)."""
-    recipes = tuple(RECIPES) if recipes is None else tuple(recipes)
+    recipes = DEFAULT_RECIPES if recipes is None else tuple(recipes)
     return [
         SsdSetup(r, v, c, s)
         for r, v, c, s in itertools.product(recipes, VIEWS, CONF_GRID, (False, True))
@@ -202,9 +204,9 @@ def nested_choice(
     log: Callable = print,
 ) -> tuple[SsdSetup, dict]:
     """The set-up picked for held-out `held` by inner leave-one-video-out on the other videos
-    (module doc), and its pooled inner TP, FP, FN. `recipes`: those compared (default every
-    one of :data:`RECIPES`)."""
-    recipes = tuple(RECIPES) if recipes is None else tuple(recipes)
+    (module doc), and its pooled inner TP, FP, FN. `recipes`: those compared (default
+    :data:`DEFAULT_RECIPES`)."""
+    recipes = DEFAULT_RECIPES if recipes is None else tuple(recipes)
     if not recipes or any(r not in RECIPES for r in recipes):
         raise ValueError(f"recipes: expected some of {sorted(RECIPES)}, got {list(recipes)}")
     inner = [v for v in videos if v != held]

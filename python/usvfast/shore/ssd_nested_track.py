@@ -116,12 +116,13 @@ def nested_tracking(
     cache: CandidateCache,
     setup: SsdSetup | None = None,
     log: Callable = print,
+    recipes: Sequence[str] | None = None,
 ) -> dict:
     """Per tracker ('sort', 'particle'): the setting picked on the other videos (module
     doc), its pooled inner MOTA, and its mot_scores on `held`; also 'setup', the detection
-    set-up (`setup`, else :func:`usvfast.shore.ssd_nested.nested_choice`)."""
+    set-up (`setup`, else :func:`usvfast.shore.ssd_nested.nested_choice` among `recipes`)."""
     if setup is None:
-        setup, _ = nested_choice(data, models, videos, held, hcfg, cache, log=log)
+        setup, _ = nested_choice(data, models, videos, held, hcfg, cache, recipes, log)
     inner = [v for v in videos if v != held]
 
     def boxes(video: str, excluded: list[str], floor: float) -> list[Detections]:
