@@ -2,14 +2,16 @@
 video, so that no choice looks at that video's scores.
 
 For held-out video H among the annotated videos V: every training recipe compared
-(:data:`DEFAULT_RECIPES`, or any of :data:`RECIPES`) is fine-tuned on V − {H, W} for each other video W (`PREFIX-without-A+B.onnx` in the models
-folder, trained when absent) and run on W, a video it has not seen. The set-up (recipe,
-test-time views of :mod:`usvfast.shore.ssd_tta`, confidence threshold, overlap and
-containment suppression of :mod:`usvfast.shore.suppress`) with the highest pooled TPR at
-FAR ≤ 0.15 on those W (horizon filter on; :func:`usvfast.shore.det_scoring.pick`, ties: the
-lower FAR, then the first in grid order) is then applied to the recipe's model trained on
-V − {H} (`PREFIX-without-H.onnx`) and H is scored. Every W's threshold is chosen on frames
-the model never saw, unlike the card's threshold (picked on the training frames).
+(:data:`DEFAULT_RECIPES`, or any of :data:`RECIPES`) is fine-tuned on V − {H, W} for each
+other video W (`PREFIX-without-A+B.onnx` in the models folder, trained when absent) and run
+on W, a video it has not seen. The set-up (recipe, test-time views of
+:mod:`usvfast.shore.ssd_tta`, confidence threshold, overlap and containment suppression of
+:mod:`usvfast.shore.suppress`) with the highest pooled TPR at FAR ≤ 0.15 on those W (horizon
+filter on; :func:`usvfast.shore.det_scoring.pick`, ties: the lower FAR, then the first in
+grid order) is then applied to the recipe's model trained on V − {H}
+(`PREFIX-without-H.onnx`) and H is scored. Every threshold is thus chosen on frames the
+model that is scored there never saw, unlike the card's threshold (picked on the training
+frames).
 """
 
 from __future__ import annotations
