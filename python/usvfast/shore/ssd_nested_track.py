@@ -1,14 +1,17 @@
 """Nested choice of the tracker set-up on the fine-tuned SSD's boxes (:mod:`usvfast.shore.
 ssd_nested`), so that no choice looks at the held-out video.
 
-For held-out video H: the detection set-up is the one :func:`usvfast.shore.ssd_nested.
-nested_choice` picked; every tracker setting of :data:`SORT_GRID` (the SORT-like tracker of
-:mod:`usvfast.shore.sort`, with and without ByteTrack's two-stage association) and of
-:data:`PARTICLE_GRID` (:mod:`usvfast.shore.particle`) runs on each other video W with the
-boxes of the model trained without H and W (horizon filter on), and the setting with the
-highest pooled MOTA on those W (errors summed over the videos over their boxes; ties: the
-first, the trackers' defaults come first) is run on H with the boxes of the model trained
-without H. Scores: :func:`usvfast.shore.mot_eval.mot_scores` (CLEAR MOT at IoU ≥ 0.5).
+For held-out video H: the recipe and test-time views are those
+:func:`usvfast.shore.ssd_nested.nested_choice` picked; every confidence threshold of its grid,
+with and without the suppression, together with every tracker setting of :data:`SORT_GRID`
+(the SORT-like tracker of :mod:`usvfast.shore.sort`, with and without ByteTrack's two-stage
+association) or of :data:`PARTICLE_GRID` (:mod:`usvfast.shore.particle`) runs on each other
+video W with the boxes of the model trained without H and W (horizon filter on), and the
+combination with the highest pooled MOTA on those W (errors summed over the videos over
+their boxes; ties: the first, the lowest threshold and the trackers' defaults come first;
+MOTA weighs a miss and a false box alike, unlike the detection pick's TPR at FAR ≤ 0.15) is
+run on H with the boxes of the model trained without H. Scores:
+:func:`usvfast.shore.mot_eval.mot_scores` (CLEAR MOT at IoU ≥ 0.5).
 """
 
 from __future__ import annotations
@@ -26,6 +29,7 @@ from usvfast.shore.mot_eval import mot_scores
 from usvfast.shore.particle import ParticleConfig, ParticleTracker
 from usvfast.shore.sort import SortConfig, SortTracker
 from usvfast.shore.ssd_nested import (
+    CONF_GRID,
     CandidateCache,
     SsdSetup,
     fold_model,
@@ -118,33 +122,41 @@ def nested_tracking(
     log: Callable = print,
     recipes: Sequence[str] | None = None,
 ) -> dict:
-    """Per tracker ('sort', 'particle'): the setting picked on the other videos (module
-    doc), its pooled inner MOTA, and its mot_scores on `held`; also 'setup', the detection
-    set-up (`setup`, else :func:`usvfast.shore.ssd_nested.nested_choice` among `recipes`)."""
+    """Per tracker ('sort', 'particle'): the setting, confidence threshold and suppression
+    picked together on the other videos (module doc), its pooled inner MOTA, and its
+    mot_scores on `held`; also 'setup', the detection set-up whose recipe and views are kept
+    (`setup`, else :func:`usvfast.shore.ssd_nested.nested_choice` among `recipes`)."""
     if setup is None:
         setup, _ = nested_choice(data, models, videos, held, hcfg, cache, recipes, log)
     inner = [v for v in videos if v != held]
 
-    def boxes(video: str, excluded: list[str], floor: float) -> list[Detections]:
-        path = fold_model(data, models, setup.recipe, excluded, log)
-        d = setup_detections(cache, path, video, videos[video], replace(setup, conf=floor))
-        return _horizon(videos[video], d, hcfg)
+    def boxes(video: str, excluded: list[str], floor: float, d: SsdSetup) -> list[Detections]:
+        path = fold_model(data, models, d.recipe, excluded, log)
+        found = setup_detections(cache, path, video, videos[video], replace(d, conf=floor))
+        return _horizon(videos[video], found, hcfg)
 
     out: dict = {"setup": asdict(setup)}
+    dets = [replace(setup, conf=c, suppression=s) for c in CONF_GRID for s in (False, True)]
     for name, grid in (("sort", SORT_GRID), ("particle", PARTICLE_GRID)):
         scored = []
-        for g in grid:
-            rows = [
-                run(videos[w], boxes(w, [held, w], _floor(name, g, setup)), _make(name, g, setup))
-                for w in inner
-            ]
-            scored.append((pooled_mota(rows), g))
-        best_m = max(m for m, _ in scored)
-        best = next(g for m, g in scored if m == best_m)
-        outer = run(
-            videos[held], boxes(held, [held], _floor(name, best, setup)), _make(name, best, setup)
-        )
-        out[name] = {"setting": list(best), "inner_mota": best_m, "scores": outer}
+        for d in dets:
+            for g in grid:
+                rows = [
+                    run(videos[w], boxes(w, [held, w], _floor(name, g, d), d), _make(name, g, d))
+                    for w in inner
+                ]
+                scored.append((pooled_mota(rows), d, g))
+        best_m = max(m for m, _, _ in scored)
+        _, d, best = next(x for x in scored if x[0] == best_m)
+        found = boxes(held, [held], _floor(name, best, d), d)
+        outer = run(videos[held], found, _make(name, best, d))
+        out[name] = {
+            "setting": list(best),
+            "conf": d.conf,
+            "suppression": d.suppression,
+            "inner_mota": best_m,
+            "scores": outer,
+        }
     return out
 
 
@@ -178,14 +190,12 @@ def evaluate_row(
         row[f"ssd-nested_{'horizon' if use_h else 'no_horizon'}"] = {
             k: s[k] for k in ("tpr", "far", "tp", "fp", "fn")
         }
-    label = f"ssd nested ({setup.recipe}, {setup.view}, ≥ {setup.conf:g}" + (
-        ", suppression)" if setup.suppression else ")"
-    )
-    row["tracking"] = {
-        f"{label}, sort {tuple(tr['sort']['setting'])}": {"sort": tr["sort"]["scores"]},
-        f"{label}, particle {tuple(tr['particle']['setting'])}": {
-            "particle": tr["particle"]["scores"]
-        },
-    }
+    row["tracking"] = {}
+    for name in ("sort", "particle"):
+        t = tr[name]
+        label = f"ssd nested ({setup.recipe}, {setup.view}, ≥ {t['conf']:g}" + (
+            ", suppression)" if t["suppression"] else ")"
+        )
+        row["tracking"][f"{label}, {name} {tuple(t['setting'])}"] = {name: t["scores"]}
     row["ssd_nested_inner_mota"] = {k: tr[k]["inner_mota"] for k in ("sort", "particle")}
     return row
