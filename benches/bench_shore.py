@@ -30,8 +30,9 @@ Frames: MarDCT's regDTV9 frames resized to each size when ../shared/data is pres
 * The COCO-pretrained SSD-MobileNetV2 (`usvfast.shore.pretrained`, OpenCV DNN): zero-shot
   at the COCO graph's 300 × 300 input (exported to ONNX in a temporary folder; needs the
   `pretrained` extra and torch), and with `--ssd shore-ssd.onnx` (from
-  `python -m usvfast.shore.ssd_train`) the fine-tuned model at its 320 × 240 input; each
-  timed as detect + horizon filter + SORT-like tracker per frame.
+  `python -m usvfast.shore.ssd_train`) the fine-tuned model at its 320 × 240 input, alone and
+  with the test-time views of `usvfast.shore.ssd_tta` (mirror; tiles of the frame enlarged
+  1.5 ×; both); each timed as detect + horizon filter + SORT-like tracker per frame.
 
 Run: python benches/bench_shore.py [--frames N] [--repeat R] [--cascade boat.xml]
     [--cnn MODEL.onnx] [--ssd MODEL.onnx] [--only contrast fused change ssd]
@@ -106,13 +107,19 @@ def chain_fps(
     return len(frames) / (time.perf_counter() - t0), stages
 
 
-def ssd_fps(frames: list[np.ndarray], model: Path) -> tuple[float, dict[str, float]]:
-    """(frames per second, ms per frame of each stage) of the SSD run by OpenCV DNN, the
-    horizon filter and the SORT-like tracker, frame by frame."""
+def ssd_fps(
+    frames: list[np.ndarray], model: Path, tta: tuple[bool, float] | None = None
+) -> tuple[float, dict[str, float]]:
+    """(frames per second, ms per frame of each stage) of the SSD run by OpenCV DNN (with
+    `tta` (flip, zoom): the test-time views of usvfast.shore.ssd_tta), the horizon filter and
+    the SORT-like tracker, frame by frame."""
     from usvfast.shore.horizon import HorizonConfig, detect_horizon, horizon_keep
     from usvfast.shore.pretrained import SsdDetector
+    from usvfast.shore.ssd_tta import SsdTta
 
     det = SsdDetector(model)
+    if tta is not None:
+        det = SsdTta(det, flip=tta[0], zoom=tta[1])
     hcfg = HorizonConfig()
     tracker = SortTracker()
     det.detect(frames[0])  # warm-up
@@ -270,7 +277,13 @@ def main() -> None:
     a = ap.parse_args()
     cv2.setNumThreads(2)
     tmp = tempfile.TemporaryDirectory()
-    ssd_models = {"ssd coco 300": coco_ssd(Path(tmp.name)), "ssd fine-tuned": a.ssd}
+    ssd_models = {
+        "ssd coco 300": (coco_ssd(Path(tmp.name)), None),
+        "ssd fine-tuned": (a.ssd, None),
+        "ssd ft flip": (a.ssd, (True, 1.0)),
+        "ssd ft zoom1.5": (a.ssd, (False, 1.5)),
+        "ssd ft flip+z1.5": (a.ssd, (True, 1.5)),
+    }
     cnn = a.cnn or untrained_cnn(Path(tmp.name))
     cnn_name = "cnn onnx" if a.cnn else "cnn (untrained)"
     load = os.getloadavg()
@@ -310,10 +323,10 @@ def main() -> None:
                 f"   ms/frame: {ms}"
             )
         if not a.only or "ssd" in a.only:
-            for name, model in ssd_models.items():
+            for name, (model, tta) in ssd_models.items():
                 if model is None:
                     continue
-                fps, stages = ssd_fps(frames, model)
+                fps, stages = ssd_fps(frames, model, tta)
                 ms = " ".join(f"{k} {v:.2f}" for k, v in stages.items())
                 print(
                     f"{size[0]}x{size[1]:<8} {name:>16} {fps:>14.1f} {fps / PAPER_FPS:>8.2f}x"
