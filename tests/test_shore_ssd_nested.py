@@ -190,3 +190,10 @@ def test_the_candidate_cache_reads_back_what_it_wrote(world, tmp_path, monkeypat
         for k in x:
             np.testing.assert_array_equal(x[k][0].reshape(-1, 4), y[k][0])
             np.testing.assert_array_equal(x[k][1], y[k][1])
+
+
+def test_the_evaluation_refuses_ssd_nested_beside_bayes(tmp_path):
+    from usvfast.shore.evaluate import evaluate
+
+    with pytest.raises(ValueError, match="ssd-nested"):
+        evaluate(tmp_path, detectors=["bayes", "ssd-nested"], models=tmp_path)
