@@ -216,7 +216,8 @@ def nested_choice(
         raise ValueError(f"videos: at least 3 videos expected, got {len(videos)}")
     paths = {(r, w): fold_model(data, models, r, [held, w], log) for r in recipes for w in inner}
 
-    def pooled(s: SsdSetup) -> dict:
+    def pooled(s: object) -> dict:
+        assert isinstance(s, SsdSetup)
         tot = {"tp": 0, "fp": 0, "fn": 0}
         for w in inner:
             d = setup_detections(cache, paths[(s.recipe, w)], w, videos[w], s)
@@ -225,4 +226,5 @@ def nested_choice(
         return tot
 
     best = pick(grid(recipes), pooled, low_far_ties=True)
-    return best, pooled(best)  # pyright: ignore[reportArgumentType]
+    assert isinstance(best, SsdSetup)
+    return best, pooled(best)
