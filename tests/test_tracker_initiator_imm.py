@@ -310,7 +310,7 @@ def test_bad_settings_are_named():
 def test_the_toml_key():
     from usvfast.trackcmd import load_config, tracker_from_config
 
-    cfg = load_config("joyride-ct")
+    cfg = load_config("joyride")
     rng = np.random.default_rng(3)
     zs = [np.array([[10.0 * k, 5.0 * k]]) + rng.normal(0, 8.0, 2) for k in range(6)]
 

@@ -170,6 +170,8 @@ def _imm_from_config(cfg: dict[str, Any], q: float) -> tuple[tk.IMM | None, int,
     for k in ("ct_q_turn", "ct_predictor", "cv_q_turn"):
         if k in t and not ct:
             raise ValueError(f"tracker.imm.{k}: needs ct_q")
+    if "turn_q" in t and ct:
+        raise ValueError("tracker.imm.turn_q: the known-rate turns' noise, needs turn_rates")
     q_w = float(t.get("cv_q_turn", 0.0))
     if ct:
         cqs = [float(v) for v in _as_list(t["ct_q"], "ct_q")]
