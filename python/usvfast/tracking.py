@@ -718,7 +718,8 @@ class Tracker:
     indefinite, e.g. constant-acceleration models on Joyride); delete_last_prediction:
     Stone Soup's `delete_last_pred`; out_of_order: "raise" (TimeOrderError) or "drop";
     initiate_in_gates: see the module docstring; imm: an `IMM` bank for the confirmed tracks
-    (its modes replace motion_model for them); existence: an `Existence` model for the
+    (its modes replace motion_model for them; for the tentative ones too with
+    `MultiMeasurementInitiator(imm=True)`); existence: an `Existence` model for the
     confirmed tracks (JPDA only); max_deleted: keep at most this many deleted tracks (oldest
     dropped first; `drain_deleted` hands them out), None: all.
 
