@@ -61,8 +61,9 @@ def near_median(points: np.ndarray, radius: float) -> np.ndarray:
 
     With more than half of the points in a tight group the median lies inside the group's
     bounding box, so a stray member (a wave crest 0.5 m off) neither moves it far nor counts.
-    Raises ValueError for a radius that is not > 0 and DimensionError for points not (n, 2)
-    with n >= 1."""
+    Raises ValueError for a radius that is not > 0 or not finite, DimensionError for points
+    not (n, 2) with n >= 1, NonFiniteError (a ValueError) for NaN or inf in them, TypeError
+    for anything that is not real numbers."""
     radius = real("radius", radius, positive=True)
     pts = as_float_array("points", points, ndim=2)
     if pts.shape[1] != 2 or pts.shape[0] == 0:
@@ -80,7 +81,7 @@ def cluster_detections(
     min_position_std: float = 0.1,
     core_radius: float | None = None,
     small_cluster_points: int | None = None,
-    small_cluster_radius: float = 0.15,
+    small_cluster_radius: float = 0.1,
     bin_seeding: bool = False,
     cluster_all: bool = False,
     backend: str = "rust",

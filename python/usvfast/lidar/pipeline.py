@@ -94,7 +94,7 @@ class LidarConfig:
     backend: str = "rust"
     min_cluster_points: int = 15
     small_cluster_points: int | None = None
-    small_cluster_radius: float = 0.15
+    small_cluster_radius: float = 0.1
     core_radius: float | None = None
     min_position_std: float = 0.1
     vessels: bool = False
