@@ -1,12 +1,13 @@
 """Joyride (real radar, 238 scans): the usvfast tracker with a constant-velocity model only
-(preset `joyride-cv`), the IMM alone (preset `joyride` without its existence table),
-IMM + existence (preset `joyride`, and the same with joint existence, JIPDA:
-`[tracker.existence] joint = true`; `joyride-accurate` that trades coverage for RMSE, and
-`joyride-polar` with per-plot range/bearing covariances, and `joyride-calibrated`: `joyride` on
-plots whose bearing bias was measured on the first half), the IMM with the turn rate in the
-state (preset `joyride-ct`: CV, CV-high and a `ConstantTurn` on [n, v_n, e, v_e, ω], EKF;
-and the same with JIPDA)
-against Stone Soup's JPDA with the anchor parameters, in
+(preset `joyride-cv`), the shipped IMM with the turn rate in the state (preset `joyride`: CV,
+CV-high and a `ConstantTurn` on [n, v_n, e, v_e, ω], EKF) alone (without its existence table)
+and with existence (the preset itself; the same with joint existence, JIPDA:
+`[tracker.existence] joint = true`; the same with the IMM in the initiator too:
+`[tracker.initiator] imm = true`), the older IMM of known-rate turns (preset
+`joyride-known-turns`, without and with existence, and with JIPDA; `joyride-accurate` of the
+same structure that trades coverage for RMSE, `joyride-polar` with per-plot range/bearing
+covariances), and `joyride-calibrated`: `joyride` on plots whose bearing bias was measured on
+the first half, against Stone Soup's JPDA with the anchor parameters, in
 one process: time per scan and the track-quality figures of `usvfast.metrics.track_quality`
 (gate 50 m) over the whole recording and over its two halves (scans 0-118 and 119-237, scored
 from the same run), so that a configuration good on one half only shows. Time per scan: best
@@ -85,15 +86,18 @@ def main() -> None:
     plots = read_plots(path)
     n = len(plots.times)
     cfg = load_config("joyride")
+    known = load_config("joyride-known-turns")
     runs = {
         "CV only (joyride-cv)": load_config("joyride-cv"),
         "IMM (joyride, no existence)": {k: v for k, v in cfg.items() if k != "existence"},
         "IMM + existence (joyride)": cfg,
         "  joyride + joint (JIPDA)": joint(cfg),
-        "IMM + existence (-accurate)": load_config("joyride-accurate"),
-        "IMM + existence + polar R": load_config("joyride-polar"),
-        "CV + CT(ω) + existence (-ct)": load_config("joyride-ct"),
-        "  joyride-ct + joint (JIPDA)": joint(load_config("joyride-ct")),
+        "  joyride + IMM in initiator": {**cfg, "initiator": {**cfg["initiator"], "imm": True}},
+        "known turns, no existence": {k: v for k, v in known.items() if k != "existence"},
+        "known turns + ex. (-known-turns)": known,
+        "  -known-turns + joint (JIPDA)": joint(known),
+        "known turns + ex. (-accurate)": load_config("joyride-accurate"),
+        "known turns + ex. + polar R": load_config("joyride-polar"),
         "joyride, calibrated radar *": load_config("joyride-calibrated"),
     }
     t0 = time.perf_counter()
@@ -102,14 +106,14 @@ def main() -> None:
     ss_ms = (time.perf_counter() - t0) / n * 1e3
     head = "RMSE m  cov%  fr  ft"
     print(
-        f"{'':30s} {'':>9s} {'':>8s} {'':>6s}  {'all 238 scans':20s}  {'scans 0-118':20s}  "
+        f"{'':32s} {'':>9s} {'':>8s} {'':>6s}  {'all 238 scans':20s}  {'scans 0-118':20s}  "
         "scans 119-237"
     )
-    print(f"{'run':30s} {'ms/scan':>9s} {'cpu ms':>8s} {'x SS':>6s}  {head}  {head}  {head}")
+    print(f"{'run':32s} {'ms/scan':>9s} {'cpu ms':>8s} {'x SS':>6s}  {head}  {head}  {head}")
     scan, ids, pos = H.track_rows(snaps)
     q = parts(plots.truth, scan, ids, pos)
     print(
-        f"{'Stone Soup JPDA (anchor)':30s} {ss_ms:9.3f} {'':8s} {1:6d}  " + "  ".join(map(fmt, q))
+        f"{'Stone Soup JPDA (anchor)':32s} {ss_ms:9.3f} {'':8s} {1:6d}  " + "  ".join(map(fmt, q))
     )
     for name, c in runs.items():
         z, cov = corrected_plots(c, plots), plot_covariances(c, plots)
@@ -124,7 +128,7 @@ def main() -> None:
         ms = best / n * 1e3
         q = parts(plots.truth, res.scan, res.track_id, res.state[:, [0, 2]])
         print(
-            f"{name:30s} {ms:9.4f} {cpu / n * 1e3:8.4f} {ss_ms / ms:6.0f}  "
+            f"{name:32s} {ms:9.4f} {cpu / n * 1e3:8.4f} {ss_ms / ms:6.0f}  "
             + "  ".join(map(fmt, q))
         )
     print(
@@ -237,14 +241,15 @@ def error_sources(path: Path, plots, cfg: dict) -> None:
         "joyride-calibrated); whole = bias of the whole recording, in-sample."
     )
     head = "RMSE m  cov%  fr  ft"
-    print(f"  {'preset':18s} {'held-out 119-237':20s}  {'held-out 0-118':20s}  whole: {head}")
-    for name in ("joyride", "joyride-accurate", "joyride-cv", "joyride-polar"):
+    print(f"  {'preset':19s} {'held-out 119-237':20s}  {'held-out 0-118':20s}  whole: {head}")
+    names = ("joyride", "joyride-known-turns", "joyride-accurate", "joyride-cv", "joyride-polar")
+    for name in names:
         c = load_config(name)
         cells = []
         for (lo, hi), part in (((0, E.HALF), 2), ((E.HALF, rec.n_scans), 1), ((0, rec.n_scans), 0)):
             r = _run(plots, c | {"bearing_correction_deg": -E.bearing_bias_deg(rec, lo, hi)})
             cells.append(fmt(parts(plots.truth, r.scan, r.track_id, r.state[:, [0, 2]])[part]))
-        print(f"  {name:18s} {cells[0]:20s}  {cells[1]:20s}  {cells[2]}")
+        print(f"  {name:19s} {cells[0]:20s}  {cells[1]:20s}  {cells[2]}")
 
 
 def _run(plots, c: dict):

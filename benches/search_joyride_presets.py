@@ -3,16 +3,16 @@ first-half / whole-recording comparisons of the report): perturbs every numeric 
 base preset log-normally (scale 0.3 for the first third of the runs, then 0.1), starts from
 the first perturbation, keeps a later one when it lowers the score, and prints the best
 setting's figures over all scans and both halves (scans 0-118 / 119-237) and its TOML table
-as JSON. A base whose `[tracker.imm]` has `ct_q` (the turn rate in the state, e.g. `joyride-ct`)
+as JSON. A base whose `[tracker.imm]` has `ct_q` (the turn rate in the state, e.g. `joyride`)
 has `ct_q`, `ct_q_turn`, `cv_q_turn` and the initiator's `prior_turn_rate_var` perturbed in place
-of the known turn rates.
+of the known turn rates (e.g. `joyride-known-turns`).
 
 Score: RMSE + 400 x (coverage short of 96 %) + 5 x |fragments - 1| + 2 x (false tracks over 2)
 on the part chosen by --part: "first" (scans 0-118; the second half is then held out),
 "whole", or "halves" (whole, plus the coverage penalty on each half).
 
     USVFAST_SHARED_DATA=/work/shared/data PYTHONPATH=python \\
-        nice -n 10 python benches/search_joyride_presets.py --base joyride --polar \\
+        nice -n 10 python benches/search_joyride_presets.py --base joyride-known-turns --polar \\
         --part halves --seed 4 --runs 3000
 """
 

@@ -79,8 +79,9 @@ def test_bearing_correction_turns_plots_about_their_radar():
 
 def test_joyride_polar_preset_and_csv_radar_positions(tmp_path):
     # Measured: joyride-polar 21.06 m / 96.6 % / 1 fragment / 2 false tracks (96.6 % on each
-    # half); the isotropic joyride preset 20.84 m / 96.2 %: a polar model is not more accurate
-    # here (range and bearing errors are of one size at these ranges).
+    # half); the isotropic preset of the same structure (joyride-known-turns) 20.84 m / 96.2 %:
+    # a polar model is not more accurate here (range and bearing errors are of one size at
+    # these ranges).
     mat = read_plots(JOYRIDE)
     cfg = load_config("joyride-polar")
     res, _ = run_tracking(mat, cfg)

@@ -1,4 +1,4 @@
-"""The LiDAR chain's small-cluster rule (`lidar.small_cluster_points`, `small_cluster_std`) on
+"""The LiDAR chain's small-cluster rule (`lidar.small_cluster_points`, `small_cluster_radius`) on
 the simulator's own VLP-16 rotations: a held-out harbour (seed 9, never a scored seed), the
 chain fed the true poses, so whatever it adds is the rule's doing. Every detection of the
 chain without the rule is still there, and every detection the rule adds lies on a floating
@@ -14,7 +14,7 @@ import pytest
 from usvfast.frames import Mount
 from usvfast.lidar.frame import LidarFrame
 from usvfast.lidar.pipeline import LidarDetection
-from usvfast.pipeline import load_config
+from usvfast.pipeline import ConfigError, load_config
 from usvfast.pipeline.config import SCHEMA
 from usvfast.pipeline.lidar_chain import LidarChain
 from usvfast.pipeline.pose import VesselPose
@@ -49,7 +49,7 @@ def test_small_compact_clusters_on_simulated_rotations():
         return VesselPose(t, n, e, h, roll, pitch)
 
     model = tomllib.loads(_SENSOR_MODELS["lidar"])
-    keys = ("small_cluster_points", "small_cluster_std", "small_cluster_variance")
+    keys = ("small_cluster_points", "small_cluster_radius", "small_cluster_variance")
     rule = {k: model.pop(k) for k in keys}
     chains = {
         "plain": _chain(model),
@@ -87,13 +87,19 @@ def test_small_cluster_settings_reach_the_chain():
     from importlib import resources
 
     path = resources.files("usvfast") / "data" / "harbour" / "recording.toml"
-    changes = {"lidar.small_cluster_points": 5, "lidar.small_cluster_std": 0.07}
+    changes = {"lidar.small_cluster_points": 5, "lidar.small_cluster_radius": 0.07}
     cfg = load_config(path, {**changes, "lidar.small_cluster_variance": 2.5})
     chain = LidarChain(cfg.lidar, Mount(), StageTimer())
-    assert (chain.config.small_cluster_points, chain.config.small_cluster_std) == (5, 0.07)
+    assert (chain.config.small_cluster_points, chain.config.small_cluster_radius) == (5, 0.07)
     assert chain.small_cluster_variance == 2.5
     off = LidarChain({**cfg.lidar, "small_cluster_points": None}, Mount(), StageTimer())
     assert off.config.small_cluster_points is None
     for value in (0.0, -1.0, float("nan")):
         with pytest.raises(ValueError, match=r"lidar\.small_cluster_variance"):
             LidarChain({**cfg.lidar, "small_cluster_variance": value}, Mount(), StageTimer())
+    for value in (0.0, float("nan")):
+        with pytest.raises(ValueError, match=r"small_cluster_radius"):
+            LidarChain({**cfg.lidar, "small_cluster_radius": value}, Mount(), StageTimer())
+    # the rule's earlier spread parameter is gone: a config naming it fails on that key
+    with pytest.raises(ConfigError, match=r"lidar\.small_cluster_std"):
+        load_config(path, {"lidar.small_cluster_std": 0.1})

@@ -296,3 +296,16 @@ def test_the_bundled_recording_is_the_current_simulator_s(rec):
         t = float(r["time"]) - EPOCH
         n, e = next((n, e) for i, _, n, e in world.truth_at(np.array([t])) if i == oid)
         assert (float(r["north"]), float(r["east"])) == pytest.approx((n[0], e[0]), abs=1e-4)
+    # its visibility.csv (what each sensor saw, for the report's detectable rule) is this
+    # recording's: every object a truth object, every row inside the recording's 30 s
+    from usvfast.report.detectable import read_visibility
+
+    vis = read_visibility(folder / "visibility.csv")
+    assert vis.skipped == 0 and set(vis.sensor) == {"lidar", "camera"}
+    assert set(vis.object_id) <= {int(r["object_id"]) for r in rows}
+    assert EPOCH <= vis.time.min() and vis.time.max() <= EPOCH + 30.0
+    lidar = vis.sensor == "lidar"
+    assert (
+        len(np.unique(vis.time[lidar]))
+        <= {t: i.count for t, i in topics.items()}[TOPICS["lidar"][0]]
+    )

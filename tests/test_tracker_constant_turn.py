@@ -507,6 +507,7 @@ def test_toml_preset_with_constant_turn_writes_the_turn_rate(tmp_path):
         ({"ct_q": [1.0, 2.0], "ct_q_turn": [1e-3, 1e-3, 1e-3]}, "ct_q_turn"),
         ({"ct_q": "x"}, "ct_q"),
         ({"turn_rates": [0.1], "ct_q_turn": [1e-3]}, "needs ct_q"),
+        ({"ct_q": [1.0], "turn_q": 2.0}, r"turn_q.*needs turn_rates"),
         ({"ct_q": [1.0], "ct_predictor": "pf"}, "predictor"),
         ({"ct_q": [-1.0]}, "q"),
     ],

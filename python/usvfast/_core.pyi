@@ -188,7 +188,11 @@ def georeference_rays(
 # --- tracker (rust/src/py/tracker.rs) ---
 # The configuration objects are read by attribute (rust/src/py/tracker_config.rs): `imm` is a
 # usvfast.tracking.IMM whose modes are usvfast.kalman models, KnownTurnRate (q, omega) or
-# ConstantTurn (q, q_turn, predictor "ekf"/"ukf", alpha, beta, kappa; 5-D state).
+# ConstantTurn (q, q_turn, predictor "ekf"/"ukf", alpha, beta, kappa; 5-D state);
+# `initiator` a usvfast.tracking.MultiMeasurementInitiator (prior_state, prior_covariance,
+# min_points, deleter, missed_distance, measure, include_all, updates_only, diag_load, m_of_n,
+# motion_model, use_joseph_cov, symmetric_covariance, max_new_tentative, imm: bool — the
+# `imm` bank on tentative tracks too).
 class TrackerCore:
     def __init__(
         self,

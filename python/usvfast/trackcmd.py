@@ -52,6 +52,7 @@ _INIT = {
     "missed_distance",
     "prior_velocity_var",
     "prior_turn_rate_var",
+    "imm",
 }
 _IMM = {
     "turn_rates",
@@ -114,6 +115,11 @@ def tracker_from_config(cfg: dict[str, Any]) -> tk.Tracker:
         if not isinstance(joint, bool):
             raise ValueError(f"tracker.existence.joint: true or false, got {joint!r}")
         existence = tk.Existence(**{k: float(v) for k, v in e.items()}, joint=joint)
+    init_imm = init.get("imm", False)
+    if not isinstance(init_imm, bool):
+        raise ValueError(f"tracker.initiator.imm: true or false, got {init_imm!r}")
+    if init_imm and imm is None:
+        raise ValueError("tracker.initiator.imm: needs a [tracker.imm] table (the bank it runs)")
     pvv = float(init.get("prior_velocity_var", 100.0))
     prior = [0.0, pvv, 0.0, pvv]
     motion: Any = constant_velocity_2d(q)
@@ -133,6 +139,7 @@ def tracker_from_config(cfg: dict[str, Any]) -> tk.Tracker:
             min_points=int(init.get("min_points", 2)),
             deleter=tk.StepsSinceUpdate(int(init.get("delete_steps", 3))),
             missed_distance=float(init.get("missed_distance", 5.0)),
+            imm=init_imm,
         ),
         initiate_in_gates=bool(cfg.get("initiate_in_gates", False)),
         imm=imm,
@@ -163,6 +170,8 @@ def _imm_from_config(cfg: dict[str, Any], q: float) -> tuple[tk.IMM | None, int,
     for k in ("ct_q_turn", "ct_predictor", "cv_q_turn"):
         if k in t and not ct:
             raise ValueError(f"tracker.imm.{k}: needs ct_q")
+    if "turn_q" in t and ct:
+        raise ValueError("tracker.imm.turn_q: the known-rate turns' noise, needs turn_rates")
     q_w = float(t.get("cv_q_turn", 0.0))
     if ct:
         cqs = [float(v) for v in _as_list(t["ct_q"], "ct_q")]

@@ -357,6 +357,13 @@ class MultiMeasurementInitiator:
     max_new_tentative: at most this many new tentative tracks per scan (the first free
     detections in scan order; `Tracker.capped_detections` counts the rest), so a clutter burst
     costs O(plots) and leaves no flood of tracks; None: no cap.
+    imm: run the tracker's `IMM` bank (needed; not with motion_model) on the tentative tracks
+    too: each starts every mode at its initiation Gaussian (the prior with H⁺ z, H⁺ R H⁺ᵀ)
+    with the bank's initial probabilities, and each scan mixes, predicts every mode, updates
+    it with the track's GNN detection (mode likelihoods N(z; ẑ_j, S_j); a missed scan keeps
+    the predicted probabilities) and gates on the combined prediction; a confirmed track
+    keeps its modes and probabilities. False (default): tentative tracks use the initiator's
+    model and a confirmed track starts every mode at its state.
     """
 
     prior_state: Any
@@ -373,6 +380,7 @@ class MultiMeasurementInitiator:
     use_joseph_cov: bool = False
     symmetric_covariance: bool = True
     max_new_tentative: int | None = None
+    imm: bool = False
 
 
 @dataclass(frozen=True)
@@ -465,7 +473,8 @@ class IMM:
     with the track's JPDA association weights under JPDA), mode probabilities from the mode
     likelihoods, and the moment-matched output state (which gating and association use in its
     predicted form Σ c̄_j N(x_j⁻, P_j⁻)). filterpy's `IMMEstimator` on a single target.
-    Tentative tracks use the initiator's model; `Tracks.mode_probabilities` holds μ.
+    Tentative tracks use the initiator's model unless `MultiMeasurementInitiator(imm=True)`
+    runs the bank on them too; `Tracks.mode_probabilities` holds μ.
     """
 
     modes: Sequence[Any]
@@ -709,7 +718,8 @@ class Tracker:
     indefinite, e.g. constant-acceleration models on Joyride); delete_last_prediction:
     Stone Soup's `delete_last_pred`; out_of_order: "raise" (TimeOrderError) or "drop";
     initiate_in_gates: see the module docstring; imm: an `IMM` bank for the confirmed tracks
-    (its modes replace motion_model for them); existence: an `Existence` model for the
+    (its modes replace motion_model for them; for the tentative ones too with
+    `MultiMeasurementInitiator(imm=True)`); existence: an `Existence` model for the
     confirmed tracks (JPDA only); max_deleted: keep at most this many deleted tracks (oldest
     dropped first; `drain_deleted` hands them out), None: all.
 

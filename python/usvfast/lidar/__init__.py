@@ -8,6 +8,7 @@ points are Velodyne's (x forward, y left, z up), world points NED (north, east).
 """
 
 from usvfast.lidar.clustering import mean_shift
+from usvfast.lidar.detections import LidarDetection, cluster_detections, near_median
 from usvfast.lidar.evaluation import SceneScore, evaluate_scene, straight_run
 from usvfast.lidar.frame import POINT_DTYPE, LidarFrame, make_points
 from usvfast.lidar.geometry import dead_zone_radius, downward_angles_deg, water_geometry
@@ -31,9 +32,7 @@ from usvfast.lidar.pipeline import (
     CycleResult,
     FrameResult,
     LidarConfig,
-    LidarDetection,
     LidarDetector,
-    cluster_detections,
     prefilter,
     sensor_motion,
     sensor_to_world,
@@ -94,6 +93,7 @@ __all__ = [
     "make_points",
     "mean_shift",
     "move_segments",
+    "near_median",
     "open_lidar",
     "point_segment_distance",
     "pointcloud2_to_points",

@@ -21,7 +21,12 @@ from typing import Any
 import numpy as np
 
 from usvfast._core import DimensionError
-from usvfast._validate import as_float_array, integer, real
+from usvfast._validate import as_float_array, real
+from usvfast.lidar.detections import (
+    LidarDetection,
+    check_small_cluster,
+    cluster_detections,
+)
 from usvfast.lidar.frame import LidarFrame
 from usvfast.lidar.lines import LineMemory, blur, detect_segments, extend_segments, rasterize
 from usvfast.lidar.vessels import VesselFinder
@@ -47,12 +52,13 @@ class LidarConfig:
     buffer_frames : frames buffered in the world frame before clustering (K).
     bandwidth, bin_seeding, cluster_all, backend : mean shift parameters.
     min_cluster_points : clusters with fewer points are dropped (but see small_cluster_points).
-    small_cluster_points, small_cluster_std : None (the thesis): no exception to
-        min_cluster_points. An integer k >= 2 (points) and a length s (m): a cluster of
-        k to min_cluster_points − 1 points is kept when it is compact, the standard deviation
-        of its members along their major axis <= s. A small float that one ring grazes in a
-        single rotation returns a few points within centimetres of each other, while sparse
-        water returns that fall into a small cluster scatter over decimetres.
+    small_cluster_points, small_cluster_radius : None (the thesis): no exception to
+        min_cluster_points. An integer K >= 2 (points) and a length r (m): a cluster (core)
+        of fewer than min_cluster_points members is still a detection when at least K of
+        them lie within r of their coordinate-wise median, made of those members only
+        (`usvfast.lidar.detections.cluster_detections`). A small float that one ring grazes
+        in a single rotation returns a few points within centimetres of each other, while
+        sparse water returns that fall into a small core scatter over decimetres.
     core_radius : None (the thesis): a detection is the mean of all its cluster's members.
         A number (m): only the members within this distance of the cluster's core count —
         the core found from the members' median by a mean shift of this flat radius — so
@@ -88,7 +94,7 @@ class LidarConfig:
     backend: str = "rust"
     min_cluster_points: int = 15
     small_cluster_points: int | None = None
-    small_cluster_std: float = 0.1
+    small_cluster_radius: float = 0.1
     core_radius: float | None = None
     min_position_std: float = 0.1
     vessels: bool = False
@@ -122,8 +128,8 @@ class LidarConfig:
             np.isfinite(self.core_radius) and self.core_radius > 0
         ):
             raise ValueError(f"core_radius: expected a positive number, got {self.core_radius}")
-        self.small_cluster_points, self.small_cluster_std = _check_small_cluster(
-            self.small_cluster_points, self.small_cluster_std
+        self.small_cluster_points, self.small_cluster_radius = check_small_cluster(
+            self.small_cluster_points, self.small_cluster_radius
         )
         if not self.slice_min < self.slice_max:
             raise ValueError(
@@ -141,13 +147,6 @@ class LidarConfig:
             v = getattr(self, name)
             if not (np.isfinite(v) and v >= 0):
                 raise ValueError(f"{name}: expected a number >= 0, got {v}")
-
-
-def _check_small_cluster(points: Any, std: Any) -> tuple[int | None, float]:
-    """(small_cluster_points, small_cluster_std) checked: None or an integer >= 2 (TypeError
-    for a non-integer, ValueError below 2) and a number > 0 m (ValueError otherwise)."""
-    count = None if points is None else integer("small_cluster_points", points, low=2)
-    return count, real("small_cluster_std", std, positive=True)
 
 
 # --------------------------------------------------------------------------------------
@@ -292,155 +291,6 @@ def sensor_motion(
     d = world_to_sensor(origin, p0, lever_arm=lever_arm, mount_yaw=mount_yaw)[0]
     dyaw = -float(np.angle(np.exp(1j * (p1[2] - p0[2]))))
     return float(d[0]), float(d[1]), dyaw
-
-
-# --------------------------------------------------------------------------------------
-# clustering -> detections
-# --------------------------------------------------------------------------------------
-@dataclass
-class LidarDetection:
-    """One LiDAR point detection for the tracker.
-
-    time : UNIX s; position : (2,) world (north, east) m; covariance : (2, 2) m²;
-    n_points : cluster size; sensor_id : the LiDAR's id; extended : a vessel's detection
-    (`usvfast.lidar.vessels`): its position is the hull's estimated centre and its covariance
-    the finder's, not a cluster centroid's; spread : (2, 2) m², the members' sample
-    covariance without the `min_position_std` floor (the cluster's shape; None when not
-    known, e.g. for a vessel); top : the highest member's height above the water, m (None
-    when the points' heights were not given); small : the cluster had fewer than
-    `min_cluster_points` members and was kept by the small-cluster rule
-    (`LidarConfig.small_cluster_points`).
-    """
-
-    time: float
-    position: np.ndarray
-    covariance: np.ndarray
-    n_points: int
-    sensor_id: str = "lidar"
-    extended: bool = False
-    spread: np.ndarray | None = None
-    top: float | None = None
-    small: bool = False
-
-
-def cluster_detections(
-    points: np.ndarray,
-    *,
-    time: float,
-    bandwidth: float = 2.0,
-    min_cluster_points: int = 15,
-    min_position_std: float = 0.1,
-    core_radius: float | None = None,
-    small_cluster_points: int | None = None,
-    small_cluster_std: float = 0.1,
-    bin_seeding: bool = False,
-    cluster_all: bool = False,
-    backend: str = "rust",
-    sensor_id: str = "lidar",
-    heights: np.ndarray | None = None,
-) -> tuple[list[LidarDetection], np.ndarray, np.ndarray]:
-    """Mean-shift (n, 2) world points and turn every big enough cluster into a detection.
-
-    Clusters with fewer than `min_cluster_points` members, and orphans (label −1 with
-    `cluster_all=False`), produce nothing. A detection's position is the mean of its
-    members; its covariance is their sample covariance with every eigenvalue raised to at
-    least `min_position_std`². With `core_radius` (m) a cluster keeps only its core: the
-    members within core_radius of where a flat-kernel mean shift of that radius settles from
-    the members' median (`_core_members`); the count, mean and covariance are the core's (two
-    floats in one cluster: one of them, where the thesis's mean lies between them).
-    With `small_cluster_points` (an integer >= 2) a cluster (core) of at least that many but
-    fewer than `min_cluster_points` members is kept when compact: the standard deviation
-    of its members along their major axis (the square root of their sample covariance's
-    largest eigenvalue) is at most `small_cluster_std` m.
-    heights: optional (n,) height of each point above the water, m; each detection's `top`
-    is then its members' highest.
-
-    Returns (detections, labels (n,) int with −1 for points in no kept cluster, centres
-    (c, 2) of all mean-shift clusters). Labels of kept clusters index `centres`.
-    """
-    from usvfast.lidar.clustering import mean_shift
-
-    time = real("time", time)
-    min_position_std = real("min_position_std", min_position_std, positive=True)
-    if core_radius is not None:
-        core_radius = real("core_radius", core_radius, positive=True)
-    small_cluster_points, small_cluster_std = _check_small_cluster(
-        small_cluster_points, small_cluster_std
-    )
-    pts = as_float_array("points", points, ndim=2)
-    if heights is not None:
-        heights = as_float_array("heights", heights, ndim=1)
-        if heights.shape[0] != pts.shape[0]:
-            raise ValueError(
-                f"heights: expected one height per point ({pts.shape[0]}), got {heights.shape[0]}"
-            )
-    if pts.shape[0] == 0:
-        return [], np.zeros(0, dtype=np.int64), np.zeros((0, 2))
-    centres, labels = mean_shift(
-        pts,
-        bandwidth=bandwidth,
-        bin_seeding=bin_seeding,
-        cluster_all=cluster_all,
-        backend=backend,
-    )
-    labels = np.asarray(labels, dtype=np.int64).copy()
-    detections = []
-    floor = min_position_std**2
-    for k in range(np.asarray(centres).shape[0]):
-        members = labels == k
-        if core_radius is not None and members.any():
-            outer = members.copy()
-            members[outer] = _core_members(pts[outer], core_radius)
-            labels[outer & ~members] = -1
-        count = int(members.sum())
-        small = small_cluster_points is not None and small_cluster_points <= count
-        if count < min_cluster_points and not small:
-            labels[members] = -1
-            continue
-        m = pts[members]
-        spread = np.cov(m, rowvar=False)
-        spread = (spread + spread.T) / 2
-        w, v = np.linalg.eigh(spread)
-        if count < min_cluster_points and not np.sqrt(max(w[-1], 0.0)) <= small_cluster_std:
-            labels[members] = -1
-            continue
-        cov = (v * np.maximum(w, floor)) @ v.T
-        top = None if heights is None else float(heights[members].max())
-        detections.append(
-            LidarDetection(
-                float(time),
-                m.mean(axis=0),
-                cov,
-                count,
-                sensor_id,
-                spread=spread,
-                top=top,
-                small=count < min_cluster_points,
-            )
-        )
-    return detections, labels, np.asarray(centres, dtype=np.float64).reshape(-1, 2)
-
-
-def _core_members(points: np.ndarray, radius: float, iterations: int = 10) -> np.ndarray:
-    """(n,) mask of the points (n, 2) within `radius` of their core: start at the
-    coordinate-wise median (or, with no point within `radius` of it, at the point nearest
-    it), move to the mean of the points within `radius` until it stops (at most `iterations`
-    steps; a flat-kernel mean shift, Comaniciu & Meer 2002)."""
-    r2 = radius * radius
-    centre = np.median(points, axis=0)
-    d2 = np.sum((points - centre) ** 2, axis=1)
-    if not (d2 <= r2).any():
-        centre = points[int(np.argmin(d2))]
-    inside = np.sum((points - centre) ** 2, axis=1) <= r2
-    for _ in range(iterations):
-        new = points[inside].mean(axis=0)
-        if np.allclose(new, centre, rtol=0.0, atol=1e-6):
-            break
-        centre = new
-        inside = np.sum((points - centre) ** 2, axis=1) <= r2
-        if not inside.any():
-            break
-    return inside
 
 
 # --------------------------------------------------------------------------------------
@@ -616,7 +466,7 @@ class LidarDetector:
             min_position_std=cfg.min_position_std,
             core_radius=cfg.core_radius,
             small_cluster_points=cfg.small_cluster_points,
-            small_cluster_std=cfg.small_cluster_std,
+            small_cluster_radius=cfg.small_cluster_radius,
             bin_seeding=cfg.bin_seeding,
             cluster_all=cfg.cluster_all,
             backend=cfg.backend,

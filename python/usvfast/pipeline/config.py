@@ -89,7 +89,7 @@ _LIDAR = {
     "low_profile_height": ("float", 0.15),
     "min_cluster_points": ("int", 15),
     "small_cluster_points": ("int", None),
-    "small_cluster_std": ("float", 0.1),
+    "small_cluster_radius": ("float", 0.1),
     "small_cluster_variance": ("float", 1.0),
     "core_radius": ("float", None),
     "min_position_std": ("float", 0.1),

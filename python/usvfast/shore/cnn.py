@@ -36,17 +36,23 @@ def user_model_dir() -> Path:
     return Path(base) / "usvfast" / "models"
 
 
+def user_model(env: str, name: str) -> Path | None:
+    """A model file: the path in environment variable `env` (must exist: ValueError
+    otherwise), else `name` in :func:`user_model_dir` when it is there, else None."""
+    value = os.environ.get(env)
+    if value:
+        p = Path(value)
+        if not p.is_file():
+            raise ValueError(f"{env}: no such model file {p}")
+        return p
+    p = user_model_dir() / name
+    return p if p.is_file() else None
+
+
 def default_model() -> Path | None:
     """The CNN weights `usvfast shore` uses when none are given: $USVFAST_SHORE_MODEL (must
     exist: ValueError otherwise), else `shore-cnn.onnx` in :func:`user_model_dir`, else None."""
-    env = os.environ.get("USVFAST_SHORE_MODEL")
-    if env:
-        p = Path(env)
-        if not p.is_file():
-            raise ValueError(f"USVFAST_SHORE_MODEL: no such model file {p}")
-        return p
-    p = user_model_dir() / MODEL_FILE
-    return p if p.is_file() else None
+    return user_model("USVFAST_SHORE_MODEL", MODEL_FILE)
 
 
 class CnnDetector:

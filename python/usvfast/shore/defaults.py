@@ -29,7 +29,7 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from usvfast.shore.cnn import default_model, user_model_dir
+from usvfast.shore.cnn import default_model, user_model, user_model_dir
 from usvfast.shore.pretrained import COCO_GRAPH_SHA256, COCO_NMS_IOU, coco_graph_path
 from usvfast.shore.ssd_train import MODEL_NAME as SSD_MODEL_NAME
 
@@ -85,14 +85,7 @@ def default_ssd_model() -> Path | None:
     """The fine-tuned SSD `usvfast shore` uses when none is given: $USVFAST_SHORE_SSD_MODEL
     (must exist: ValueError otherwise), else :data:`SSD_MODEL_FILE` in the user model folder,
     else None."""
-    env = os.environ.get("USVFAST_SHORE_SSD_MODEL")
-    if env:
-        p = Path(env)
-        if not p.is_file():
-            raise ValueError(f"USVFAST_SHORE_SSD_MODEL: no such model file {p}")
-        return p
-    p = user_model_dir() / SSD_MODEL_FILE
-    return p if p.is_file() else None
+    return user_model("USVFAST_SHORE_SSD_MODEL", SSD_MODEL_FILE)
 
 
 def coco_export_path() -> Path:

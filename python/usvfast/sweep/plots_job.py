@@ -34,7 +34,10 @@ def plots_job(job: Job) -> tuple[dict[str, Any], dict[str, float]]:
         out = Path(job.tracks_dir)
         out.mkdir(parents=True, exist_ok=True)
         rows = np.column_stack([plots.times[res.scan], res.track_id, res.state])
-        header = "time,track_id,north,v_north,east,v_east"
+        # The state's first four entries are [n, v_n, e, v_e]; a fifth is the turn rate.
+        header = "time,track_id,north,v_north,east,v_east" + (
+            ",turn_rate" if res.state.shape[1] >= 5 else ""
+        )
         np.savetxt(out / "tracks.csv", rows, delimiter=",", header=header, comments="")
     metrics: dict[str, Any] = {"ms_per_scan": ms_per_scan, "scans": len(plots.times)}
     if plots.truth is not None:

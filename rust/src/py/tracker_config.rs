@@ -344,6 +344,7 @@ pub(crate) struct InitiatorArgs<'py> {
     use_joseph_cov: bool,
     symmetric_covariance: bool,
     max_new_tentative: Option<Count>,
+    imm: bool,
 }
 
 impl InitiatorArgs<'_> {
@@ -371,6 +372,7 @@ impl InitiatorArgs<'_> {
             use_joseph_cov: self.use_joseph_cov,
             symmetric_covariance: self.symmetric_covariance,
             max_new_tentative: self.max_new_tentative.map(|c| c.0),
+            imm: self.imm,
         })
     }
 }

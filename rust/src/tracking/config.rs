@@ -212,6 +212,15 @@ pub struct InitiatorConfig {
     /// order; the others are counted in `Tracker::capped_detections`): a clutter burst then
     /// costs O(plots) and leaves no flood of tentative tracks. `None`: no cap.
     pub max_new_tentative: Option<usize>,
+    /// Run the tracker's IMM bank ([`TrackerConfig::imm`], which it needs) on the tentative
+    /// tracks too: each starts every mode at its initiation Gaussian (prior and `H⁺ z`) with
+    /// the bank's `initial` probabilities, and every scan mixes, predicts each mode, updates
+    /// it with the track's GNN detection (mode likelihoods `N(z; ẑ_j, S_j)`; a missed scan
+    /// keeps `μ = c̄`) and combines; gating and the GNN use the combined prediction. A
+    /// confirmed track keeps its modes and probabilities. `false`: tentative tracks use
+    /// `motion_model` (or the tracker's) and a confirmed track starts every mode at its state.
+    #[serde(default)]
+    pub imm: bool,
 }
 
 /// Track existence with visibility for confirmed JPDA tracks (IPDA of Mušicki, Evans and
@@ -301,7 +310,8 @@ pub struct TrackerConfig {
     pub initiator: InitiatorConfig,
     pub out_of_order: OutOfOrder,
     /// An IMM bank for the confirmed tracks (`None`: `motion_model` alone). Tentative tracks
-    /// use the initiator's model; a confirmed track starts every mode at its state.
+    /// use the initiator's model and a confirmed track starts every mode at its state, unless
+    /// [`InitiatorConfig::imm`] runs the bank in the initiator too.
     pub imm: Option<crate::tracking::imm::ImmConfig>,
     /// Existence and visibility of confirmed tracks (JPDA only; `None`: not modelled).
     pub existence: Option<Existence>,
@@ -385,6 +395,7 @@ impl TrackerConfig {
                 use_joseph_cov: false,
                 symmetric_covariance: no_symmetry,
                 max_new_tentative: None,
+                imm: false,
             },
             out_of_order: OutOfOrder::Raise,
             initiate_in_gates: true,
@@ -567,6 +578,20 @@ impl TrackerConfig {
         if let Some(mm) = &init.motion_model {
             if mm.ndim() != n {
                 return Err(Error::dim("initiator.motion_model", n, mm.ndim()));
+            }
+        }
+        if init.imm {
+            if self.imm.is_none() {
+                return Err(Error::param(
+                    "initiator.imm",
+                    "needs the tracker's IMM bank (imm), which it runs on tentative tracks",
+                ));
+            }
+            if init.motion_model.is_some() {
+                return Err(Error::param(
+                    "initiator.imm",
+                    "the IMM bank replaces the initiator's motion_model: give one or the other",
+                ));
             }
         }
         Ok(())

@@ -32,6 +32,7 @@ fn placeholder() -> InitiatorConfig {
         use_joseph_cov: false,
         symmetric_covariance: false,
         max_new_tentative: None,
+        imm: false,
     }
 }
 
@@ -110,6 +111,13 @@ impl Tracker {
         DefaultAllocator: Alloc<N, M>,
     {
         let model = init.motion_model.as_ref().unwrap_or(&self.cfg.motion_model);
+        // The IMM bank on tentative tracks (their IMM states start lazily at their initiation
+        // Gaussians, `hypothesise::imm_predict_all`, and stay with them once confirmed).
+        let imm = if init.imm {
+            self.cfg.imm.as_ref()
+        } else {
+            None
+        };
         let m = self.m;
         let det_sensor = dets.sensor;
         let covs = dets.covs;
@@ -130,7 +138,7 @@ impl Tracker {
                 dims,
                 free,
                 self.scan,
-                None,
+                imm,
                 Some(&mut ln_pdf),
             )?;
             // Existence of tentative tracks: L = 1 − P_D P_G (+ P_D N(z)/λ with a detection).
@@ -425,5 +433,114 @@ impl Tracker {
             .zip(accepted)
             .filter_map(|(c, a)| a.then_some(c))
             .collect())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::models::MotionModel;
+    use crate::tracking::config::{Association, GnnParams, Measure, TrackerConfig};
+    use crate::tracking::imm::{ImmConfig, Mode};
+    use crate::tracking::tracker::Tracker;
+    use nalgebra::{DMatrix, DVector};
+
+    /// A GNN tracker of position plots (σ = 1 m) whose tentative tracks need 4 updates, with
+    /// the IMM bank `modes` (uniform switching) on confirmed tracks and, with `imm_init`, on
+    /// tentative ones.
+    fn tracker(modes: Vec<Mode>, imm_init: bool) -> Tracker {
+        tracker_confirming_at(modes, imm_init, 4)
+    }
+
+    /// [`tracker`] whose tentative tracks need `min_points` updates.
+    fn tracker_confirming_at(modes: Vec<Mode>, imm_init: bool, min_points: usize) -> Tracker {
+        let mut c = TrackerConfig::code_5_7();
+        c.motion_model = MotionModel::constant_velocity_2d(0.05).unwrap();
+        c.sensors[0].r = DMatrix::identity(2, 2);
+        c.sensors[0].init.1 = DMatrix::identity(2, 2);
+        c.deleter = crate::tracking::track::Deleter::StepsSinceUpdate(3);
+        c.association = Association::Gnn(GnnParams {
+            measure: Measure::Mahalanobis,
+            missed_distance: 5.0,
+            include_all: false,
+        });
+        c.initiator.prior_covariance =
+            DMatrix::from_diagonal(&DVector::from_vec(vec![0.0, 25.0, 0.0, 25.0]));
+        c.initiator.gnn.missed_distance = 4.0;
+        c.initiator.confirmation = crate::tracking::config::Confirmation::MinPoints {
+            min_points,
+            updates_only: true,
+        };
+        c.initiator.imm = imm_init;
+        let r = modes.len();
+        let stay = if r == 1 { 1.0 } else { 0.9 };
+        let off = if r == 1 { 0.0 } else { 0.1 / (r - 1) as f64 };
+        c.imm = Some(ImmConfig {
+            modes,
+            transition: DMatrix::from_fn(r, r, |i, j| if i == j { stay } else { off }),
+            initial: vec![1.0 / r as f64; r],
+        });
+        Tracker::new(c).unwrap()
+    }
+
+    /// A boat at `v` m/s turning at `w` rad/s, one plot a second at `k` s (noise-free).
+    fn plot(k: f64, w: f64, v: f64) -> [f64; 2] {
+        [v / w * (w * k).sin(), v / w * (1.0 - (w * k).cos())]
+    }
+
+    #[test]
+    fn one_mode_bank_is_the_plain_initiator() {
+        let cv = || {
+            vec![Mode::Linear(
+                MotionModel::constant_velocity_2d(0.05).unwrap(),
+            )]
+        };
+        let (mut a, mut b) = (tracker(cv(), false), tracker(cv(), true));
+        for k in 0..8 {
+            let t = k as f64;
+            a.step(t, &plot(t, 0.05, 5.0), &[0]).unwrap();
+            b.step(t, &plot(t, 0.05, 5.0), &[0]).unwrap();
+            for (x, y) in [(&a.tentative, &b.tentative), (&a.tracks, &b.tracks)] {
+                assert_eq!(x.len(), y.len());
+                for (p, q) in x.iter().zip(y) {
+                    assert!((&p.x - &q.x).amax() < 1e-12 && (&p.p - &q.p).amax() < 1e-12);
+                }
+            }
+        }
+        assert_eq!(b.tracks.len(), 1);
+    }
+
+    #[test]
+    fn a_confirmed_track_keeps_its_tentative_modes() {
+        let modes = || {
+            vec![
+                Mode::Linear(MotionModel::constant_velocity_2d(0.05).unwrap()),
+                Mode::KnownTurnRate {
+                    q: [0.05, 0.05],
+                    omega: 0.3,
+                },
+            ]
+        };
+        let (mut on, mut off) = (tracker(modes(), true), tracker(modes(), false));
+        // The same bank, its tentative tracks confirmed later: at scan 3 still tentative.
+        let mut later = tracker_confirming_at(modes(), true, 10);
+        for k in 0..4 {
+            let t = k as f64;
+            for tr in [&mut on, &mut off, &mut later] {
+                tr.step(t, &plot(t, 0.3, 10.0), &[0]).unwrap();
+            }
+            if k == 2 {
+                assert!(off.tentative[0].imm.is_none());
+            }
+        }
+        // Confirmed at scan 3 (its 4th update) with that scan's IMM cycle of its tentative
+        // state, exactly as the track still tentative under the later confirmation; the
+        // turn mode leads. Without the option the confirmed track has no IMM state until its
+        // first scan as a confirmed track (every mode then starts at its state).
+        let st = on.tracks[0].imm.as_ref().unwrap();
+        assert_eq!(Some(st), later.tentative[0].imm.as_ref());
+        assert!(st.mu[1] > 0.6, "{:?}", st.mu);
+        assert!(off.tracks[0].imm.is_none());
+        let x = crate::tracking::imm::combine(&st.mu, &st.x, &st.p).0;
+        assert!((&x - &on.tracks[0].x).amax() < 1e-9);
     }
 }

@@ -2,7 +2,7 @@
 //!
 //! | role | module | Stone Soup |
 //! |---|---|---|
-//! | predict / update | [`crate::kalman`], [`hypothesise`] (innovations, posterior covariance), [`imm`], [`turn`], [`polar`] | `KalmanPredictor`, `Extended/UnscentedKalmanPredictor`, `KalmanUpdater`, `Extended/UnscentedKalmanUpdater` |
+//! | predict / update | [`crate::kalman`], [`hypothesise`] (innovations, posterior covariance), [`imm`], [`turn`], [`polar`], [`unscented`] | `KalmanPredictor`, `Extended/UnscentedKalmanPredictor`, `KalmanUpdater`, `Extended/UnscentedKalmanUpdater` |
 //! | gating | [`gating`] (χ² gate, spatial grid), [`hypothesise`] (`gate_pairs`) | `PDAHypothesiser` / `DistanceHypothesiser` gates |
 //! | clustering | [`clustering`] | `JPDA` clusters |
 //! | JPDA | [`jpda`] (EHM, brute force, belief propagation past a budget), [`kbest`] (Murty k-best) | `JPDA`, `JPDAwithEHM` |
@@ -29,3 +29,4 @@ pub mod run;
 pub mod track;
 pub mod tracker;
 pub mod turn;
+pub mod unscented;

@@ -15,6 +15,7 @@
 
 use crate::error::{Error, Result};
 use crate::tracking::hypothesise::{finish, Alloc, Innovation};
+use crate::tracking::unscented::SigmaWeights;
 use nalgebra::{Cholesky, DefaultAllocator, Dim, OMatrix, OVector, U1};
 use std::f64::consts::PI;
 
@@ -99,10 +100,11 @@ impl Polar {
             }
             PolarUpdate::Unscented { alpha, beta, kappa } => {
                 let nd = n.value();
-                let kappa = kappa.unwrap_or(3.0 - nd as f64);
-                let alpha2 = alpha * alpha;
-                let lamda = alpha2 * (nd as f64 + kappa) - nd as f64;
-                let c = nd as f64 + lamda;
+                let SigmaWeights {
+                    spread: sc,
+                    mean: wm,
+                    covariance: wc,
+                } = SigmaWeights::new(nd, alpha, beta, kappa);
                 let l = Cholesky::new(p.clone())
                     .ok_or_else(|| Error::NotPositiveDefinite {
                         arg: "track covariance".into(),
@@ -111,12 +113,7 @@ impl Polar {
                             .into(),
                     })?
                     .unpack();
-                let sc = c.sqrt();
                 let np = 2 * nd + 1;
-                let mut wm = vec![0.5 / c; np];
-                wm[0] = lamda / c;
-                let mut wc = wm.clone();
-                wc[0] = lamda / c + (1.0 - alpha2 + beta);
                 // Sigma points and their measurements.
                 let mut pts: Vec<OVector<f64, N>> = Vec::with_capacity(np);
                 pts.push(x.clone());

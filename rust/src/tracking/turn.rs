@@ -21,6 +21,7 @@
 //! `gauss2sigma` sigma points, `unscented_transform` with the additive noise `Q`).
 
 use crate::error::{Error, Result};
+use crate::tracking::unscented::SigmaWeights;
 use nalgebra::{DMatrix, DVector};
 
 /// Below this `|ωT|` the turn functions use their Taylor series.
@@ -167,18 +168,13 @@ impl ConstantTurn {
             }
             TurnPredictor::Unscented { alpha, beta, kappa } => {
                 let n = Self::NDIM;
-                let nf = n as f64;
-                let kappa = kappa.unwrap_or(3.0 - nf);
-                let alpha2 = alpha * alpha;
-                let lamda = alpha2 * (nf + kappa) - nf;
-                let c = nf + lamda;
+                let SigmaWeights {
+                    spread: sc,
+                    mean: wm,
+                    covariance: wc,
+                } = SigmaWeights::new(n, alpha, beta, kappa);
                 let l = lower_factor(p);
-                let sc = c.sqrt();
                 let np = 2 * n + 1;
-                let mut wm = vec![0.5 / c; np];
-                wm[0] = lamda / c;
-                let mut wc = wm.clone();
-                wc[0] = lamda / c + (1.0 - alpha2 + beta);
                 let mut ys: Vec<[f64; 5]> = Vec::with_capacity(np);
                 ys.push(Self::function(x.as_slice(), dt));
                 let mut pt = [0.0; 5];
