@@ -107,6 +107,9 @@ def test_output_files_and_summary(rec, run):
     for stage in ("reader", "pose", "lidar.prefilter", "lidar.mean_shift", "camera.detector"):
         assert summary["stages"][stage]["calls"] > 0
     assert summary["real_time_factor"] > 0
+    lidar_range = load_config(rec.config).lidar["radius"]
+    assert summary["coverage"]["lidar"] == [lidar_range, 360.0, 0.0]
+    assert set(summary["coverage"]) == {"lidar", "camera"}
 
 
 def test_stonesoup_backend_gives_the_same_tracks(rec):

@@ -239,3 +239,25 @@ def test_report_with_no_tracks_and_with_an_empty_truth(tmp_path):
     m = write_report(out, truth=tmp_path / "empty.csv", print_table=False)
     assert m["thesis"]["n_targets"] == 0 and m["thesis"]["false_tracks"] == [1]
     assert m["clear_mot"]["false_positives"] == 21 and m["clear_mot"]["mota"] is None
+
+
+def test_report_counts_targets_by_the_coverage_the_run_wrote(run, tmp_path):
+    import shutil
+
+    out = tmp_path / "out"
+    shutil.copytree(run / "out", out)
+    truth = run / "truth.csv"
+    narrow = {"lidar": (6.0, 360.0, 0.0), "camera": (12.0, 60.0, 0.0)}
+    (out / "summary.json").write_text(
+        json.dumps({"coverage": {k: list(v) for k, v in narrow.items()}})
+    )
+    kw = {"animation": False, "print_table": False}
+    read = write_report(out, truth=truth, **kw)
+    given = write_report(out, truth=truth, coverage=narrow, **kw)
+    wide = write_report(out, truth=truth, max_range=40.0, **kw)
+    assert read["thesis"] == given["thesis"]
+    assert read["thesis"]["n_targets"] < wide["thesis"]["n_targets"]
+    assert read["inputs"] == given["inputs"]
+    (out / "summary.json").write_text("[1, 2]")
+    with pytest.raises(ValueError, match=r"out_dir: .*summary\.json"):
+        write_report(out, truth=truth, **kw)

@@ -454,6 +454,7 @@ class Pipeline:
             "heading_calibration": (
                 None if self.heading_calibration is None else self.heading_calibration.as_dict()
             ),
+            "coverage": {k: list(v) for k, v in self.coverage().items()},
         }
         if out is not None:
             Path(out, "summary.json").write_text(json.dumps(self.summary, indent=2))

@@ -121,11 +121,14 @@ def write_report(
     animation.gif. visibility: a visibility.csv (what each sensor physically saw; default:
     visibility.csv beside the truth when there is one) for the detectable-target rule
     (`usvfast.report.detectable`). metric_options: keywords of `evaluate_run` (max_range,
-    cap, ...). Raises FileNotFoundError naming a missing tracks.csv, truth, scene or
-    visibility file."""
+    cap, ...); with neither `coverage` nor `max_range` given, the sensors' coverage that
+    `usvfast run` wrote into summary.json counts (when the run folder has one). Raises
+    FileNotFoundError naming a missing tracks.csv, truth, scene or visibility file."""
     out = Path(out_dir)
     if not (out / "tracks.csv").is_file():
         raise FileNotFoundError(f"out_dir: no tracks.csv in {out}")
+    if not {"coverage", "max_range"} & metric_options.keys():
+        metric_options["coverage"] = _run_coverage(out)
     tracks = read_tracks(out / "tracks.csv")
     det = read_detections(out / "detections.csv") if (out / "detections.csv").is_file() else None
     nav = read_nav(out / "nav.csv") if (out / "nav.csv").is_file() else None
@@ -171,6 +174,18 @@ def write_report(
     if print_table and metrics:
         print_summary(metrics, console)
     return metrics
+
+
+def _run_coverage(out: Path) -> dict[str, tuple[float, float, float]] | None:
+    """The sensors' coverage that `usvfast run` wrote into OUT/summary.json, else None."""
+    path = out / "summary.json"
+    if not path.is_file():
+        return None
+    try:
+        cov = json.loads(path.read_text()).get("coverage")
+    except (json.JSONDecodeError, AttributeError) as exc:
+        raise ValueError(f"out_dir: {path} is not a summary.json: {exc}") from None
+    return {str(k): tuple(map(float, v)) for k, v in cov.items()} if cov else None
 
 
 def _figures(out, tracks, det, nav, inn, gt, sc, org, metrics, animation, html, options) -> None:

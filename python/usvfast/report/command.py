@@ -31,8 +31,12 @@ def report_command(
         bool, typer.Option(help="Also write the interactive map.html (needs plotly)")
     ] = False,
     max_range: Annotated[
-        float, typer.Option(help="Objects count as targets within this range of the USV, m")
-    ] = 40.0,
+        float | None,
+        typer.Option(
+            help="Objects count as targets within this range of the USV all round, m "
+            "(default: the sensors' coverage in summary.json, else 40)"
+        ),
+    ] = None,
 ) -> None:
     """Write metrics.json (with --truth), map.png, nis.png, errors.png and animation.gif into
     OUT and print the metrics table."""
@@ -46,7 +50,7 @@ def report_command(
             animation=animation,
             html=html,
             console=console,
-            max_range=max_range,
+            **({} if max_range is None else {"max_range": max_range}),
         )
     except (FileNotFoundError, ValueError, TypeError) as exc:
         Console(stderr=True).print(f"[red]error:[/red] {escape(str(exc))}")
