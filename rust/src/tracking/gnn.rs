@@ -2,6 +2,7 @@
 //! optimal assignment (`GNNWith2DAssignment`) and the Kalman update or prediction of each track.
 
 use super::hypothesise::*;
+use super::imm_scan::{imm_predict_all, imm_update};
 use crate::error::Result;
 use crate::models::MotionModel;
 use crate::tracking::assign::gnn_assign;

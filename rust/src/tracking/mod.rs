@@ -2,7 +2,7 @@
 //!
 //! | role | module | Stone Soup |
 //! |---|---|---|
-//! | predict / update | [`crate::kalman`], [`hypothesise`] (innovations, posterior covariance), [`imm`], [`turn`], [`polar`], [`unscented`] | `KalmanPredictor`, `Extended/UnscentedKalmanPredictor`, `KalmanUpdater`, `Extended/UnscentedKalmanUpdater` |
+//! | predict / update | [`crate::kalman`], [`hypothesise`] (innovations, posterior covariance), [`imm`], [`imm_scan`], [`turn`], [`polar`], [`unscented`] | `KalmanPredictor`, `Extended/UnscentedKalmanPredictor`, `KalmanUpdater`, `Extended/UnscentedKalmanUpdater` |
 //! | gating | [`gating`] (χ² gate, spatial grid), [`hypothesise`] (`gate_pairs`) | `PDAHypothesiser` / `DistanceHypothesiser` gates |
 //! | clustering | [`clustering`] | `JPDA` clusters |
 //! | JPDA | [`jpda`] (EHM, brute force, belief propagation past a budget), [`kbest`] (Murty k-best) | `JPDA`, `JPDAwithEHM` |
@@ -20,6 +20,7 @@ pub mod gating;
 pub mod gnn;
 pub mod hypothesise;
 pub mod imm;
+pub(crate) mod imm_scan;
 mod initiator;
 pub mod jipda;
 pub mod jpda;
