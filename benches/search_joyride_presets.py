@@ -1,12 +1,12 @@
 """Random search + hill climbing of a Joyride preset (how `joyride-polar` was chosen, and the
 first-half / whole-recording comparisons of the report): perturbs every numeric setting of a
-base preset log-normally (scale 0.3 for the first third of the runs, then 0.1; `--scale`
-sets the first, the rest is a third of it), starts from the first perturbation, keeps a later
-one when it lowers the score, and prints the best setting's figures over all scans and both
-halves (scans 0-118 / 119-237) and its TOML table as JSON. A base whose `[tracker.imm]` has
-`ct_q` (the turn rate in the state, e.g. `joyride`) has `ct_q`, `ct_q_turn`, `cv_q_turn` and the
-initiator's `prior_turn_rate_var` perturbed in place of the known turn rates (e.g.
-`joyride-known-turns`). `--few` perturbs only `q`, `prob_detect`, `clutter_density`, `ct_q`
+base preset log-normally (scale 0.3 for the first third of the runs, then 0.1; `--scale A B`
+sets both, `--scale A` the first and a third of it after), starts from the first perturbation,
+keeps a later one when it lowers the score, and prints the best setting's figures over all
+scans and both halves (scans 0-118 / 119-237) and its TOML table as JSON. A base whose
+`[tracker.imm]` has `ct_q` (the turn rate in the state, e.g. `joyride`) has `ct_q`, `ct_q_turn`,
+`cv_q_turn` and the initiator's `prior_turn_rate_var` perturbed in place of the known turn rates
+(e.g. `joyride-known-turns`). `--few` perturbs only `q`, `prob_detect`, `clutter_density`, `ct_q`
 and `ct_q_turn` (a search that can overfit less).
 
 Score: RMSE + 400 x (coverage short of 96 %) + 5 x |fragments - 1| + 2 x (false tracks over 2)
@@ -125,7 +125,7 @@ def search(
     part: str,
     runs: int,
     seed: int,
-    scale: float = 0.3,
+    scale: tuple[float, float] = (0.3, 0.1),
     few: bool = False,
     polar: bool = False,
     cover: float = 0.96,
@@ -133,13 +133,14 @@ def search(
     log=None,
 ) -> tuple[dict, float, list | None]:
     """Hill climb from `base` (see the module doc): the best setting, its score on `part` and
-    its figures [all, 0-118, 119-237]. `log(i, score, figures)` is called on each improvement."""
+        its figures [all, 0-118, 119-237]. `scale`: log-normal scale of the first third of the runs
+    and of the rest. `log(i, score, figures)` is called on each improvement."""
     rng = np.random.default_rng(seed)
     best = base
     # The first perturbation is the starting point (accepted whatever its score).
     s_best, q_best = float("inf"), None
     for i in range(runs):
-        c = perturb(best, rng, scale if i < runs // 3 else scale / 3, polar, few)
+        c = perturb(best, rng, scale[0] if i < runs // 3 else scale[1], polar, few)
         try:
             q = figures(plots, c)
         except ValueError:
@@ -159,11 +160,20 @@ def main() -> None:
     ap.add_argument("--part", choices=PARTS, default="halves")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--runs", type=int, default=3000)
-    ap.add_argument("--scale", type=float, default=0.3, help="log-normal scale, first third")
+    ap.add_argument(
+        "--scale",
+        type=float,
+        nargs="+",
+        default=[0.3, 0.1],
+        help="log-normal scale of the first third of the runs [and of the rest]",
+    )
     ap.add_argument("--few", action="store_true", help="perturb only " + ", ".join(FEW))
     ap.add_argument("--cover", type=float, default=0.96, help="coverage aim of the score")
     ap.add_argument("--max-false", type=int, default=2, help="false tracks the score allows")
     a = ap.parse_args()
+    if len(a.scale) > 2 or min(a.scale) <= 0:
+        ap.error(f"--scale: one or two positive numbers, got {a.scale}")
+    scale = (a.scale[0], a.scale[1] if len(a.scale) == 2 else a.scale[0] / 3)
     path = Path(os.environ.get("USVFAST_SHARED_DATA", "../shared/data")) / "joyride/joyride.mat"
     plots = read_plots(path)
     base = load_config(a.base)
@@ -181,7 +191,7 @@ def main() -> None:
         part=a.part,
         runs=a.runs,
         seed=a.seed,
-        scale=a.scale,
+        scale=scale,
         few=a.few,
         polar=a.polar,
         cover=a.cover,
