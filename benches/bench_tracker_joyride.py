@@ -20,6 +20,13 @@ and - a diagnostic, not a shipped setting - the presets on plots whose bias was 
 one half against the truth, scored on the other half.
 
     USVFAST_SHARED_DATA=/work/shared/data PYTHONPATH=python python benches/bench_tracker_joyride.py
+
+`joyride`'s figures here are in-sample (it was tuned on all 238 scans). A held-out figure is
+benches/cv_joyride_preset.py: the preset's search re-run from `joyride` on one half
+(benches/search_joyride_presets.py --part first / second) and scored on the other; there the
+five-setting search gives 18.29 m / 94.1 % / 1 / 2 on scans 119-237 and 23.39 m / 96.6 % / 1 / 0
+on scans 0-118, 21.03 m / 95.4 % over both held-out halves: the coverage aim is not met held
+out, nor RMSE <= 20.5 m on scans 0-118 (22.9 m even for `joyride` itself).
 """
 
 from __future__ import annotations

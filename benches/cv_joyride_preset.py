@@ -1,0 +1,212 @@
+"""A held-out (2-fold) figure for the shipped Joyride preset `joyride`: the search of
+benches/search_joyride_presets.py run from `joyride` on one half of the recording (scans 0-118,
+then 119-237) and its best setting scored on the other, held-out half; then how flat the
+shipped preset's neighbourhood is.
+
+Decided before any held-out figure was seen (and not changed after):
+- two search variants, both from the shipped `joyride`, --runs hill-climbing runs per seed:
+  "full": every numeric setting perturbed, log-normal scale 0.3 then 0.1, the search's score
+  (coverage aim 96 %, false tracks over 2 penalised);
+  "reg" (regularised): only q, prob_detect, clutter_density, ct_q and ct_q_turn perturbed,
+  scale 0.1 then 0.033, scored with a margin (coverage aim 97 %, false tracks over 1
+  penalised).
+- per fold and variant, seeds 0, 1, 2; the seed with the lowest in-sample score (the variant's
+  own score on the tuning half) gives that variant's setting (marked *). "reg" is the
+  primary recipe; "full" is reported beside it; no choice is made between them by held-out
+  figures.
+- the shipped preset would be replaced only by the "reg" recipe, and only if both folds' "reg"
+  settings meet all four aims (RMSE <= 20.5 m, coverage >= 96 %, 1 fragment, <= 2 false
+  tracks) on their held-out half; the recipe is then run on the whole recording and its
+  setting must meet the aims there too (printed only in that case).
+- flatness: 200 draws of the shipped preset with every searched setting perturbed
+  log-normally at scale 0.05 (seed 0; probabilities near one have 1 - p perturbed), and 200
+  with only the five "reg" settings perturbed: the fraction meeting all four aims over the
+  whole recording, and each aim alone.
+
+Each part is scored from one run over all 238 scans (the tracker sees every plot; only the
+scoring is split). Time per scan: best wall clock of 30 tracker runs.
+
+Result (--runs 1500: 18,000 search runs at ~4 ms each, 80 s in all), RMSE m / coverage % /
+fragments / false tracks; no held-out figure meets all four aims:
+- shipped `joyride`, tuned on all scans (in-sample): all 20.43 / 96.6 / 1 / 2; scans 0-118
+  22.91 / 96.6 / 1 / 0; scans 119-237 17.61 / 96.6 / 1 / 2.
+- "reg" tuned on 0-118: in-sample 22.88 / 96.6 / 1 / 0, held-out 119-237 18.29 / 94.1 / 1 / 2
+  (coverage misses); tuned on 119-237: in-sample 18.00 / 97.5 / 1 / 2, held-out 0-118
+  23.39 / 96.6 / 1 / 0 (RMSE misses). Both halves held out together: 21.03 / 95.4 (1 fragment
+  and 0 / 2 false tracks per half).
+- "full" tuned on 0-118: in-sample 22.23 / 96.6 / 1 / 2, held-out 21.82 / 94.1 / 1 / 6; tuned
+  on 119-237: in-sample 17.28 / 96.6 / 1 / 2, held-out 23.39 / 94.1 / 2 / 0. Together 22.62 /
+  94.1. It moves settings by up to 7x and its held-out figures swing from seed to seed.
+- No searched setting reaches 20.5 m on scans 0-118 even in-sample (best 22.23 m): that half is
+  the harder one; RMSE <= 20.5 m on it held out was out of reach of these searches.
+- flatness: 34.5 % of the 5 % draws of every setting meet all four aims on all scans (51.5 %
+  of the five-setting draws); every miss is an RMSE miss (median 20.54 m; coverage, fragments,
+  false tracks hold in >= 99.5 %): the 20.43 m sits 0.07 m under the aim on a sharp optimum.
+The shipped preset is unchanged (the "reg" recipe misses the aims on both held-out halves).
+
+    USVFAST_SHARED_DATA=/work/shared/data PYTHONPATH=python \\
+        nice -n 10 python benches/cv_joyride_preset.py --runs 1500
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_tracker_joyride import fmt
+from search_joyride_presets import figures, perturb, search
+
+from usvfast.trackcmd import (
+    corrected_plots,
+    load_config,
+    plot_covariances,
+    read_plots,
+    tracker_from_config,
+)
+
+from timing import best_of
+
+# The scales as first run (0.3 / 3 is one ulp below 0.1; kept so the figures reproduce).
+VARIANTS = {
+    "full": {"scale": (0.3, 0.3 / 3), "few": False, "cover": 0.96, "max_false": 2},
+    "reg": {"scale": (0.1, 0.1 / 3), "few": True, "cover": 0.97, "max_false": 1},
+}
+# (tuning part, index of its figures, index of the held-out figures) in [all, 0-118, 119-237]
+FOLDS = (("first", 1, 2), ("second", 2, 1))
+SEEDS = (0, 1, 2)
+NAMES = {0: "all 238", 1: "scans 0-118", 2: "scans 119-237"}
+
+
+def meets(q) -> bool:
+    """All four track-quality aims: RMSE <= 20.5 m, coverage >= 96 %, 1 fragment, <= 2 false
+    tracks."""
+    return q.rmse <= 20.5 and q.coverage >= 0.96 and q.fragments == 1 and q.tracks_elsewhere <= 2
+
+
+def pooled(held: list) -> str:
+    """The held-out halves of the two folds put together (238 scans, each scored by the
+    setting tuned on the other half): RMSE over the covered scans, coverage, and the sums of
+    fragments and of false tracks."""
+    e = np.concatenate([q.errors for q in held])
+    ok = np.isfinite(e)
+    rmse = float(np.sqrt(np.mean(e[ok] ** 2)))
+    fr = sum(q.fragments for q in held)
+    ft = sum(q.tracks_elsewhere for q in held)
+    return f"{rmse:6.2f} {ok.mean() * 100:5.1f} {fr:3d} {ft:3d}"
+
+
+def ms_per_scan(plots, c: dict) -> float:
+    """Best wall clock of 30 tracker runs over the recording, ms per scan."""
+    t = plots.times - plots.times[0]
+    z, cov = corrected_plots(c, plots), plot_covariances(c, plots)
+
+    def go():
+        tr = tracker_from_config(c)
+        return tr.run(t, z, plots.sensor, plots.scan_index, covariances=cov)
+
+    best, _ = best_of(go, 30)
+    return best / len(plots.times) * 1e3
+
+
+def flatness(plots, base: dict, draws: int, scale: float, few: bool) -> str:
+    """Fractions of `draws` perturbations of `base` meeting all four aims on all scans, and
+    each aim alone."""
+    rng = np.random.default_rng(0)
+    ok = np.zeros((draws, 5), dtype=bool)
+    rmse = np.zeros(draws)
+    for k in range(draws):
+        q = figures(plots, perturb(base, rng, scale, polar=False, few=few))[0]
+        rmse[k] = q.rmse
+        ok[k] = (
+            meets(q),
+            q.rmse <= 20.5,
+            q.coverage >= 0.96,
+            q.fragments == 1,
+            q.tracks_elsewhere <= 2,
+        )
+    f = ok.mean(0) * 100
+    return (
+        f"all four {f[0]:5.1f} %; RMSE {f[1]:5.1f} %, coverage {f[2]:5.1f} %, "
+        f"fragments {f[3]:5.1f} %, false tracks {f[4]:5.1f} %; RMSE 10/50/90th percentile "
+        + "/".join(f"{v:.2f}" for v in np.percentile(rmse, [10, 50, 90]))
+        + " m"
+    )
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--runs", type=int, default=1500, help="hill-climbing runs per seed")
+    ap.add_argument("--draws", type=int, default=200, help="perturbations for the flatness")
+    ap.add_argument("--out", type=Path, help="write the chosen settings here as JSON")
+    a = ap.parse_args()
+    path = Path(os.environ.get("USVFAST_SHARED_DATA", "../shared/data")) / "joyride/joyride.mat"
+    plots = read_plots(path)
+    shipped = load_config("joyride")
+    head = "RMSE m  cov%  fr  ft"
+    q_ship = figures(plots, shipped)
+    print(f"shipped joyride ({ms_per_scan(plots, shipped):.4f} ms/scan), {head}:")
+    for i, q in enumerate(q_ship):
+        print(f"  {NAMES[i]:14s} {fmt(q)}  {'meets' if meets(q) else 'MISSES'} the aims")
+    print(
+        f"\n{'tuned on':12s} {'variant':7s} {'seed':>4s} {'score':>8s}  {'in-sample ' + head:30s}"
+        f"  {'HELD-OUT ' + head:29s}  whole (half in-sample)"
+    )
+    chosen: dict = {}
+    held_out: dict = {name: [] for name in VARIANTS}
+    for part, tune, held in FOLDS:
+        for name, v in VARIANTS.items():
+            rows = []
+            for seed in SEEDS:
+                t0 = time.perf_counter()
+                best, s, q = search(plots, shipped, part=part, runs=a.runs, seed=seed, **v)
+                per_run = (time.perf_counter() - t0) / a.runs * 1e3
+                rows.append((s, seed, best, q, per_run))
+            pick = min(rows, key=lambda r: r[0])
+            for s, seed, _, q, per_run in rows:
+                mark = "*" if seed == pick[1] else " "
+                print(
+                    f"{NAMES[tune]:12s} {name:7s} {seed:3d}{mark} {s:8.3f}  {fmt(q[tune]):30s}"
+                    f"  {fmt(q[held]):20s}{'' if meets(q[held]) else ' miss':5s}"
+                    f"     {fmt(q[0])}   ({per_run:.1f} ms/run)"
+                )
+            chosen[f"{part}/{name}"] = pick[2]
+            q = pick[3]
+            held_out[name].append(q[held])
+            print(
+                f"{'':26s} chosen: held-out {fmt(q[held])} "
+                f"{'meets' if meets(q[held]) else 'MISSES'} the aims; "
+                f"{ms_per_scan(plots, pick[2]):.4f} ms/scan"
+            )
+    print("\nheld-out halves of the two folds together (chosen settings), " + head)
+    for name, held in held_out.items():
+        print(f"  {name:7s} {pooled(held)}")
+    print(f"  {'joyride':7s} {fmt(q_ship[0])}   (shipped, in-sample: tuned on all scans)")
+    for few in (False, True):
+        what = "the five reg settings" if few else "every searched setting"
+        print(
+            f"\nflatness, {a.draws} draws of joyride, 5 % noise on {what}, all 238 scans:\n  "
+            + flatness(plots, shipped, a.draws, 0.05, few)
+        )
+    held_ok = all(meets(figures(plots, chosen[f"{p}/reg"])[h]) for p, _, h in FOLDS)
+    print(f"\nreg recipe meets the aims on both held-out halves: {held_ok}")
+    if held_ok:
+        rows = [
+            search(plots, shipped, part="whole", runs=a.runs, seed=s, **VARIANTS["reg"])
+            for s in SEEDS
+        ]
+        best, s, q = min(rows, key=lambda r: r[1])
+        chosen["whole/reg"] = best
+        print(f"reg recipe on the whole recording: {fmt(q[0])} meets the aims: {meets(q[0])}")
+    if a.out:
+        a.out.write_text(json.dumps(chosen, indent=1))
+
+
+if __name__ == "__main__":
+    main()
