@@ -20,7 +20,8 @@ from usvfast.pipeline.lidar_chain import LidarChain
 from usvfast.pipeline.pose import VesselPose
 from usvfast.pipeline.timing import StageTimer
 from usvfast.sim.camera import WATERLINE_HEIGHT
-from usvfast.sim.recording import _SENSOR_MODELS, EPOCH
+from usvfast.sim.configs import _SENSOR_MODELS
+from usvfast.sim.recording import EPOCH
 from usvfast.sim.scene import FLOAT_KINDS, make_world
 from usvfast.sim.velodyne import LIDAR_LEVER_ARM, Vlp16Recorder
 
