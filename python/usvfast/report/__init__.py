@@ -176,7 +176,7 @@ def write_report(
     return metrics
 
 
-def _run_coverage(out: Path) -> dict[str, tuple[float, float, float]] | None:
+def _run_coverage(out: Path) -> dict[str, tuple[float, ...]] | None:
     """The sensors' coverage that `usvfast run` wrote into OUT/summary.json, else None."""
     path = out / "summary.json"
     if not path.is_file():

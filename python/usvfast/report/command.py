@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 from rich.console import Console
@@ -42,6 +42,7 @@ def report_command(
     OUT and print the metrics table."""
     console = Console()
     start = time.time()
+    options: dict[str, Any] = {} if max_range is None else {"max_range": max_range}
     try:
         metrics = write_report(
             out,
@@ -50,7 +51,7 @@ def report_command(
             animation=animation,
             html=html,
             console=console,
-            **({} if max_range is None else {"max_range": max_range}),
+            **options,
         )
     except (FileNotFoundError, ValueError, TypeError) as exc:
         Console(stderr=True).print(f"[red]error:[/red] {escape(str(exc))}")
