@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from usvfast.lidar.readers import _packet_problems, velodyne_packet_problem
+from usvfast.lidar.packets import packet_problems, velodyne_packet_problem
 from usvfast.sim.scene import make_world
 from usvfast.sim.velodyne import Vlp16Recorder
 
@@ -32,6 +32,6 @@ def test_vectorised_packet_check_equals_the_reference():
             b = b[: int(rng.integers(0, 1300))] if rng.random() < 0.5 else b + b"\0"
         payloads.append(bytes(b))
     expected = [velodyne_packet_problem(p) for p in payloads]
-    assert _packet_problems(payloads) == expected
+    assert packet_problems(payloads) == expected
     assert set(expected) >= {None, "block flag", "azimuth", "factory bytes", "packet length"}
-    assert _packet_problems([]) == []
+    assert packet_problems([]) == []

@@ -19,7 +19,8 @@ from usvfast.lidar import (
     open_lidar,
     write_pointcloud2_bag,
 )
-from usvfast.lidar.readers import lidar_typestore, make_header, velodyne_packet_problem
+from usvfast.lidar.packets import velodyne_packet_problem
+from usvfast.lidar.readers import lidar_typestore, make_header
 
 from conftest import SHARED_DATA
 

@@ -23,7 +23,8 @@ from typer.testing import CliRunner
 from usvfast.camera.calibration import CameraModel
 from usvfast.cli import app
 from usvfast.frames import rotation_matrix
-from usvfast.lidar.readers import BagReader, VelodynePcapReader
+from usvfast.lidar.pcap import VelodynePcapReader
+from usvfast.lidar.readers import BagReader
 from usvfast.nav.bags import BagTopic, bag_topics, read_bag_imu, read_bag_nmea
 from usvfast.nav.nmea import read_nmea
 from usvfast.sim.camera import default_camera

@@ -10,7 +10,7 @@ import pytest
 import velodyne_decoder as vd
 
 from usvfast.frames import rotation_matrix
-from usvfast.lidar.readers import velodyne_packet_problem
+from usvfast.lidar.packets import velodyne_packet_problem
 from usvfast.sim.scene import make_world
 from usvfast.sim.velodyne import PACKET_DTYPE, PACKET_SIZE, Vlp16Recorder, decoded_azimuths
 

@@ -28,6 +28,8 @@ from usvfast.lidar.lines import (
     point_segment_distance,
     rasterize,
 )
+from usvfast.lidar.packets import LidarDataWarning, ReadStats
+from usvfast.lidar.pcap import VelodynePcapReader
 from usvfast.lidar.pipeline import (
     CycleResult,
     FrameResult,
@@ -40,9 +42,6 @@ from usvfast.lidar.pipeline import (
 )
 from usvfast.lidar.readers import (
     BagReader,
-    LidarDataWarning,
-    ReadStats,
-    VelodynePcapReader,
     open_lidar,
     pointcloud2_to_points,
     write_pointcloud2_bag,

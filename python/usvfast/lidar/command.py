@@ -10,8 +10,9 @@ from typing import Annotated
 import numpy as np
 import typer
 
+from usvfast.lidar.packets import LidarDataWarning
 from usvfast.lidar.pipeline import LidarConfig, LidarDetector
-from usvfast.lidar.readers import LidarDataWarning, open_lidar
+from usvfast.lidar.readers import open_lidar
 
 
 def load_poses(path: Path) -> tuple[np.ndarray, np.ndarray]:

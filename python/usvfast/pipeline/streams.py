@@ -90,7 +90,8 @@ def _model(name: Any) -> Any:
 def open_lidar_stream(spec: StreamSpec, decode: bool = True) -> LidarRecords:
     """Open a `lidar` stream (see the module doc). Raises ValueError naming the topic when a
     bag lacks it or holds no LiDAR type."""
-    from usvfast.lidar.readers import LIDAR_MSGTYPES, BagReader, VelodynePcapReader
+    from usvfast.lidar.pcap import VelodynePcapReader
+    from usvfast.lidar.readers import LIDAR_MSGTYPES, BagReader
 
     assert spec.path is not None
     model = _model(spec.options.get("model"))

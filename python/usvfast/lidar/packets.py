@@ -1,0 +1,127 @@
+"""Velodyne data packets: structural checks (size, block flags, return mode, model id),
+decoding to points by velodyne-decoder, and the counts and warning every LiDAR reader shares
+(`ReadStats`, `LidarDataWarning`).
+
+Payload bytes that are corrupted but still structurally valid (a flipped distance byte)
+cannot be detected: Velodyne sensors send UDP checksums of zero.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections import Counter
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from usvfast._damage import DamagedRecordsWarning
+from usvfast.lidar.frame import POINT_DTYPE
+
+#: Size of the UDP payload of a Velodyne data packet, bytes.
+VELODYNE_PACKET_SIZE = 1206
+#: Model ids (factory byte) known to velodyne-decoder's packet format.
+_KNOWN_MODEL_IDS = {0x21, 0x22, 0x24, 0x28, 0x31, 0xA1}
+_BLOCK_FLAGS = {0xEEFF, 0xDDFF}  # upper / lower block (HDL-64E uses both)
+_RETURN_MODES = {0x37, 0x38, 0x39}
+
+
+class LidarDataWarning(DamagedRecordsWarning):
+    """Damaged LiDAR records were skipped while reading (count in the message); a
+    DamagedRecordsWarning like every reader's."""
+
+
+@dataclass
+class ReadStats:
+    """Counts kept by a reader while it streams.
+
+    `records` counts pcap records or bag messages seen, `packets` Velodyne data packets
+    decoded, `frames` frames produced, `damaged` skipped damaged records/packets/messages;
+    `reasons` breaks `damaged` down by cause.
+    """
+
+    records: int = 0
+    packets: int = 0
+    frames: int = 0
+    damaged: int = 0
+    reasons: Counter = field(default_factory=Counter)
+
+    def damage(self, reason: str, count: int = 1) -> None:
+        """Count `count` damaged items for `reason`."""
+        self.damaged += count
+        self.reasons[reason] += count
+
+
+def finish_read(stats: ReadStats, source: str) -> None:
+    """At the end of a stream from `source`: warn with the damaged-record counts (a
+    `LidarDataWarning`), or raise ValueError naming `source` when nothing usable was read."""
+    if stats.damaged:
+        detail = ", ".join(f"{k}: {v}" for k, v in sorted(stats.reasons.items()))
+        warnings.warn(
+            f"{source}: skipped {stats.damaged} damaged record(s) ({detail})",
+            LidarDataWarning,
+            stacklevel=3,
+        )
+    if stats.frames == 0:
+        raise ValueError(f"{source}: no usable LiDAR frame (damaged: {stats.damaged})")
+
+
+def velodyne_packet_problem(payload: bytes, model_id: int | None = None) -> str | None:
+    """Return why a 1206-byte Velodyne data packet is malformed, or None if it looks valid.
+
+    Checks the block flags, the azimuths (< 36000 hundredths of a degree), the factory bytes
+    (return mode, model id, and the model id against `model_id` when given).
+    """
+    if len(payload) != VELODYNE_PACKET_SIZE:
+        return "packet length"
+    blocks = np.frombuffer(payload, dtype="<u2", count=600).reshape(12, 50)
+    flags = blocks[:, 0].tolist()  # 12 values: plain Python is faster than np.isin here
+    if not all(f in _BLOCK_FLAGS for f in flags):
+        return "block flag"
+    if max(blocks[:, 1].tolist()) >= 36000:
+        return "azimuth"
+    return_mode, model = payload[1204], payload[1205]
+    if return_mode not in _RETURN_MODES or model not in _KNOWN_MODEL_IDS:
+        return "factory bytes"
+    if model_id is not None and model != model_id:
+        return "model id"
+    return None
+
+
+_FLAG_ARRAY = np.array(sorted(_BLOCK_FLAGS), dtype=np.uint16)
+_RETURN_ARRAY = np.array(sorted(_RETURN_MODES), dtype=np.uint8)
+_MODEL_ARRAY = np.array(sorted(_KNOWN_MODEL_IDS), dtype=np.uint8)
+
+
+def packet_problems(payloads: list[bytes]) -> list[str | None]:
+    """`velodyne_packet_problem(p)` (without the model-id check) of many packets at once: one
+    numpy pass over the packets of full length, the others one by one."""
+    full = [k for k, p in enumerate(payloads) if len(p) == VELODYNE_PACKET_SIZE]
+    out: list[str | None] = [None] * len(payloads)
+    for k in set(range(len(payloads))) - set(full):
+        out[k] = velodyne_packet_problem(payloads[k])
+    if not full:
+        return out
+    raw = np.frombuffer(b"".join(payloads[k] for k in full), dtype=np.uint8)
+    raw = raw.reshape(len(full), VELODYNE_PACKET_SIZE)
+    blocks = raw[:, :1200].copy().view("<u2").reshape(len(full), 12, 50)
+    bad_flag = ~np.all(np.isin(blocks[:, :, 0], _FLAG_ARRAY), axis=1)
+    bad_azimuth = (blocks[:, :, 1] >= 36000).any(axis=1)
+    bad_factory = ~np.isin(raw[:, 1204], _RETURN_ARRAY) | ~np.isin(raw[:, 1205], _MODEL_ARRAY)
+    for j, k in enumerate(full):
+        if bad_flag[j]:
+            out[k] = "block flag"
+        elif bad_azimuth[j]:
+            out[k] = "azimuth"
+        elif bad_factory[j]:
+            out[k] = "factory bytes"
+    return out
+
+
+def decoded_to_points(arr: np.ndarray) -> np.ndarray:
+    """velodyne-decoder's (n, 8) float32 columns -> (n,) `POINT_DTYPE`."""
+    out = np.empty(arr.shape[0], dtype=POINT_DTYPE)
+    out["x"], out["y"], out["z"] = arr[:, 0], arr[:, 1], arr[:, 2]
+    out["intensity"] = arr[:, 3]
+    out["time"] = arr[:, 4]
+    out["ring"] = arr[:, 6].astype(np.uint16)
+    return out
