@@ -10,6 +10,7 @@
 
 pub mod fuse;
 pub mod kcluster;
+pub mod params;
 pub mod rng;
 pub mod sir;
 pub mod tracker;
