@@ -193,13 +193,19 @@ class SsdDetector:
 
     def detect(self, image: np.ndarray) -> Detections:
         """Boats of one BGR uint8 frame (h, w, 3): x, y, w, h px, scores, keypoints −1."""
-        b, s = self.candidates(image)
-        if not len(s):
-            return Detections()
-        idx = nms(b, s, self.iou_threshold)[: self.top_k]
-        b, s = b[idx], s[idx]
-        xywh = np.concatenate([b[:, :2], b[:, 2:] - b[:, :2]], axis=1)
-        return Detections(xywh, s, np.full(len(s), -1, dtype=np.int64))
+        return suppressed(*self.candidates(image), self.iou_threshold, self.top_k)
+
+
+def suppressed(corners: np.ndarray, scores: np.ndarray, iou: float, top_k: int) -> Detections:
+    """The boxes greedy NMS keeps (IoU `iou`, at most `top_k`, best first) of candidate
+    corners (n, 4) x1, y1, x2, y2 px and scores (n,), as Detections (x, y, w, h px, scores,
+    keypoints −1)."""
+    if not len(scores):
+        return Detections()
+    idx = nms(corners, scores, iou)[:top_k]
+    b, s = corners[idx], scores[idx].astype(float)
+    xywh = np.concatenate([b[:, :2], b[:, 2:] - b[:, :2]], axis=1)
+    return Detections(xywh, s, np.full(len(s), -1, dtype=np.int64))
 
 
 def export_onnx(net, path: Path | str, input_size: tuple[int, int]) -> Path:

@@ -19,8 +19,8 @@ import math
 import numpy as np
 
 from usvfast._validate import instance, real
-from usvfast.camera.nms import nms
 from usvfast.shore.boxes import Detections
+from usvfast.shore.pretrained import SsdDetector, suppressed
 
 #: Share of a tile that overlaps the next one (along each axis).
 TILE_OVERLAP = 0.25
@@ -45,8 +45,6 @@ class SsdTta:
     and `top_k` are the detector's. `detect(image)` -> :class:`usvfast.shore.boxes.Detections`."""
 
     def __init__(self, detector, *, flip: bool = True, zoom: float = 1.0) -> None:
-        from usvfast.shore.pretrained import SsdDetector
-
         instance("detector", detector, SsdDetector)
         if not isinstance(flip, bool | np.bool_):
             raise TypeError(f"flip: expected a bool, got {type(flip).__name__}")
@@ -102,10 +100,5 @@ class SsdTta:
 
     def detect(self, image: np.ndarray) -> Detections:
         """Boats of one BGR uint8 frame (h, w, 3): x, y, w, h px, scores, keypoints −1."""
-        b, s = self.candidates(image)
-        if not len(s):
-            return Detections()
-        idx = nms(b, s, self.detector.iou_threshold)[: self.detector.top_k]
-        b, s = b[idx], s[idx].astype(float)
-        xywh = np.concatenate([b[:, :2], b[:, 2:] - b[:, :2]], axis=1)
-        return Detections(xywh, s, np.full(len(s), -1, dtype=np.int64))
+        det = self.detector
+        return suppressed(*self.candidates(image), det.iou_threshold, det.top_k)
