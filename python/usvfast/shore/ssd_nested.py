@@ -23,10 +23,10 @@ from pathlib import Path
 
 import numpy as np
 
-from usvfast.camera.nms import nms
 from usvfast.shore.boxes import Detections
 from usvfast.shore.det_scoring import VideoFrames, pick, score
 from usvfast.shore.horizon import HorizonConfig
+from usvfast.shore.pretrained import suppressed
 from usvfast.shore.suppress import suppress
 
 #: Training recipes compared: name -> (model-file prefix, `SsdTrainConfig` overrides).
@@ -164,13 +164,7 @@ class CandidateCache:
             for fr in self.get(model, name, video):
                 b = np.concatenate([fr[p][0].reshape(-1, 4) for p in parts])
                 s = np.concatenate([fr[p][1] for p in parts]).astype(float)
-                if not len(s):
-                    out.append(Detections())
-                    continue
-                i = nms(b, s, iou)[:100]
-                b, s = b[i], s[i]
-                xywh = np.concatenate([b[:, :2], b[:, 2:] - b[:, :2]], axis=1)
-                out.append(Detections(xywh, s, np.full(len(s), -1, dtype=np.int64)))
+                out.append(suppressed(b, s, iou, 100))
             self._merged[key] = out
         return self._merged[key]
 
