@@ -107,9 +107,10 @@ def nested_rows(
     """Rows of the fine-tuned SSD whose whole set-up (recipe, test-time views, threshold,
     suppression) is picked by inner leave-one-video-out on the other videos
     (:mod:`usvfast.shore.ssd_nested`; nothing chosen on `held` or on frames a model saw):
-    the picked set-up with both horizons, then the default recipe with the card's threshold
-    alone for comparison. Needs 3 inner models per recipe of `recipes` (default every one)
-    and the held-out model of the recipe picked (trained when absent in `models`)."""
+    the picked set-up with both horizons, and the pick with its pooled inner TPR / FAR. Needs
+    3 inner models per recipe of `recipes` (default
+    :data:`usvfast.shore.ssd_nested.DEFAULT_RECIPES`) and the held-out model of the recipe
+    picked (trained when absent in `models`)."""
     from usvfast.shore.ssd_nested import (
         CandidateCache,
         fold_model,
