@@ -13,6 +13,7 @@ into detections (score 1), so a run on them measures the tracker alone (noise-fr
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 
 import cv2
 import numpy as np
@@ -21,7 +22,7 @@ from usvfast._validate import instance
 from usvfast.metrics import FrameSequence, hota_metrics, mot_metrics
 from usvfast.shore.boxes import Detections
 from usvfast.shore.mardct import AnnotatedFrame
-from usvfast.shore.particle import ParticleTracker
+from usvfast.shore.particle import ParticleConfig, ParticleTracker
 from usvfast.shore.pixel_kalman import AdaptiveTracker
 from usvfast.shore.sort import SortConfig, SortTracker
 
@@ -72,22 +73,22 @@ def run_tracker(
     images: Sequence[np.ndarray | None] | None = None,
     seed: int = 0,
     sort: SortConfig | None = None,
+    particle: ParticleConfig | None = None,
 ) -> Tracks:
     """(frame numbers from 1, ids, boxes (n, 4) px) of `tracker` ('sort', 'particle' or
     'adaptive') over the frames with their detections. `images`: the BGR frames (read from
     the frames' paths when None). `sort`: the SORT-like tracker's parameters (default
-    :class:`SortConfig`, one-stage association)."""
+    :class:`SortConfig`, one-stage association); `particle`: the particle tracker's (default
+    :class:`ParticleConfig`; its seed is `seed`)."""
     if tracker not in TRACKERS:
         raise ValueError(f"tracker: expected one of {TRACKERS}, got {tracker!r}")
     if sort is not None:
         instance("sort", sort, SortConfig)
+    if particle is not None:
+        instance("particle", particle, ParticleConfig)
     if tracker == "particle":
-        from dataclasses import replace
-
-        from usvfast.shore.particle import ParticleConfig
-
         t: SortTracker | ParticleTracker | AdaptiveTracker = ParticleTracker(
-            replace(ParticleConfig(), seed=seed)
+            replace(particle or ParticleConfig(), seed=seed)
         )
     else:
         t = SortTracker(sort) if tracker == "sort" else AdaptiveTracker()

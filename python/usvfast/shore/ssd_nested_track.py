@@ -20,14 +20,12 @@ from collections.abc import Callable, Sequence
 from dataclasses import asdict, replace
 from pathlib import Path
 
-import numpy as np
-
 from usvfast.shore.boxes import Detections
 from usvfast.shore.det_scoring import VideoFrames
 from usvfast.shore.horizon import HorizonConfig, horizon_keep
-from usvfast.shore.mot_eval import mot_scores
-from usvfast.shore.particle import ParticleConfig, ParticleTracker
-from usvfast.shore.sort import SortConfig, SortTracker
+from usvfast.shore.mot_eval import mot_scores, run_tracker
+from usvfast.shore.particle import ParticleConfig
+from usvfast.shore.sort import SortConfig
 from usvfast.shore.ssd_nested import (
     CONF_GRID,
     CandidateCache,
@@ -68,32 +66,24 @@ def _horizon(video: VideoFrames, dets: Sequence[Detections], hcfg: HorizonConfig
     ]
 
 
-def run(video: VideoFrames, dets: Sequence[Detections], tracker: object) -> dict:
+def run(
+    video: VideoFrames, dets: Sequence[Detections], tracker: SortConfig | ParticleConfig
+) -> dict:
     """mot_scores of a SortConfig or ParticleConfig `tracker` over a video's detections."""
     return mot_scores(video.frames, track(video, dets, tracker))
 
 
-def track(video: VideoFrames, dets: Sequence[Detections], tracker: object) -> tuple:
+def track(
+    video: VideoFrames, dets: Sequence[Detections], tracker: SortConfig | ParticleConfig
+) -> tuple:
     """(frame numbers from 1, ids, boxes (n, 4) px) of a SortConfig or ParticleConfig
-    `tracker` over a video's detections (the particle tracker told the frame gaps, as
-    :func:`usvfast.shore.mot_eval.run_tracker`)."""
-    t = SortTracker(tracker) if isinstance(tracker, SortConfig) else ParticleTracker(tracker)  # pyright: ignore[reportArgumentType]
-    fr, ids, boxes = [], [], []
-    prev = None
-    for n, (f, d, im) in enumerate(zip(video.frames, dets, video.images, strict=True), 1):
-        if isinstance(t, ParticleTracker):
-            dt = 1.0 if prev is None else float(max(f.index - prev, 1))
-            i, b, _ = t.step(im, d, dt)
-        else:
-            i, b, _ = t.step(im, d)
-        prev = f.index
-        fr += [n] * len(i)
-        ids.append(np.asarray(i, np.int64))
-        boxes.append(np.asarray(b, float).reshape(-1, 4))
-    return np.array(fr, np.int64), np.concatenate(ids), np.concatenate(boxes)
+    `tracker` over a video's detections (:func:`usvfast.shore.mot_eval.run_tracker`)."""
+    if isinstance(tracker, SortConfig):
+        return run_tracker(video.frames, dets, "sort", video.images, sort=tracker)
+    return run_tracker(video.frames, dets, "particle", video.images, particle=tracker)
 
 
-def _make(tracker: str, setting: tuple, setup: SsdSetup) -> object:
+def _make(tracker: str, setting: tuple, setup: SsdSetup) -> SortConfig | ParticleConfig:
     """The tracker config of a grid `setting`."""
     if tracker == "sort":
         return sort_config(setting, setup.conf)
