@@ -3,12 +3,12 @@ PointCloud2) and `open_lidar` for any LiDAR file (Velodyne `.pcap` captures:
 `usvfast.lidar.pcap`).
 
 Packets are decoded by velodyne-decoder (`usvfast.lidar.packets`), bags are read by rosbags;
-these modules add the robustness layer field data needs. Damaged input (a record header that does not parse, a
-truncated record, a Velodyne packet whose structure is wrong, a message that does not
-deserialise) is skipped and counted in `reader.stats`; a `LidarDataWarning` summarises the
-count at the end of the stream. Good records before and after a damaged one are kept: the
-pcap record stream resynchronises on the next plausible record header. Nothing usable in a
-file raises ValueError.
+these modules add the robustness layer field data needs. Damaged input (a record header that
+does not parse, a truncated record, a Velodyne packet whose structure is wrong, a message that
+does not deserialise) is skipped and counted in `reader.stats`; a `LidarDataWarning`
+summarises the count at the end of the stream. Good records before and after a damaged one
+are kept: the pcap record stream resynchronises on the next plausible record header. Nothing
+usable in a file raises ValueError.
 
 Payload bytes that are corrupted but still structurally valid (a flipped distance byte)
 cannot be detected: Velodyne sensors send UDP checksums of zero.
