@@ -258,6 +258,16 @@ def test_report_counts_targets_by_the_coverage_the_run_wrote(run, tmp_path):
     assert read["thesis"] == given["thesis"]
     assert read["thesis"]["n_targets"] < wide["thesis"]["n_targets"]
     assert read["inputs"] == given["inputs"]
+    from typer.testing import CliRunner
+
+    from usvfast.cli import app
+
+    for extra, expected in (([], read), (["--max-range", "40"], wide)):
+        args = ["report", str(out), "--truth", str(truth), "--no-animation", *extra]
+        r = CliRunner().invoke(app, args)
+        assert r.exit_code == 0, r.output
+        saved = json.loads((out / "metrics.json").read_text())
+        assert saved["thesis"]["n_targets"] == expected["thesis"]["n_targets"]
     (out / "summary.json").write_text("[1, 2]")
     with pytest.raises(ValueError, match=r"out_dir: .*summary\.json"):
         write_report(out, truth=truth, **kw)
