@@ -211,9 +211,10 @@ def ssd_row(
     ssd_train`), alone and after the overlap and containment suppression of
     :mod:`usvfast.shore.suppress` (its shipped pair). Adds the detections to `cache`."""
     from usvfast.shore.pretrained import SsdDetector
+    from usvfast.shore.ssd_nested import model_name
     from usvfast.shore.suppress import suppress
 
-    path = Path(models) / f"shore-ssd-without-{held}.onnx"
+    path = Path(models) / f"{model_name('default', [held])}.onnx"
     if not path.is_file():
         raise ValueError(
             f"models: no {path.name} in {models} "

@@ -60,17 +60,6 @@ def coco_rows(
     return rows, {"ssd_coco_conf": picked}
 
 
-def ssd_model(data: Path, held: str, models: Path, log) -> Path:
-    """The fine-tuned model trained without `held` (trained and saved when absent)."""
-    from usvfast.shore.ssd_train import train_and_export
-
-    name = f"shore-ssd-without-{held}"
-    path = models / f"{name}.onnx"
-    if not path.is_file():
-        train_and_export(data, models, exclude=[held], name=name, log=log)
-    return path
-
-
 def ssd_rows(
     data: Path, videos: dict[str, VideoFrames], held: str, hcfg: HorizonConfig, models: Path, log
 ) -> tuple[list[dict], dict]:
@@ -79,8 +68,9 @@ def ssd_rows(
     on the three other videos, which the model was trained on: an optimistic choice)."""
     from usvfast.shore.evaluate_det import suppression_rows
     from usvfast.shore.pretrained import SsdDetector
+    from usvfast.shore.ssd_nested import fold_model
 
-    path = ssd_model(data, held, models, log)
+    path = fold_model(data, models, "default", [held], log)
     card = json.loads(path.with_suffix(".json").read_text(encoding="utf-8"))
     conf = float(card["conf_threshold"])
     det = SsdDetector(path, conf_threshold=min(conf, *SSD_SWEEP))
