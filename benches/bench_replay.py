@@ -15,7 +15,8 @@ from itertools import chain
 
 import numpy as np
 
-from usvfast.nav.replay import Recording, Replay, StreamSpec, register_stream_type
+from usvfast.nav.replay import Recording, Replay
+from usvfast.nav.stream_types import StreamSpec, register_stream_type
 
 _DATA: dict[str, np.ndarray] = {}
 

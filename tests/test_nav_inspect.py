@@ -233,7 +233,8 @@ def test_nmea_stream_in_recording(tmp_path):
     are counted, the fixes of the good lines all reach the replay and navigation_fixes."""
     from usvfast.nav.fixes import navigation_fixes
     from usvfast.nav.nmea import read_nmea
-    from usvfast.nav.replay import NmeaFix, Replay
+    from usvfast.nav.replay import Replay
+    from usvfast.nav.stream_types import NmeaFix
 
     lines = (NMEA_DATA / "ublox-zed-f9p-nmea.log").read_text().splitlines()
     k = next(i for i, line in enumerate(lines) if line.startswith("$GNGGA"))

@@ -319,7 +319,7 @@ def test_nav_track_pose_equals_channel_interpolation(rec):
 def test_video_times_stream(tmp_path):
     import cv2
 
-    from usvfast.nav.replay import StreamSpec, open_stream
+    from usvfast.nav.stream_types import StreamSpec, open_stream
 
     path = tmp_path / "cam.avi"
     w = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 4.0, (64, 48))

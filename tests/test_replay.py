@@ -18,14 +18,8 @@ from hypothesis import strategies as st
 from usvfast import DimensionError, NonFiniteError, TimeOrderError
 from usvfast.nav._damage import DamagedRecordsWarning
 from usvfast.nav.pose import PoseGapError
-from usvfast.nav.replay import (
-    Recording,
-    RecordingError,
-    Replay,
-    StreamSpec,
-    load_recording,
-    register_stream_type,
-)
+from usvfast.nav.replay import Recording, Replay, load_recording
+from usvfast.nav.stream_types import RecordingError, StreamSpec, register_stream_type
 
 _SOURCES: dict[str, object] = {}
 

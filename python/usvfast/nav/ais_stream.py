@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from usvfast.nav.replay import StreamSpec
+from usvfast.nav.stream_types import StreamSpec
 
 
 @dataclass(frozen=True)

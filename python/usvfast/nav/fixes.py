@@ -11,13 +11,13 @@ import numpy as np
 
 from usvfast.nav.bags import NavSatFixSample
 from usvfast.nav.pose import PoseTrack
-from usvfast.nav.replay import (
+from usvfast.nav.replay import Recording
+from usvfast.nav.stream_types import (
     GeoPoint,
     NmeaFix,
     NmeaHeading,
     NmeaRateOfTurn,
     NmeaVelocity,
-    Recording,
     open_stream,
     split_record,
 )

@@ -19,14 +19,8 @@ from rich.markup import escape
 from rich.table import Table
 
 from usvfast._time import unix_to_iso
-from usvfast.nav.replay import (
-    NMEA_RECORDS,
-    Recording,
-    StreamSpec,
-    load_recording,
-    open_stream,
-    split_record,
-)
+from usvfast.nav.replay import Recording, load_recording
+from usvfast.nav.stream_types import NMEA_RECORDS, StreamSpec, open_stream, split_record
 
 VIDEO_SUFFIXES = frozenset({".avi", ".mp4", ".mkv", ".mov", ".m4v", ".webm"})
 BAG_SUFFIXES = frozenset({".bag", ".db3", ".mcap"})

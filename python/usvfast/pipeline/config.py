@@ -31,7 +31,8 @@ import yaml
 
 from usvfast._validate import instance
 from usvfast.frames import Mount
-from usvfast.nav.replay import STREAM_TYPES, Recording, RecordingError, StreamSpec, _stream
+from usvfast.nav.replay import Recording, _stream
+from usvfast.nav.stream_types import STREAM_TYPES, RecordingError, StreamSpec
 from usvfast.pipeline import streams as _streams  # noqa: F401  (registers lidar, video_times)
 
 if sys.version_info >= (3, 11):

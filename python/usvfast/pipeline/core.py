@@ -128,7 +128,7 @@ class Pipeline:
 
     # --- live -----------------------------------------------------------------------------
     def _live_nav(self, t: float, stream: str, data: Any) -> None:
-        from usvfast.nav.replay import NmeaFix, NmeaHeading
+        from usvfast.nav.stream_types import NmeaFix, NmeaHeading
 
         if isinstance(data, str):
             parsed = parse_sentence(data)

@@ -19,7 +19,7 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
-from usvfast.nav.replay import StreamSpec, register_stream_type
+from usvfast.nav.stream_types import StreamSpec, register_stream_type
 
 __all__ = ["LidarRecords", "check_topic", "open_lidar_stream", "open_video_times"]
 
