@@ -92,7 +92,7 @@ def test_target_track_gets_its_mmsi_within_a_minute_and_keeps_it(scene, run):
     if name == "j":
         assert kept == 1.0  # never lost again, outages included
     else:
-        assert kept > 0.85  # the χ² test lets go for a few scans (see README "VTS")
+        assert kept > 0.85  # the χ² test lets go for a few scans (see docs/vts.md)
     print(f"{name}: MMSI {delay:.1f} s after confirmation, kept in {kept:.1%} of later scans")
 
 

@@ -4,7 +4,7 @@
 AIS from tests/aisgen.py. Scored per (scan, radar track): a track following a vessel (within
 60 m) should carry that vessel's MMSI (none for the ship without AIS); a clutter track none.
 
-Figures (README "VTS"): J — precision 1.00, recall ~0.9 (the offset ship is identified);
+Figures (docs/vts.md): J — precision 1.00, recall ~0.9 (the offset ship is identified);
 χ² — precision 1.00, recall ~0.6 (the 50 m bias is far outside its covariance: the offset
 ship is never identified). J is the better test on biased AIS; χ² is exact when the AIS and
 radar errors are as modelled."""

@@ -94,7 +94,7 @@ def test_native_tracker_with_the_anchor_parameters_equals_stonesoup(joyride, sto
 
 
 def test_native_tracker_chosen_parameters_keep_one_track_on_the_target(joyride):
-    # Chosen parameters (README "Joyride"): one fragment over the whole recording, 93 %
+    # Chosen parameters (docs/tracker.md, Joyride): one fragment over the whole recording, 93 %
     # coverage, RMSE ~22 m. The aim (>= 95 %, <= 20.7 m) is NOT reached by a
     # single constant-velocity JPDA on this data; these are honest bounds of what it does.
     q = _native(joyride, **H.JOYRIDE_NATIVE)

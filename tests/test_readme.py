@@ -1,4 +1,4 @@
-"""Every Python example in README.md runs as written (in a scratch directory)."""
+"""Every Python example in README.md and docs/*.md runs as written (in a scratch directory)."""
 
 from __future__ import annotations
 
@@ -10,24 +10,27 @@ import pytest
 
 from conftest import VENDORED_DATA
 
-README = Path(__file__).resolve().parents[1] / "README.md"
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 # The recording example reads files described in the README's TOML block:
 # tests/test_nav_inspect.py writes them and runs that example.
 BLOCKS = [
-    b
-    for b in re.findall(r"```python\n(.*?)```", README.read_text(), flags=re.S)
+    (f"{doc.relative_to(ROOT)} python block {i}", b)
+    for doc in DOCS
+    for i, b in enumerate(re.findall(r"```python\n(.*?)```", doc.read_text(), flags=re.S))
     if "harbour.toml" not in b
 ]
 
 
-def test_readme_has_examples():
-    assert len(BLOCKS) >= 5
+def test_docs_have_examples():
+    assert sum(name.startswith("README.md") for name, _ in BLOCKS) >= 5
+    assert sum(name.startswith("docs/") for name, _ in BLOCKS) >= 3
 
 
-@pytest.mark.parametrize("index", range(len(BLOCKS)))
-def test_readme_example_runs(index, tmp_path, monkeypatch):
+@pytest.mark.parametrize(("name", "code"), BLOCKS, ids=[name for name, _ in BLOCKS])
+def test_doc_example_runs(name, code, tmp_path, monkeypatch):
     matplotlib.use("Agg")
-    code = BLOCKS[index].replace("tests/data/", f"{VENDORED_DATA}/")
+    code = code.replace("tests/data/", f"{VENDORED_DATA}/")
     monkeypatch.chdir(tmp_path)
-    exec(compile(code, f"README.md python block {index}", "exec"), {"__name__": "readme"})
+    exec(compile(code, name, "exec"), {"__name__": "readme"})
     assert Path.cwd() == tmp_path

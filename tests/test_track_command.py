@@ -27,7 +27,7 @@ def quality(cfg):
 
 
 def test_joyride_preset_cv_imm_and_existence():
-    # Tuned on Joyride itself (the only real set): in-sample figures (README "Joyride").
+    # Tuned on Joyride itself (the only real set): in-sample figures (docs/tracker.md, Joyride).
     # Measured: CV only (joyride-cv) 21.10 m / 93.7 % / 1 fragment / 4 false tracks; IMM with the
     # turn rate in the state (joyride without existence) 20.43 / 96.6 / 1 / 4; IMM + existence
     # (joyride) 20.43 / 96.6 / 1 / 2.

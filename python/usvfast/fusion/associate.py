@@ -60,7 +60,7 @@ class JCost:
     k1 (1/m), k2 (1/(m/s)), k3 (1/deg); j_set: accept threshold of J; release: an existing
     pair breaks when J > release·j_set; min_speed (m/s): Δθ counts only when both speeds
     exceed it (a slow target has no defined course). Defaults (chosen on Joyride with
-    generated AIS, README "VTS"): a mean position error of 50 m, a speed error of 5 m/s and a
+    generated AIS, docs/vts.md): a mean position error of 50 m, a speed error of 5 m/s and a
     course error of 90° each add 1 to J; J_set = 2.5, released above 1.6·J_set = 4. On
     Joyride the true pair's 8-scan J has median 1.3, 95th percentile 2.6 and maximum 3.0;
     the closest wrong pair never goes below 3.3."""

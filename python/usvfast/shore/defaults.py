@@ -47,7 +47,7 @@ COCO_INPUT = (300, 300)
 #: :data:`usvfast.shore.ssd_eval.COCO_GRID`, horizon filter on: highest TPR with FAR ≤ 0.15,
 #: else the best F1; no threshold reaches that FAR, so 0.3 is the best F1, pooled TPR 0.468 at
 #: FAR 0.336 on those same frames, an in-sample figure). The per-fold picks on three videos
-#: were 0.2, 0.5, 0.3, 0.3; their held-out scores (README) are the honest estimate for a new
+#: were 0.2, 0.5, 0.3, 0.3; their held-out scores (docs/shore.md) are the honest estimate for a new
 #: video. Only this one number was chosen on MarDCT; the weights never saw it.
 COCO_CONF_THRESHOLD = 0.3
 #: Version of the cached export's recipe: a cache written by another version is exported anew.

@@ -37,8 +37,7 @@ def _toml_value(v: Any) -> str:
 #: The measurement models and tracker settings of the simulated sensors, calibrated on
 #: held-out simulator seeds 4, 5, 6 and 8, 9, 10 (30 s each; never on the scored seeds 1, 2,
 #: 3 and the bundled 7): detection errors against the truth split into the per-object mean
-#: (bias) and the scan-to-scan part, then the per-sensor ANIS. See the README section "The
-#: harbour system, measured per seed".
+#: (bias) and the scan-to-scan part, then the per-sensor ANIS. See docs/harbour-system.md.
 _SENSOR_MODELS = {
     "lidar": """\
 # A cluster counts only its core (0.5 m about its densest point): sparse water returns
