@@ -70,6 +70,25 @@ a calibrated installation brings its own calibration); if the calibrated "reg" s
 all four aims on both held-out halves, they are written into a test with their held-out figures
 (tests/test_joyride_errors.py); if not, the misses are reported as measured.
 
+Result of --calibrated (--runs 1500; the same run reproduced the uncalibrated figures above
+exactly; 3 min under nice on a shared machine), RMSE m / coverage % / fragments / false tracks:
+- calibration: b = -2.0202 degrees on scans 0-118, -1.6014 on 119-237.
+- start (shipped settings + b_A, settings tuned on all scans, so not held out): calibrated on
+  0-118, 17.57 / 98.3 / 1 / 0 there and 18.57 / 98.3 / 1 / 2 on 119-237; calibrated on
+  119-237, 17.08 / 97.5 / 1 / 2 there and 17.88 / 98.3 / 1 / 0 on 0-118.
+- "reg" calibrated and tuned on 0-118 (seed 0): in-sample 17.37 / 97.5 / 1 / 0, held-out
+  119-237 16.68 / 95.0 / 1 / 2: coverage MISSES (113 of 119 scans, 115 needed; the three
+  seeds give 95.0 / 95.8 / 95.0 % there). It moved P_D 0.725 -> 0.935 and ct_q_turn 3.7x up
+  and loses scans 126, 142 and 214-217 (the start loses 121 and 142).
+- "reg" calibrated and tuned on 119-237 (seed 1): in-sample 15.92 / 97.5 / 1 / 2, held-out
+  0-118 18.40 / 98.3 / 1 / 0: meets all four aims.
+- both held-out halves together: "reg" 17.57 m / 96.6 % (1 fragment a half, 2 + 0 false
+  tracks); "full" 18.14 / 91.6 (its chosen settings: 16.48 / 93.3 / 1 / 2 on 119-237 and
+  19.71 / 89.9 / 1 / 0 on 0-118).
+- time per scan of the chosen "reg" settings: 0.0136 and 0.0134 ms.
+The calibrated recipe does not meet the aims on both held-out halves (coverage 95.0 % on
+scans 119-237), so no test pins its settings; no preset is changed.
+
     USVFAST_SHARED_DATA=/work/shared/data PYTHONPATH=python \\
         nice -n 10 python benches/cv_joyride_preset.py --runs 1500 [--calibrated]
 """
