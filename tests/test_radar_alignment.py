@@ -134,6 +134,7 @@ def test_bad_input_names_the_argument():
         ((p, si, o, ref), {"min_pairs": 0}, ValueError, "min_pairs"),
         ((p, si, o, ref), {"scans": range(5)}, ValueError, "min_pairs=10"),
         ((p, si, o, np.full_like(ref, np.nan)), {}, ValueError, "reference"),
+        ((p * 1e160, si, o * 1e160, ref * 1e160), {"gate_m": 1e300}, ValueError, "overflow"),
     ]
     for args, kw, err, word in cases:
         with pytest.raises(err, match=word):

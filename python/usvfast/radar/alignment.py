@@ -51,8 +51,10 @@ def bearing_bias_deg(
     plot noise. Pass `bearing_correction_deg = -θ` to the tracker to remove it.
 
     Raises ValueError naming the argument for shapes that do not match, non-finite plots or
-    origins, scan indices outside reference, a gate that is not positive and finite, and fewer
-    than `min_pairs` pairs (a calibration needs the reference seen in enough scans).
+    origins, scan indices outside reference, a gate that is not positive and finite, fewer
+    than `min_pairs` pairs (a calibration needs the reference seen in enough scans) and
+    positions so large that the sums overflow; TypeError for scan numbers that are not
+    integers.
     """
     p = _points("plots", plots)
     o = _points("origins", origins)
@@ -103,6 +105,9 @@ def bearing_bias_deg(
             f"need min_pairs={min_pairs}"
         )
     t, q = np.array(t_rel), np.array(p_rel)
-    cross = np.sum(t[:, 0] * q[:, 1] - t[:, 1] * q[:, 0])
-    dot = np.sum(t * q)
+    with np.errstate(over="ignore", invalid="ignore"):
+        cross = np.sum(t[:, 0] * q[:, 1] - t[:, 1] * q[:, 0])
+        dot = np.sum(t * q)
+    if not (np.isfinite(cross) and np.isfinite(dot)):
+        raise ValueError("plots / reference: positions too large for the sums (overflow)")
     return float(np.degrees(np.arctan2(cross, dot)))
