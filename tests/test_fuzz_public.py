@@ -80,6 +80,7 @@ MODULES = [
     "usvfast.fusion.pipeline",
     "usvfast.fusion.ais_feed",
     "usvfast.radar.readers",
+    "usvfast.radar.alignment",
     "usvfast.pipeline.config",
     "usvfast.pipeline.timing",
     "usvfast.sweep.spec",
