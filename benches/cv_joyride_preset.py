@@ -128,6 +128,32 @@ IN-SAMPLE, labelled so. If a variant meets the aims on both held-out halves a te
 held-out figures; no preset is changed either way. The search and the flatness are skipped
 with --estimated (their figures are above).
 
+Result of --estimated (run once, after the commit of the protocol above; 3 s), RMSE m /
+coverage % / fragments / false tracks; NEITHER VARIANT MEETS THE AIMS on either held-out half:
+- estimates on 0-118 / 119-237: sigma raw 17.82 / 9.07 m, calibrated (b_A -2.0202 / -1.6014
+  degrees) 11.79 / 5.76 m; P_D 0.864 / 0.745 raw, 0.864 / 0.753 calibrated; clutter
+  1.13e-6 / 1.18e-6 per m^2 (8x under the shipped 9.50e-6); q 0.0633 / 0.0590, cv_q 1.79 / 1.40
+  (shipped 8.63), ct_q 0.130 / 0.108, ct_q_turn 3.4e-3 / 1.7e-3 (shipped 6.4e-4).
+- raw, estimated on 0-118: in-sample 23.60 / 95.0 / 1 / 0, held-out 119-237 21.07 / 88.2 /
+  1 / 4; estimated on 119-237: in-sample 18.79 / 92.4 / 1 / 4, held-out 0-118 23.83 / 95.0 /
+  4 / 1; pooled held-out 22.54 / 91.6 (5 fragments, 5 false tracks).
+- calibrated, estimated on 0-118: in-sample 17.49 / 96.6 / 1 / 0, held-out 119-237 17.29 /
+  92.4 / 4 / 3; estimated on 119-237: in-sample 15.92 / 94.1 / 2 / 6, held-out 0-118 21.03 /
+  92.4 / 6 / 1; pooled held-out 19.25 / 92.4 (10 fragments, 4 false tracks).
+- estimated on all 238 scans, scored on them (IN-SAMPLE): raw 22.02 / 92.0 / 1 / 5 (sigma
+  13.74 m, P_D 0.804, clutter 1.15e-6); calibrated (bias -1.8497) 17.85 / 94.1 / 8 / 4
+  (sigma 9.18 m, P_D 0.809): they miss even in-sample.
+- time per scan 0.0142-0.0201 ms (shared machine; the calibrated 119-237 setting's 0.0201 is
+  over the 0.02 aim).
+The two halves are not one population: on 119-237 the target is nearer (median range 289 m
+against 411 m) and the Rayleigh-median sigma halves, with heavier tails (calibrated RMS per
+axis 9.55 m against the median's 5.76 m; 12.83 against 11.79 m on 0-118). A diagnostic run
+once after the result (not part of the protocol): putting back any ONE shipped setting in place
+of its estimate meets the aims on no held-out half, so the misses are not one estimator's. The
+search's figures
+(above) stay the better held-out ones: "reg" 21.03 m / 95.4 % raw and 17.57 m / 96.6 %
+calibrated, pooled. No test pins estimated settings; no preset is changed.
+
     USVFAST_SHARED_DATA=/work/shared/data PYTHONPATH=python \\
         nice -n 10 python benches/cv_joyride_preset.py --runs 1500 [--calibrated | --estimated]
 """
