@@ -89,8 +89,73 @@ exactly; 3 min under nice on a shared machine), RMSE m / coverage % / fragments 
 The calibrated recipe does not meet the aims on both held-out halves (coverage 95.0 % on
 scans 119-237), so no test pins its settings; no preset is changed.
 
+`--estimated` replaces the search by ESTIMATION, as a radar engineer sets a tracker from a
+calibration run against a GNSS-logged target. Decided and committed before any of its figures
+was run (and not changed after); for each fold A -> B (A = scans 0-118 and B = 119-237, then
+the reverse), on half A only, from A's plots and the target's GNSS (positions and velocities:
+`target` of the .mat) with `usvfast.radar.calibration` (no tracker run informs any estimate;
+no score is searched):
+- two variants: "raw" (the plots as recorded) and "calibrated" (every plot turned by -b_A,
+  b_A the bearing bias of A as in --calibrated; sigma, P_D and clutter are then measured on
+  the turned plots);
+- sigma (plot noise, m per axis): `plot_statistics(...).sigma_m`, the median distance of the
+  target's plot (per scan the plot nearest the GNSS position, if within 60 m) over
+  sqrt(2 ln 2), the Rayleigh median;
+- prob_detect and clutter_density (per m^2 per scan): `plot_statistics`' joint method-of-
+  moments fit (Poisson clutter): the mean number of plots within 100 m of the GNSS position
+  (= P_D + lambda pi 100^2) and the fraction of scans with a plot within 60 m
+  (= P_D + (1 - P_D)(1 - exp(-lambda pi 60^2)));
+- q (the quiet constant-velocity mode, and tentative tracks) and the manoeuvre mode's cv_q:
+  `cv_noise_mixture`, the maximum-likelihood two-mode white-noise-acceleration mixture (EM)
+  of A's GNSS velocity increments; the high mode is the component of the manoeuvring
+  intervals (the larger intensity);
+- ct_q and ct_q_turn (the coordinated turn with the rate in the state): `turn_noise` on A's
+  GNSS velocities: the speed increments' maximum-likelihood intensity, and the turn-rate
+  increments' moment equation less the cross-track velocity noise (speeds >= 1 m/s);
+- everything else kept from the shipped `joyride`, as the search's "reg" variant keeps it:
+  prob_gate, delete_steps, initiate_in_gates, the initiator (min_points, delete_steps,
+  missed_distance, prior_velocity_var, prior_turn_rate_var), the IMM's cv_q_turn,
+  ct_predictor and stay, and the whole existence table;
+- scoring: the tracker of those settings over all 238 scans (as above), figures on A
+  (in-sample) and on B (HELD OUT); a fold is met when B's figures meet all four aims
+  (RMSE <= 20.5 m, coverage >= 96 %, 1 fragment, <= 2 false tracks), a variant when both of
+  its folds are; time per scan (aim <= 0.02 ms) reported beside.
+Reported: per fold and variant the estimates, the in-sample and held-out figures, the time per
+scan, both held-out halves pooled, and whether each variant meets the aims on both held-out
+halves; then each variant estimated on the whole recording (bias too) and scored on it:
+IN-SAMPLE, labelled so. If a variant meets the aims on both held-out halves a test runs it
+(tests/test_joyride_estimated.py, the estimation on A inside the test) and asserts its
+held-out figures; no preset is changed either way. The search and the flatness are skipped
+with --estimated (their figures are above).
+
+Result of --estimated (run once, after the commit of the protocol above; 3 s), RMSE m /
+coverage % / fragments / false tracks; NEITHER VARIANT MEETS THE AIMS on either held-out half:
+- estimates on 0-118 / 119-237: sigma raw 17.82 / 9.07 m, calibrated (b_A -2.0202 / -1.6014
+  degrees) 11.79 / 5.76 m; P_D 0.864 / 0.745 raw, 0.864 / 0.753 calibrated; clutter
+  1.13e-6 / 1.18e-6 per m^2 (8x under the shipped 9.50e-6); q 0.0633 / 0.0590, cv_q 1.79 / 1.40
+  (shipped 8.63), ct_q 0.130 / 0.108, ct_q_turn 3.4e-3 / 1.7e-3 (shipped 6.4e-4).
+- raw, estimated on 0-118: in-sample 23.60 / 95.0 / 1 / 0, held-out 119-237 21.07 / 88.2 /
+  1 / 4; estimated on 119-237: in-sample 18.79 / 92.4 / 1 / 4, held-out 0-118 23.83 / 95.0 /
+  4 / 1; pooled held-out 22.54 / 91.6 (5 fragments, 5 false tracks).
+- calibrated, estimated on 0-118: in-sample 17.49 / 96.6 / 1 / 0, held-out 119-237 17.29 /
+  92.4 / 4 / 3; estimated on 119-237: in-sample 15.92 / 94.1 / 2 / 6, held-out 0-118 21.03 /
+  92.4 / 6 / 1; pooled held-out 19.25 / 92.4 (10 fragments, 4 false tracks).
+- estimated on all 238 scans, scored on them (IN-SAMPLE): raw 22.02 / 92.0 / 1 / 5 (sigma
+  13.74 m, P_D 0.804, clutter 1.15e-6); calibrated (bias -1.8497) 17.85 / 94.1 / 8 / 4
+  (sigma 9.18 m, P_D 0.809): they miss even in-sample.
+- time per scan 0.0142-0.0201 ms (shared machine; the calibrated 119-237 setting's 0.0201 is
+  over the 0.02 aim).
+The two halves are not one population: on 119-237 the target is nearer (median range 289 m
+against 411 m) and the Rayleigh-median sigma halves, with heavier tails (calibrated RMS per
+axis 9.55 m against the median's 5.76 m; 12.83 against 11.79 m on 0-118). A diagnostic run
+once after the result (not part of the protocol): putting back any ONE shipped setting in place
+of its estimate meets the aims on no held-out half, so the misses are not one estimator's. The
+search's figures
+(above) stay the better held-out ones: "reg" 21.03 m / 95.4 % raw and 17.57 m / 96.6 %
+calibrated, pooled. No test pins estimated settings; no preset is changed.
+
     USVFAST_SHARED_DATA=/work/shared/data PYTHONPATH=python \\
-        nice -n 10 python benches/cv_joyride_preset.py --runs 1500 [--calibrated]
+        nice -n 10 python benches/cv_joyride_preset.py --runs 1500 [--calibrated | --estimated]
 """
 
 from __future__ import annotations
@@ -108,7 +173,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_tracker_joyride import HALF, fmt
 from search_joyride_presets import figures, perturb, search
 
-from usvfast.radar import bearing_bias_deg
+from usvfast.datasets import load_joyride
+from usvfast.radar import bearing_bias_deg, cv_noise_mixture, plot_statistics, turn_noise
 from usvfast.trackcmd import (
     corrected_plots,
     load_config,
@@ -186,15 +252,97 @@ def flatness(plots, base: dict, draws: int, scale: float, few: bool) -> str:
     )
 
 
+def part_scans(plots, part: str) -> np.ndarray:
+    """The scans of `part`: "first" 0-118, "second" 119-237, "whole" all."""
+    lo, hi = {"first": (0, HALF), "second": (HALF, len(plots.times))}.get(
+        part, (0, len(plots.times))
+    )
+    return np.arange(lo, hi)
+
+
 def calibrated(plots, base: dict, part: str) -> dict:
     """`base` with the plots' bearing bias measured on `part` ("first": scans 0-118, "second":
-    119-237) against the target's GNSS only (`usvfast.radar.bearing_bias_deg`) removed by
-    `bearing_correction_deg`: a radar calibrated on that half."""
-    lo, hi = (0, HALF) if part == "first" else (HALF, len(plots.times))
+    119-237, "whole") against the target's GNSS only (`usvfast.radar.bearing_bias_deg`)
+    removed by `bearing_correction_deg`: a radar calibrated on that part."""
     bias = bearing_bias_deg(
-        plots.plots, plots.scan_index, plots.origins, plots.truth, scans=np.arange(lo, hi)
+        plots.plots, plots.scan_index, plots.origins, plots.truth, scans=part_scans(plots, part)
     )
     return base | {"bearing_correction_deg": -bias}
+
+
+def estimated(plots, velocities: np.ndarray, base: dict, part: str) -> tuple[dict, dict]:
+    """`base` (with its bearing correction, if any) with sigma, prob_detect, clutter_density,
+    q, the manoeuvre mode's cv_q, ct_q and ct_q_turn ESTIMATED on `part`'s scans from the
+    plots the tracker will see and the target's GNSS positions and `velocities` (s, 2) m/s
+    (`usvfast.radar.calibration`, see the module doc; no tracker run). Returns the tracker
+    table and the estimates with their counts."""
+    scans = part_scans(plots, part)
+    stats = plot_statistics(
+        corrected_plots(base, plots), plots.scan_index, plots.truth, scans=scans
+    )
+    cv = cv_noise_mixture(plots.times[scans], velocities[scans])
+    ct = turn_noise(plots.times[scans], velocities[scans])
+    imm = base["imm"] | {"cv_q": [cv.q_high], "ct_q": [ct.q], "ct_q_turn": [ct.q_turn]}
+    c = base | {
+        "sigma": stats.sigma_m,
+        "prob_detect": stats.prob_detect,
+        "clutter_density": stats.clutter_density,
+        "q": cv.q_quiet,
+        "imm": imm,
+    }
+    return c, {"plots": stats, "cv": cv, "ct": ct}
+
+
+def show_estimates(e: dict, base: dict) -> str:
+    """One line of the estimates of `estimated` (and the bias correction of `base`)."""
+    p, cv, ct = e["plots"], e["cv"], e["ct"]
+    return (
+        f"bearing_correction_deg {base.get('bearing_correction_deg', 0.0):+.4f}; "
+        f"sigma {p.sigma_m:.3f} m, P_D {p.prob_detect:.4f} ({p.pairs}/{p.scans} scans paired), "
+        f"clutter {p.clutter_density:.3e} /m2 (~{p.clutter_plots} plots in 100 m); "
+        f"q {cv.q_quiet:.4g}, cv_q {cv.q_high:.4g} (quiet weight {cv.weight_quiet:.3f}, "
+        f"{cv.intervals} intervals), ct_q {ct.q:.4g}, ct_q_turn {ct.q_turn:.4g} "
+        f"({ct.rate_increments} rate increments)"
+    )
+
+
+def estimated_two_fold(plots, velocities: np.ndarray, shipped: dict) -> dict:
+    """The --estimated protocol (module doc) for both variants: per fold the estimates on A,
+    the in-sample (A) and held-out (B) figures and the time per scan, the pooled held-out
+    halves and whether each variant meets the aims on both; then the whole-recording
+    estimate, in-sample. Returns {variant: held-out figures [fold first, fold second]}."""
+    head = "RMSE m  cov%  fr  ft"
+    out: dict = {}
+    for variant in ("raw", "calibrated"):
+        print(f"\nESTIMATED settings, {variant} plots")
+        held_out = []
+        for part, tune, held in FOLDS:
+            base = calibrated(plots, shipped, part) if variant == "calibrated" else shipped
+            c, e = estimated(plots, velocities, base, part)
+            q = figures(plots, c)
+            held_out.append(q[held])
+            print(f"  estimated on {NAMES[tune]}: {show_estimates(e, base)}")
+            print(
+                f"    in-sample {NAMES[tune]} {fmt(q[tune])}   HELD-OUT {NAMES[held]} "
+                f"{fmt(q[held])} {'meets' if meets(q[held]) else 'MISSES'} the aims   "
+                f"({ms_per_scan(plots, c):.4f} ms/scan)"
+            )
+        out[variant] = held_out
+        print(f"  held-out halves together, {head}: {pooled(held_out)}")
+        print(
+            f"  {variant}: estimation meets the aims on both held-out halves: "
+            f"{all(meets(q) for q in held_out)}"
+        )
+        base = calibrated(plots, shipped, "whole") if variant == "calibrated" else shipped
+        c, e = estimated(plots, velocities, base, "whole")
+        q = figures(plots, c)
+        print(f"  estimated on all 238 scans: {show_estimates(e, base)}")
+        print(
+            f"    IN-SAMPLE (estimated and scored on all scans): all {fmt(q[0])} "
+            f"{'meets' if meets(q[0]) else 'MISSES'} the aims; halves {fmt(q[1])} / {fmt(q[2])}"
+            f"   ({ms_per_scan(plots, c):.4f} ms/scan)"
+        )
+    return out
 
 
 def two_fold(plots, bases: dict[str, dict], runs: int) -> tuple[dict, dict]:
@@ -257,6 +405,11 @@ def main() -> None:
         action="store_true",
         help="also the 2-fold of a radar calibrated on each tuning half (skips the flatness)",
     )
+    ap.add_argument(
+        "--estimated",
+        action="store_true",
+        help="only the 2-fold of settings estimated on each tuning half (no search, no flatness)",
+    )
     a = ap.parse_args()
     path = Path(os.environ.get("USVFAST_SHARED_DATA", "../shared/data")) / "joyride/joyride.mat"
     plots = read_plots(path)
@@ -265,6 +418,12 @@ def main() -> None:
     print(f"shipped joyride ({ms_per_scan(plots, shipped):.4f} ms/scan), RMSE m  cov%  fr  ft:")
     for i, q in enumerate(q_ship):
         print(f"  {NAMES[i]:14s} {fmt(q)}  {'meets' if meets(q) else 'MISSES'} the aims")
+    if a.estimated:
+        velocities = load_joyride(path).target[:, [1, 3]]
+        if len(velocities) != len(plots.times):
+            raise SystemExit("joyride.mat: scans were skipped; the GNSS rows do not match")
+        estimated_two_fold(plots, velocities, shipped)
+        return
     print("\nUNCALIBRATED radar: search from the shipped joyride")
     chosen, _ = two_fold(plots, {part: shipped for part, _, _ in FOLDS}, a.runs)
     print(f"  {'joyride':7s} {fmt(q_ship[0])}   (shipped, in-sample: tuned on all scans)")

@@ -81,6 +81,7 @@ MODULES = [
     "usvfast.fusion.ais_feed",
     "usvfast.radar.readers",
     "usvfast.radar.alignment",
+    "usvfast.radar.calibration",
     "usvfast.pipeline.config",
     "usvfast.pipeline.timing",
     "usvfast.sweep.spec",

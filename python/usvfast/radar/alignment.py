@@ -22,6 +22,67 @@ def _points(name: str, v: ArrayLike) -> np.ndarray:
     return a
 
 
+def scan_numbers(scan_index: ArrayLike, n_plots: int) -> np.ndarray:
+    """`scan_index` checked: shape (n_plots,), integers (TypeError otherwise)."""
+    si = np.asarray(scan_index)
+    if si.shape != (n_plots,):
+        raise ValueError(f"scan_index: shape ({n_plots},) like plots, got {si.shape}")
+    if n_plots and not np.issubdtype(si.dtype, np.integer):
+        raise TypeError(f"scan_index: integer scan numbers, got dtype {si.dtype}")
+    return si
+
+
+def in_reference(si: np.ndarray, n_ref: int) -> None:
+    """ValueError unless every scan number of `si` is a row of a reference of n_ref rows."""
+    if len(si) and (si.min() < 0 or si.max() >= n_ref):
+        raise ValueError(
+            f"scan_index: scans in [0, {n_ref}) (rows of reference), got {si.min()}..{si.max()}"
+        )
+
+
+def chosen_scans(scans: ArrayLike | None, n_ref: int) -> np.ndarray:
+    """The unique scan indices of `scans` (default all n_ref), checked: 1-D integers
+    (TypeError otherwise) in [0, n_ref)."""
+    use = np.arange(n_ref) if scans is None else np.asarray(scans)
+    if use.ndim != 1 or (len(use) and not np.issubdtype(use.dtype, np.integer)):
+        raise TypeError(
+            f"scans: a 1-D sequence of integer scan indices, got {use.dtype} {use.shape}"
+        )
+    if len(use) and (use.min() < 0 or use.max() >= n_ref):
+        raise ValueError(
+            f"scans: indices in [0, {n_ref}) (rows of reference), got {use.min()}..{use.max()}"
+        )
+    return np.unique(use).astype(np.int64)
+
+
+def scan_slices(scan_index: np.ndarray, n_scans: int) -> tuple[np.ndarray, np.ndarray]:
+    """(order, starts): the plot rows of scan k are `order[starts[k]:starts[k + 1]]`."""
+    order = np.argsort(scan_index, kind="stable")
+    return order, np.searchsorted(scan_index[order], np.arange(n_scans + 1))
+
+
+def nearest_pairs(
+    plots: np.ndarray, scan_index: np.ndarray, reference: np.ndarray, scans, gate_m: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """(scans, rows): in each of `scans` (unique, in [0, len(reference))) whose reference is
+    finite, the row of the plot nearest the reference position if it is within `gate_m`
+    metres (ties: the first row). Inputs already checked."""
+    order, starts = scan_slices(scan_index, len(reference))
+    ks, js = [], []
+    for k in scans:
+        if not np.all(np.isfinite(reference[k])):
+            continue
+        rows = order[starts[k] : starts[k + 1]]
+        if not len(rows):
+            continue
+        d = np.hypot(*(plots[rows] - reference[k]).T)
+        i = int(np.argmin(d))
+        if d[i] <= gate_m:
+            ks.append(int(k))
+            js.append(int(rows[i]))
+    return np.array(ks, dtype=np.int64), np.array(js, dtype=np.int64)
+
+
 def bearing_bias_deg(
     plots: ArrayLike,
     scan_index: ArrayLike,
@@ -59,52 +120,24 @@ def bearing_bias_deg(
     p = _points("plots", plots)
     o = _points("origins", origins)
     ref = _points("reference", reference)
-    si = np.asarray(scan_index)
-    if si.shape != (len(p),):
-        raise ValueError(f"scan_index: shape ({len(p)},) like plots, got {si.shape}")
-    if len(p) and not np.issubdtype(si.dtype, np.integer):
-        raise TypeError(f"scan_index: integer scan numbers, got dtype {si.dtype}")
+    si = scan_numbers(scan_index, len(p))
     if o.shape != p.shape:
         raise ValueError(f"origins: shape {p.shape} like plots, got {o.shape}")
     if not (np.all(np.isfinite(p)) and np.all(np.isfinite(o))):
         raise ValueError("plots / origins: every value must be finite")
-    if len(si) and (si.min() < 0 or si.max() >= len(ref)):
-        raise ValueError(
-            f"scan_index: scans in [0, {len(ref)}) (rows of reference), got {si.min()}..{si.max()}"
-        )
+    in_reference(si, len(ref))
     if isinstance(gate_m, bool) or not (isinstance(gate_m, int | float) and 0 < gate_m < np.inf):
         raise ValueError(f"gate_m: a positive finite distance in metres, got {gate_m!r}")
     if isinstance(min_pairs, bool) or not isinstance(min_pairs, int) or min_pairs < 1:
         raise ValueError(f"min_pairs: an integer >= 1, got {min_pairs!r}")
-    use = np.arange(len(ref)) if scans is None else np.asarray(scans)
-    if use.ndim != 1 or (len(use) and not np.issubdtype(use.dtype, np.integer)):
-        raise TypeError(
-            f"scans: a 1-D sequence of integer scan indices, got {use.dtype} {use.shape}"
-        )
-    if len(use) and (use.min() < 0 or use.max() >= len(ref)):
+    use = chosen_scans(scans, len(ref))
+    k, rows = nearest_pairs(p, si, ref, use, gate_m)
+    t, q = ref[k] - o[rows], p[rows] - o[rows]
+    if len(t) < min_pairs:
         raise ValueError(
-            f"scans: indices in [0, {len(ref)}) (rows of reference), got {use.min()}..{use.max()}"
-        )
-    order = np.argsort(si, kind="stable")
-    starts = np.searchsorted(si[order], np.arange(len(ref) + 1))
-    t_rel, p_rel = [], []
-    for k in np.unique(use):
-        if not np.all(np.isfinite(ref[k])):
-            continue
-        rows = order[starts[k] : starts[k + 1]]
-        if not len(rows):
-            continue
-        d = np.hypot(*(p[rows] - ref[k]).T)
-        j = rows[int(np.argmin(d))]
-        if d.min() <= gate_m:
-            t_rel.append(ref[k] - o[j])
-            p_rel.append(p[j] - o[j])
-    if len(t_rel) < min_pairs:
-        raise ValueError(
-            f"reference: {len(t_rel)} scans with a plot within gate_m={gate_m} m of it, "
+            f"reference: {len(t)} scans with a plot within gate_m={gate_m} m of it, "
             f"need min_pairs={min_pairs}"
         )
-    t, q = np.array(t_rel), np.array(p_rel)
     with np.errstate(over="ignore", invalid="ignore"):
         cross = np.sum(t[:, 0] * q[:, 1] - t[:, 1] * q[:, 0])
         dot = np.sum(t * q)
