@@ -456,10 +456,12 @@ def evaluate(
     log=print,
     hard_negatives: bool = False,
     ssd_recipes: Sequence[str] | None = None,
+    ssd_runtime: str = "opencv",
 ) -> dict:
     """Leave-one-video-out rows per video (module doc); a JSON-ready dict. `ssd_recipes`:
     the training recipes ssd-nested compares (default
-    :data:`usvfast.shore.ssd_nested.DEFAULT_RECIPES`)."""
+    :data:`usvfast.shore.ssd_nested.DEFAULT_RECIPES`); `ssd_runtime`: what runs the ssd rows'
+    network (:data:`usvfast.shore.ssd_eval.RUNTIMES`)."""
     mardct = load_mardct(data)
     hcfg = HorizonConfig()
     videos = {v: load_video(f, hcfg) for v, f in mardct.items()}
@@ -513,7 +515,7 @@ def evaluate(
         if "ssd" in detectors:
             from usvfast.shore.ssd_eval import ssd_rows
 
-            rows, info = ssd_rows(data, videos, held, hcfg, models, log)
+            rows, info = ssd_rows(data, videos, held, hcfg, models, log, ssd_runtime)
             entry["rows"] += rows
             entry.update(info)
         if "ssd-nested" in detectors:
@@ -554,6 +556,12 @@ def main(argv: Sequence[str] | None = None) -> None:
     p.add_argument(
         "--breakdown", action="store_true", help="Also print where each row's errors are"
     )
+    p.add_argument(
+        "--ssd-runtime",
+        default="opencv",
+        help="ssd: opencv (default), openvino, openvino-bf16 or openvino-int8 (fold model "
+        "quantised on its training videos)",
+    )
     a = p.parse_args(argv)
     unknown = set(a.detectors) - {
         "bayes",
@@ -578,6 +586,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         a.videos,
         hard_negatives=a.hard_negatives,
         ssd_recipes=a.ssd_recipes,
+        ssd_runtime=a.ssd_runtime,
     )
     print_tables(results)
     if a.breakdown:
