@@ -170,3 +170,46 @@ def test_bad_choices_and_a_missing_package_raise(models, monkeypatch, tmp_path):
     monkeypatch.setitem(sys.modules, "openvino", None)
     with pytest.raises(MissingExtraError, match=r"usvfast\[openvino\]"):
         SsdDetector(models["lb"], backend="openvino")
+
+
+def test_the_chain_runs_the_ssd_on_the_chosen_backend(models, monkeypatch):
+    """ShoreConfig.ssd_backend: OpenVINO's chain gives OpenCV DNN's boxes (0.05 px); 'auto'
+    is OpenVINO when it imports, else OpenCV DNN; bad names raise ValueError."""
+    from usvfast.shore import ShoreChain, ShoreConfig
+    from usvfast.shore.ssd_runtime import resolve_backend
+
+    chains = {
+        b: ShoreChain(ShoreConfig(detector="ssd", ssd_model=models["lb"], ssd_backend=b))
+        for b in ("opencv", "openvino")
+    }
+    assert chains["openvino"].cnn.runtime.backend == "openvino"  # pyright: ignore[reportOptionalMemberAccess, reportAttributeAccessIssue]
+    for name in FRAMES[:3]:
+        image = _frame(name)
+        a, b = chains["opencv"].step(image).raw, chains["openvino"].step(image).raw
+        assert len(a) == len(b)
+        np.testing.assert_allclose(b.boxes, a.boxes, atol=0.05)
+    assert resolve_backend("auto") == "openvino" and resolve_backend("opencv") == "opencv"
+    with pytest.raises(ValueError, match="ssd_backend"):
+        ShoreConfig(detector="ssd", ssd_model=models["lb"], ssd_backend="tensorrt")
+    with pytest.raises(ValueError, match="ssd_precision"):
+        ShoreConfig(detector="ssd", ssd_model=models["lb"], ssd_precision="int4")
+    monkeypatch.setitem(sys.modules, "openvino", None)
+    assert resolve_backend("auto") == "opencv"
+
+
+def test_usvfast_shore_takes_the_backend_options(models, tmp_path):
+    from typer.testing import CliRunner
+
+    from usvfast.cli import app
+
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    shutil.copy(shared_data("mardct") / "training" / "annotations" / FRAMES[0], folder)
+    base = ["shore", str(folder), "--no-progress", "--no-video", "--detector", "ssd"]
+    base += ["--model", str(models["lb"])]
+    fast = ["--ssd-backend", "openvino", "--ssd-precision", "bf16"]
+    ok = CliRunner().invoke(app, [*base, "--out", str(tmp_path / "o"), *fast])
+    assert ok.exit_code == 0, ok.output
+    assert (tmp_path / "o" / "detections.txt").is_file()
+    bad = CliRunner().invoke(app, [*base, "--out", str(tmp_path / "b"), "--ssd-backend", "trt"])
+    assert bad.exit_code != 0 and "ssd_backend" in bad.output
