@@ -108,7 +108,10 @@ def _openvino_request(path: Path, precision: str, threads: int | None):
     steps = ppp.input().preprocess()
     steps.convert_element_type(ov.Type.f32).convert_color(ColorFormat.RGB)
     steps.mean(MEAN).scale(HALF_RANGE)
-    config = {"PERFORMANCE_HINT": "LATENCY", "INFERENCE_PRECISION_HINT": precision}
+    config: dict[str, object] = {
+        "PERFORMANCE_HINT": "LATENCY",
+        "INFERENCE_PRECISION_HINT": precision,
+    }
     if threads is not None:
         config["INFERENCE_NUM_THREADS"] = int(threads)
     compiled = _CORE.compile_model(ppp.build(), "CPU", config)
