@@ -6,6 +6,7 @@ FAR, real and detection size).
         [--detectors bayes cnn contrast fused change verified verified-contrast cascade
                      ssd-coco ssd ssd-nested]
         [--models DIR] [--steps N] [--hard-negatives] [--json OUT.json]
+        [--ssd-runtime opencv|openvino|openvino-bf16|openvino-int8]
 
 For each video, every trained part is fitted on the three other videos only:
 
@@ -43,7 +44,9 @@ For each video, every trained part is fitted on the three other videos only:
 * ssd-coco / ssd: the COCO-pretrained SSD-MobileNetV2 (:mod:`usvfast.shore.pretrained`),
   zero-shot (class "boat", threshold picked on the three other videos) and fine-tuned on the
   three other videos (:mod:`usvfast.shore.ssd_train`, `shore-ssd-without-VIDEO.onnx` in
-  `--models`, trained when absent; its card's threshold), rows of :mod:`usvfast.shore.ssd_eval`.
+  `--models`, trained when absent; its card's threshold), rows of :mod:`usvfast.shore.ssd_eval`;
+  `--ssd-runtime` picks what runs it (openvino-int8: the fold model quantised on its own
+  training videos by :mod:`usvfast.shore.ssd_quant`, cached as `...-int8.onnx` beside it).
 * ssd-nested: the fine-tuned SSD with its recipe (frozen depth), test-time views, threshold
   and suppression picked by inner leave-one-video-out on the three other videos (models
   trained on two of them, scored on the third; :mod:`usvfast.shore.ssd_nested`).
@@ -556,12 +559,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     p.add_argument(
         "--breakdown", action="store_true", help="Also print where each row's errors are"
     )
-    p.add_argument(
-        "--ssd-runtime",
-        default="opencv",
-        help="ssd: opencv (default), openvino, openvino-bf16 or openvino-int8 (fold model "
-        "quantised on its training videos)",
-    )
+    p.add_argument("--ssd-runtime", default="opencv", help="ssd: what runs it (module doc)")
     a = p.parse_args(argv)
     unknown = set(a.detectors) - {
         "bayes",

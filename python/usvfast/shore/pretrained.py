@@ -1,6 +1,7 @@
 """Boats from a COCO-pretrained detector: the SSD-MobileNetV2 of :mod:`usvfast.shore.ssd`,
 zero-shot (COCO's "boat" class) or fine-tuned on shore frames (:mod:`usvfast.shore.ssd_train`),
-run by torch or, exported to ONNX, by OpenCV DNN (no torch).
+run by torch or, exported to ONNX, by OpenCV DNN or OpenVINO (no torch;
+:mod:`usvfast.shore.ssd_runtime`).
 
 Where the COCO weights come from: the frozen graph `frozen_inference_graph.pb` of the
 TensorFlow Object Detection API's `ssd_mobilenet_v2_coco_2018_03_29` (Apache 2.0), which the
