@@ -535,6 +535,7 @@ def evaluate(
 def main(argv: Sequence[str] | None = None) -> None:
     """Command-line entry point (module doc)."""
     from usvfast.shore.evaluate import default_data
+    from usvfast.shore.ssd_eval import RUNTIMES
 
     p = argparse.ArgumentParser(
         prog="python -m usvfast.shore.evaluate_det", description=(__doc__ or "").split("\n")[0]
@@ -559,7 +560,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     p.add_argument(
         "--breakdown", action="store_true", help="Also print where each row's errors are"
     )
-    p.add_argument("--ssd-runtime", default="opencv", help="ssd: what runs it (module doc)")
+    p.add_argument("--ssd-runtime", default="opencv", choices=RUNTIMES, help="ssd: what runs it")
     a = p.parse_args(argv)
     unknown = set(a.detectors) - {
         "bayes",
