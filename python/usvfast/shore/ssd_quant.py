@@ -13,7 +13,11 @@ as its card lists them (`videos`), letterboxed as at inference; never on any oth
 a leave-one-video-out model stays blind to its held-out video. Writes `NAME-int8.onnx`
 (quantize/dequantize pairs; OpenVINO runs it, OpenCV DNN 5.1 does not) beside the model and
 its card `NAME-int8.json` (the model's card plus `int8`: calibration videos, frame count,
-NNCF version)."""
+NNCF version, recipe).
+
+NNCF sends anonymous usage telemetry (openvino-telemetry) unless the user has opted out
+(`opt_in_out --opt_out`, which writes ~/intel/openvino_telemetry); it never does under pytest
+or with CI=true."""
 
 from __future__ import annotations
 
