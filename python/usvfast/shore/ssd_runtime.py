@@ -46,7 +46,8 @@ def resolve_backend(backend: str) -> str:
 class SsdRuntime:
     """The exported SSD at `path` (.onnx) on `backend` (:data:`BACKENDS`) with OpenVINO's
     `precision` (:data:`PRECISIONS`; "f32" only on OpenCV DNN). `threads`: the back-end's
-    thread count (None: OpenCV's current setting; OpenVINO: every core). Call it with a
+    thread count (None: OpenCV's current setting; OpenVINO: every core; OpenCV's is
+    process-wide, so setting it here sets it for every OpenCV call). Call it with a
     letterboxed BGR uint8 image (H, W, 3) at the network's input size -> (A, 4 + C) float32:
     normalised corners (x1, y1, x2, y2) and sigmoid scores per anchor. Raises ValueError for
     an unknown back-end or precision, MissingExtraError when OpenVINO is not installed."""
