@@ -129,12 +129,15 @@ def test_int8_is_calibrated_on_the_training_videos_and_finds_the_float_boats(mod
         SsdDetector(path)
     q = SsdDetector(path, backend="openvino", conf_threshold=0.3)
     f = SsdDetector(model, backend="openvino", conf_threshold=0.3)
+    checked = 0
     for name in FRAMES:
         image = _frame(name)
         a, b = f.detect(image), q.detect(image)
         # every float boat scoring ≥ 0.5 has an int8 box at IoU ≥ 0.5
         for box in a.boxes[a.scores >= 0.5]:
             assert len(b) and _iou(box, b.boxes).max() >= 0.5
+            checked += 1
+    assert checked >= 3  # measured: 3 (video3 0.68, 0.55; 2 0.51)
 
 
 def _iou(box: np.ndarray, boxes: np.ndarray) -> np.ndarray:
