@@ -97,6 +97,9 @@ def ssd_rows(
     if int8:
         from usvfast.shore.ssd_quant import int8_model
 
+        if held in card.get("videos", [held]):  # calibration = the card's training videos
+            raise ValueError(f"model: {path.name} was trained on the held-out video {held}")
+
         path = int8_model(path, data, log)
     det = SsdDetector(
         path, conf_threshold=min(conf, *SSD_SWEEP), backend=backend, precision=precision
