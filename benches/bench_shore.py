@@ -38,7 +38,8 @@ Frames: MarDCT's regDTV9 frames resized to each size when ../shared/data is pres
   with `--ssd-int8 MODEL-int8.onnx` from `python -m usvfast.shore.ssd_quant`), on the same
   frames in the same process, runs interleaved, best of `--ssd-runs`: the network alone (the
   letterboxed frame in, scores out), the whole detect + horizon + SORT as FPS, each run-time's
-  speed-up over OpenCV DNN, and its largest score difference from OpenCV DNN.
+  speed-up over OpenCV DNN, and its largest score difference from OpenCV DNN; and the
+  letterbox resize alone (what detect adds before the network).
 
 Run: python benches/bench_shore.py [--frames N] [--repeat R] [--cascade boat.xml]
     [--cnn MODEL.onnx] [--ssd MODEL.onnx] [--ssd-int8 MODEL-int8.onnx]
@@ -167,6 +168,8 @@ def ssd_runtimes(
             print(f"SSD on {name} not timed: {exc}")
     ref = dets["opencv"]
     small = [letterboxed(f, ref.input_size, ref.letterbox)[0] for f in frames]
+    t, _ = best_of(lambda: [letterboxed(f, ref.input_size, ref.letterbox) for f in frames], runs)
+    print(f"{'':>9} letterbox to the network's input alone: {1e3 * t / len(frames):.2f} ms/frame")
     nets = {k: d.runtime for k, d in dets.items() if d.runtime is not None}
     scores = [nets["opencv"](x)[:, 4:] for x in small]
     best = {k: [np.inf, 0.0, 0.0] for k in dets}
