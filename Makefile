@@ -4,8 +4,9 @@ SHELL := /bin/bash
 VENV := .venv
 export VIRTUAL_ENV := $(abspath $(VENV))
 export PATH := $(VIRTUAL_ENV)/bin:$(PATH)
-# Extras installed for development and CI (the peers we prove parity against).
-EXTRAS ?= test
+# Extras installed for development and CI (the peers we prove parity against; the SSD's
+# OpenVINO back-end and its int8 quantisation, tested against OpenCV DNN).
+EXTRAS ?= test,openvino,quantize
 
 .PHONY: help dev torch lint fmt test test-rust test-python demo bench wheel
 

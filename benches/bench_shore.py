@@ -33,9 +33,17 @@ Frames: MarDCT's regDTV9 frames resized to each size when ../shared/data is pres
   `python -m usvfast.shore.ssd_train`) the fine-tuned model at its 320 × 240 input, alone and
   with the test-time views of `usvfast.shore.ssd_tta` (mirror; tiles of the frame enlarged
   1.5 ×; both); each timed as detect + horizon filter + SORT-like tracker per frame.
+* With `--ssd`, the fine-tuned model on each run-time of `--ssd-runtimes` (default: OpenCV
+  DNN, OpenVINO float32 and bfloat16 when the `openvino` extra is installed; `openvino-int8`
+  with `--ssd-int8 MODEL-int8.onnx` from `python -m usvfast.shore.ssd_quant`), on the same
+  frames in the same process, runs interleaved, best of `--ssd-runs`: the network alone (the
+  letterboxed frame in, scores out), the whole detect + horizon + SORT as FPS, each run-time's
+  speed-up over OpenCV DNN, and its largest score difference from OpenCV DNN; and the
+  letterbox resize alone (what detect adds before the network).
 
 Run: python benches/bench_shore.py [--frames N] [--repeat R] [--cascade boat.xml]
-    [--cnn MODEL.onnx] [--ssd MODEL.onnx] [--only contrast fused change ssd]
+    [--cnn MODEL.onnx] [--ssd MODEL.onnx] [--ssd-int8 MODEL-int8.onnx]
+    [--ssd-runtimes opencv openvino ...] [--ssd-runs N] [--only contrast fused change ssd]
 """
 
 from __future__ import annotations
@@ -108,16 +116,16 @@ def chain_fps(
 
 
 def ssd_fps(
-    frames: list[np.ndarray], model: Path, tta: tuple[bool, float] | None = None
+    frames: list[np.ndarray], model: Path, tta: tuple[bool, float] | None = None, det=None
 ) -> tuple[float, dict[str, float]]:
-    """(frames per second, ms per frame of each stage) of the SSD run by OpenCV DNN (with
-    `tta` (flip, zoom): the test-time views of usvfast.shore.ssd_tta), the horizon filter and
-    the SORT-like tracker, frame by frame."""
+    """(frames per second, ms per frame of each stage) of the SSD run by OpenCV DNN (or the
+    SsdDetector `det`; with `tta` (flip, zoom): the test-time views of usvfast.shore.ssd_tta),
+    the horizon filter and the SORT-like tracker, frame by frame."""
     from usvfast.shore.horizon import HorizonConfig, detect_horizon, horizon_keep
     from usvfast.shore.pretrained import SsdDetector
     from usvfast.shore.ssd_tta import SsdTta
 
-    det = SsdDetector(model)
+    det = det or SsdDetector(model)
     if tta is not None:
         det = SsdTta(det, flip=tta[0], zoom=tta[1])
     hcfg = HorizonConfig()
@@ -138,6 +146,43 @@ def ssd_fps(
         sec["track"] += t3 - t2
     fps = len(frames) / (time.perf_counter() - t0)
     return fps, {k: 1e3 * v / len(frames) for k, v in sec.items()}
+
+
+def ssd_runtimes(
+    frames: list[np.ndarray], models: dict[str, Path], runs: int
+) -> dict[str, tuple[float, float, float]]:
+    """Per run-time name of usvfast.shore.ssd_eval.RUNTIMES (`models`: its .onnx file):
+    (ms per frame of the network alone, FPS of detect + horizon + SORT, largest |score|
+    difference from OpenCV DNN over every anchor of every frame); runs interleaved across
+    run-times, best of `runs`. Run-times whose package is missing are left out, with a note."""
+    from usvfast._extras import MissingExtraError
+    from usvfast.shore.pretrained import SsdDetector, letterboxed
+    from usvfast.shore.ssd_eval import runtime_options
+
+    dets = {}
+    for name, model in models.items():
+        backend, precision, _ = runtime_options(name)
+        try:
+            dets[name] = SsdDetector(model, backend=backend, precision=precision)
+        except MissingExtraError as exc:
+            print(f"SSD on {name} not timed: {exc}")
+    ref = dets["opencv"]
+    small = [letterboxed(f, ref.input_size, ref.letterbox)[0] for f in frames]
+    t, _ = best_of(lambda: [letterboxed(f, ref.input_size, ref.letterbox) for f in frames], runs)
+    print(f"{'':>9} letterbox to the network's input alone: {1e3 * t / len(frames):.2f} ms/frame")
+    nets = {k: d.runtime for k, d in dets.items() if d.runtime is not None}
+    scores = [nets["opencv"](x)[:, 4:] for x in small]
+    best = {k: [np.inf, 0.0, 0.0] for k in dets}
+    for name, net in nets.items():
+        diff = max(np.abs(net(x)[:, 4:] - s).max() for x, s in zip(small, scores, strict=True))
+        best[name][2] = float(diff)
+    for _ in range(runs):
+        for name, det in dets.items():
+            t, _ = best_of(lambda net=nets[name]: [net(x) for x in small], 1)
+            best[name][0] = min(best[name][0], 1e3 * t / len(small))
+            fps, _ = ssd_fps(frames, models[name], det=det)
+            best[name][1] = max(best[name][1], fps)
+    return {k: (v[0], v[1], v[2]) for k, v in best.items()}
 
 
 def coco_ssd(folder: Path) -> Path | None:
@@ -273,6 +318,14 @@ def main() -> None:
     )
     ap.add_argument("--cnn", type=Path, default=None, help="CNN ONNX (shore-train) to time")
     ap.add_argument("--ssd", type=Path, default=None, help="Fine-tuned SSD ONNX (ssd_train)")
+    ap.add_argument("--ssd-int8", type=Path, default=None, help="Its int8 model (ssd_quant)")
+    ap.add_argument(
+        "--ssd-runtimes",
+        nargs="*",
+        default=["opencv", "openvino", "openvino-bf16", "openvino-int8"],
+        help="Run-times of the --ssd model compared (openvino-int8 needs --ssd-int8)",
+    )
+    ap.add_argument("--ssd-runs", type=int, default=5, help="Interleaved runs per run-time")
     ap.add_argument("--only", nargs="*", default=None, help="Time only these detector rows")
     a = ap.parse_args()
     cv2.setNumThreads(2)
@@ -331,6 +384,19 @@ def main() -> None:
                 print(
                     f"{size[0]}x{size[1]:<8} {name:>16} {fps:>14.1f} {fps / PAPER_FPS:>8.2f}x"
                     f"   ms/frame: {ms}"
+                )
+        if a.ssd is not None and (not a.only or "ssd" in a.only):
+            models = {r: a.ssd for r in a.ssd_runtimes if r != "openvino-int8"}
+            if a.ssd_int8 is not None and "openvino-int8" in a.ssd_runtimes:
+                models["openvino-int8"] = a.ssd_int8
+            models = {"opencv": a.ssd, **models}
+            rows = ssd_runtimes(frames, models, a.ssd_runs)
+            net0, fps0, _ = rows["opencv"]
+            for name, (net, fps, diff) in rows.items():
+                print(
+                    f"{size[0]}x{size[1]:<8} {'ssd ' + name:>20} {fps:>10.1f} FPS "
+                    f"({fps / fps0:.2f}x OpenCV DNN)   network alone {net:.2f} ms "
+                    f"({net0 / net:.2f}x)   max |score - OpenCV DNN| {diff:.2g}"
                 )
         if not a.only or "change" in a.only:
             fps = mog2_fps(frames)

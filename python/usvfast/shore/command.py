@@ -63,6 +63,20 @@ def shore_command(
     horizon_filter: Annotated[
         bool, typer.Option(help="Drop detections well above the horizon line")
     ] = True,
+    ssd_backend: Annotated[
+        str,
+        typer.Option(
+            help="SSD inference: auto (OpenVINO when the openvino extra is installed, else "
+            "OpenCV DNN), opencv or openvino"
+        ),
+    ] = "auto",
+    ssd_precision: Annotated[
+        str,
+        typer.Option(
+            help="SSD on OpenVINO: f32 (OpenCV DNN's scores) or bf16 (about twice as fast on "
+            "CPUs with bfloat16; scores move by up to ~0.2, see the README)"
+        ),
+    ] = "f32",
     video: Annotated[bool, typer.Option(help="Write the annotated video")] = True,
     max_frames: Annotated[int, typer.Option(help="Stop after this many frames (0: all)")] = 0,
     progress: Annotated[bool, typer.Option(help="Show a progress bar")] = True,
@@ -81,6 +95,8 @@ def shore_command(
             cascade_model=model if kind == "cascade" else None,
             cnn_model=model if kind in ("cnn", "fused") else None,
             ssd_model=model if kind == "ssd" else None,
+            ssd_backend=ssd_backend,
+            ssd_precision=ssd_precision,
             reflection_filter=reflection_filter,
             wake_model=wake_model,
             sort=sort,

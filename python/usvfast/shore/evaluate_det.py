@@ -6,6 +6,7 @@ FAR, real and detection size).
         [--detectors bayes cnn contrast fused change verified verified-contrast cascade
                      ssd-coco ssd ssd-nested]
         [--models DIR] [--steps N] [--hard-negatives] [--json OUT.json]
+        [--ssd-runtime opencv|openvino|openvino-bf16|openvino-int8]
 
 For each video, every trained part is fitted on the three other videos only:
 
@@ -43,7 +44,9 @@ For each video, every trained part is fitted on the three other videos only:
 * ssd-coco / ssd: the COCO-pretrained SSD-MobileNetV2 (:mod:`usvfast.shore.pretrained`),
   zero-shot (class "boat", threshold picked on the three other videos) and fine-tuned on the
   three other videos (:mod:`usvfast.shore.ssd_train`, `shore-ssd-without-VIDEO.onnx` in
-  `--models`, trained when absent; its card's threshold), rows of :mod:`usvfast.shore.ssd_eval`.
+  `--models`, trained when absent; its card's threshold), rows of :mod:`usvfast.shore.ssd_eval`;
+  `--ssd-runtime` picks what runs it (openvino-int8: the fold model quantised on its own
+  training videos by :mod:`usvfast.shore.ssd_quant`, cached as `...-int8.onnx` beside it).
 * ssd-nested: the fine-tuned SSD with its recipe (frozen depth), test-time views, threshold
   and suppression picked by inner leave-one-video-out on the three other videos (models
   trained on two of them, scored on the third; :mod:`usvfast.shore.ssd_nested`).
@@ -456,10 +459,12 @@ def evaluate(
     log=print,
     hard_negatives: bool = False,
     ssd_recipes: Sequence[str] | None = None,
+    ssd_runtime: str = "opencv",
 ) -> dict:
     """Leave-one-video-out rows per video (module doc); a JSON-ready dict. `ssd_recipes`:
     the training recipes ssd-nested compares (default
-    :data:`usvfast.shore.ssd_nested.DEFAULT_RECIPES`)."""
+    :data:`usvfast.shore.ssd_nested.DEFAULT_RECIPES`); `ssd_runtime`: what runs the ssd rows'
+    network (:data:`usvfast.shore.ssd_eval.RUNTIMES`)."""
     mardct = load_mardct(data)
     hcfg = HorizonConfig()
     videos = {v: load_video(f, hcfg) for v, f in mardct.items()}
@@ -513,7 +518,7 @@ def evaluate(
         if "ssd" in detectors:
             from usvfast.shore.ssd_eval import ssd_rows
 
-            rows, info = ssd_rows(data, videos, held, hcfg, models, log)
+            rows, info = ssd_rows(data, videos, held, hcfg, models, log, ssd_runtime)
             entry["rows"] += rows
             entry.update(info)
         if "ssd-nested" in detectors:
@@ -530,6 +535,7 @@ def evaluate(
 def main(argv: Sequence[str] | None = None) -> None:
     """Command-line entry point (module doc)."""
     from usvfast.shore.evaluate import default_data
+    from usvfast.shore.ssd_eval import RUNTIMES
 
     p = argparse.ArgumentParser(
         prog="python -m usvfast.shore.evaluate_det", description=(__doc__ or "").split("\n")[0]
@@ -554,6 +560,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     p.add_argument(
         "--breakdown", action="store_true", help="Also print where each row's errors are"
     )
+    p.add_argument("--ssd-runtime", default="opencv", choices=RUNTIMES, help="ssd: what runs it")
     a = p.parse_args(argv)
     unknown = set(a.detectors) - {
         "bayes",
@@ -578,6 +585,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         a.videos,
         hard_negatives=a.hard_negatives,
         ssd_recipes=a.ssd_recipes,
+        ssd_runtime=a.ssd_runtime,
     )
     print_tables(results)
     if a.breakdown:

@@ -37,6 +37,7 @@ from usvfast.shore.mot import mot_rows, write_mot
 from usvfast.shore.particle import ParticleConfig, ParticleTracker
 from usvfast.shore.pixel_kalman import AdaptiveConfig, AdaptiveTracker
 from usvfast.shore.sort import SortConfig, SortTracker
+from usvfast.shore.ssd_runtime import BACKENDS, PRECISIONS, resolve_backend
 
 DetectorName = Literal["auto", "bayes", "cascade", "cnn", "contrast", "fused", "change", "ssd"]
 TrackerName = Literal["sort", "adaptive", "particle"]
@@ -67,7 +68,9 @@ class ShoreConfig:
     :class:`usvfast.shore.change.ChangeDetector`, online; 'ssd': the COCO-pretrained
     SSD-MobileNetV2, `ssd_model` the ONNX file `usvfast shore-train --detector ssd` writes,
     default the fine-tuned one in the user model folder, else the zero-shot COCO export, run by
-    OpenCV DNN at its card's threshold, :class:`usvfast.shore.pretrained.SsdDetector`),
+    `ssd_backend` at `ssd_precision` (:mod:`usvfast.shore.ssd_runtime`; 'auto': OpenVINO
+    float32 when the `openvino` extra is installed, else OpenCV DNN; same scores to 1e-5) at
+    its card's threshold, :class:`usvfast.shore.pretrained.SsdDetector`),
     `reflection_filter` (drop boxes with few ORB
     keypoints), `wake_model` (a one-stage cascade XML from `WakeFilter`, drops wakes), `tracker`
     ('sort': Kalman + IoU assignment + colour re-identification; 'adaptive': the same paper's
@@ -87,6 +90,8 @@ class ShoreConfig:
     cascade_model: Path | None = None
     cnn_model: Path | None = None
     ssd_model: Path | None = None
+    ssd_backend: str = "auto"
+    ssd_precision: str = "f32"
     reflection_filter: bool = False
     wake_model: Path | None = None
     horizon: HorizonConfig = field(default_factory=HorizonConfig)
@@ -107,6 +112,14 @@ class ShoreConfig:
             raise ValueError(f"detector: expected one of {DETECTORS}, got {self.detector!r}")
         if self.tracker not in TRACKERS:
             raise ValueError(f"tracker: expected one of {TRACKERS}, got {self.tracker!r}")
+        if self.ssd_backend != "auto" and self.ssd_backend not in BACKENDS:
+            raise ValueError(
+                f"ssd_backend: expected 'auto' or one of {BACKENDS}, got {self.ssd_backend!r}"
+            )
+        if self.ssd_precision not in PRECISIONS:
+            raise ValueError(
+                f"ssd_precision: expected one of {PRECISIONS}, got {self.ssd_precision!r}"
+            )
         self.choice = resolve_detector(
             self.detector, self.cnn_model, self.ssd_model, self.cascade_model
         )
@@ -158,7 +171,8 @@ class ShoreChain:
             model = cfg.ssd_model
             if is_coco_export(model):  # the zero-shot SSD: exported once, then cached
                 model = coco_export(model)
-            self.cnn = SsdDetector(model)
+            backend = resolve_backend(cfg.ssd_backend)
+            self.cnn = SsdDetector(model, backend=backend, precision=cfg.ssd_precision)
         self.contrast: ContrastDetector | FusedDetector | None = None
         if cfg.detector == "contrast":
             self.contrast = ContrastDetector(cfg.contrast)

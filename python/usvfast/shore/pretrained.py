@@ -1,6 +1,7 @@
 """Boats from a COCO-pretrained detector: the SSD-MobileNetV2 of :mod:`usvfast.shore.ssd`,
 zero-shot (COCO's "boat" class) or fine-tuned on shore frames (:mod:`usvfast.shore.ssd_train`),
-run by torch or, exported to ONNX, by OpenCV DNN (no torch).
+run by torch or, exported to ONNX, by OpenCV DNN or OpenVINO (no torch;
+:mod:`usvfast.shore.ssd_runtime`).
 
 Where the COCO weights come from: the frozen graph `frozen_inference_graph.pb` of the
 TensorFlow Object Detection API's `ssd_mobilenet_v2_coco_2018_03_29` (Apache 2.0), which the
@@ -70,25 +71,37 @@ def coco_network(classes=None):
     return SsdMobileNetV2.from_graph(graph, classes or (COCO_BOAT,)).eval()
 
 
-def preprocess(image: np.ndarray, input_size: tuple[int, int], letterbox: bool):
-    """BGR uint8 (h, w, 3) -> (1, 3, H, W) float32 RGB in [−1, 1] at `input_size` (W, H),
-    and the map back: (scale x, scale y, offset x, offset y) with image px = (net px −
-    offset) / scale. `letterbox`: keep the aspect ratio (grey 114 padding, centred) as the
-    fine-tuned models were trained; else stretch (the COCO graph's own resize)."""
+def letterboxed(image: np.ndarray, input_size: tuple[int, int], letterbox: bool):
+    """BGR uint8 (h, w, 3) -> the network's input image, BGR uint8 (H, W, 3) at `input_size`
+    (W, H), resized once (area averaging when shrinking, bilinear when enlarging, as the
+    fine-tuning's views, :func:`usvfast.shore.cnn_train.augment`), and the map back: (scale x,
+    scale y, offset x, offset y) with image px = (net px − offset) / scale. `letterbox`: keep
+    the aspect ratio (grey 114 padding, centred) as the fine-tuned models were trained; else
+    stretch (the COCO graph's own resize, bilinear). A frame already at `input_size` is
+    returned as it is (no copy)."""
     h, w = image.shape[:2]
     iw, ih = input_size
+    if (w, h) == (iw, ih):
+        return image, (1.0, 1.0, 0.0, 0.0)
     if letterbox:
         s = min(iw / w, ih / h)
         nw, nh = max(1, round(w * s)), max(1, round(h * s))
         interp = cv2.INTER_AREA if s < 1 else cv2.INTER_LINEAR
         small = cv2.resize(image, (nw, nh), interpolation=interp)
-        out = np.full((ih, iw, 3), 114, np.uint8)
         ox, oy = (iw - nw) // 2, (ih - nh) // 2
-        out[oy : oy + nh, ox : ox + nw] = small
-        geo = (nw / w, nh / h, float(ox), float(oy))
-    else:
-        out = cv2.resize(image, (iw, ih), interpolation=cv2.INTER_LINEAR)
-        geo = (iw / w, ih / h, 0.0, 0.0)
+        out = cv2.copyMakeBorder(
+            small, oy, ih - nh - oy, ox, iw - nw - ox, cv2.BORDER_CONSTANT, value=(114, 114, 114)
+        )
+        return out, (nw / w, nh / h, float(ox), float(oy))
+    out = cv2.resize(image, (iw, ih), interpolation=cv2.INTER_LINEAR)
+    return out, (iw / w, ih / h, 0.0, 0.0)
+
+
+def preprocess(image: np.ndarray, input_size: tuple[int, int], letterbox: bool):
+    """BGR uint8 (h, w, 3) -> (1, 3, H, W) float32 RGB in [−1, 1] at `input_size` (W, H)
+    (the exported network's input; :func:`letterboxed`), and the map back of
+    :func:`letterboxed`."""
+    out, geo = letterboxed(image, input_size, letterbox)
     x = out[..., ::-1].astype(np.float32) * (2.0 / 255.0) - 1.0
     return np.ascontiguousarray(x.transpose(2, 0, 1)[None]), geo
 
@@ -101,8 +114,12 @@ class SsdDetector:
     :class:`usvfast.shore.ssd.SsdMobileNetV2` (torch). `input_size` (W, H) px,
     `conf_threshold` (sigmoid score), `iou_threshold` (class-agnostic NMS), `letterbox`
     (keep the aspect ratio) and `top_k` (boxes kept per frame) default to the card, else to the
-    COCO graph's own set-up (300 × 300 stretched, NMS 0.6). `detect(image)` ->
-    :class:`usvfast.shore.boxes.Detections` (x, y, w, h px; the best class score)."""
+    COCO graph's own set-up (300 × 300 stretched, NMS 0.6). `backend` runs an `.onnx` model on
+    OpenCV DNN ("opencv", the default) or OpenVINO ("openvino", `pip install
+    usvfast[openvino]`) at `precision` ("f32"; "bf16" on OpenVINO only), with `threads`
+    (:class:`usvfast.shore.ssd_runtime.SsdRuntime`); a torch module takes the defaults only.
+    `detect(image)` -> :class:`usvfast.shore.boxes.Detections` (x, y, w, h px; the best class
+    score)."""
 
     def __init__(
         self,
@@ -113,7 +130,12 @@ class SsdDetector:
         iou_threshold: float | None = None,
         letterbox: bool | None = None,
         top_k: int = 100,
+        backend: str = "opencv",
+        precision: str = "f32",
+        threads: int | None = None,
     ) -> None:
+        from usvfast.shore.ssd_runtime import SsdRuntime
+
         card: dict = {}
         if isinstance(model, str | Path):
             path = Path(model)
@@ -124,7 +146,12 @@ class SsdDetector:
                 import json
 
                 card = json.loads(cpath.read_text(encoding="utf-8"))
-            self.net = cv2.dnn.readNetFromONNX(str(path))
+            if "int8" in card and backend == "opencv":
+                raise ValueError(
+                    f"backend: {path.name} is an int8 model (usvfast.shore.ssd_quant), which "
+                    "OpenCV DNN cannot run; use backend='openvino'"
+                )
+            self.runtime: SsdRuntime | None = SsdRuntime(path, backend, precision, threads)
             self.torch_net = None
         else:
             import torch
@@ -133,7 +160,9 @@ class SsdDetector:
                 raise TypeError(
                     f"model: expected an .onnx path or a torch module, got {type(model).__name__}"
                 )
-            self.net = None
+            if (backend, precision, threads) != ("opencv", "f32", None):
+                raise ValueError("backend, precision, threads: only for an .onnx model")
+            self.runtime = None
             self.torch_net = model.eval()
         size = input_size or card.get("input_size") or (300, 300)
         self.input_size = (int(size[0]), int(size[1]))
@@ -159,15 +188,15 @@ class SsdDetector:
             raise ValueError(
                 f"image: expected (h, w, 3) uint8 BGR, got {image.shape} {image.dtype}"
             )
-        x, geo = preprocess(image, self.input_size, self.letterbox)
-        if self.net is not None:
-            self.net.setInput(x)
-            out = np.asarray(self.net.forward())[0]
+        if self.runtime is not None:
+            small, geo = letterboxed(image, self.input_size, self.letterbox)
+            out = self.runtime(small)
         else:
             import torch
 
             from usvfast.shore.ssd import SsdExport
 
+            x, geo = preprocess(image, self.input_size, self.letterbox)
             iw, ih = self.input_size
             if self._anchors is None:
                 self._anchors = SsdExport(self.torch_net, ih, iw).eval()  # pyright: ignore[reportArgumentType]

@@ -60,20 +60,50 @@ def coco_rows(
     return rows, {"ssd_coco_conf": picked}
 
 
+#: Run-times of the fine-tuned SSD rows: OpenCV DNN, OpenVINO float32 / bfloat16, and the
+#: fold model quantised to int8 on its training videos (:mod:`usvfast.shore.ssd_quant`).
+RUNTIMES: tuple[str, ...] = ("opencv", "openvino", "openvino-bf16", "openvino-int8")
+
+
+def runtime_options(name: str) -> tuple[str, str, bool]:
+    """(backend, precision, int8) of a run-time name of :data:`RUNTIMES`."""
+    if name not in RUNTIMES:
+        raise ValueError(f"runtime: expected one of {RUNTIMES}, got {name!r}")
+    backend, _, precision = name.partition("-")
+    return backend, "f32" if precision in ("", "int8") else precision, precision == "int8"
+
+
 def ssd_rows(
-    data: Path, videos: dict[str, VideoFrames], held: str, hcfg: HorizonConfig, models: Path, log
+    data: Path,
+    videos: dict[str, VideoFrames],
+    held: str,
+    hcfg: HorizonConfig,
+    models: Path,
+    log,
+    runtime: str = "opencv",
 ) -> tuple[list[dict], dict]:
     """Fine-tuned SSD rows for held-out video `held` (model trained without it), then with
     the overlap and containment suppression of :mod:`usvfast.shore.suppress` (its pair picked
-    on the three other videos, which the model was trained on: an optimistic choice)."""
+    on the three other videos, which the model was trained on: an optimistic choice). The
+    network runs on `runtime` (:data:`RUNTIMES`)."""
     from usvfast.shore.evaluate_det import suppression_rows
     from usvfast.shore.pretrained import SsdDetector
     from usvfast.shore.ssd_nested import fold_model
 
+    backend, precision, int8 = runtime_options(runtime)
     path = fold_model(data, models, "default", [held], log)
     card = json.loads(path.with_suffix(".json").read_text(encoding="utf-8"))
     conf = float(card["conf_threshold"])
-    det = SsdDetector(path, conf_threshold=min(conf, *SSD_SWEEP))
+    if int8:
+        from usvfast.shore.ssd_quant import int8_model
+
+        if held in card.get("videos", [held]):  # calibration = the card's training videos
+            raise ValueError(f"model: {path.name} was trained on the held-out video {held}")
+
+        path = int8_model(path, data, log)
+    det = SsdDetector(
+        path, conf_threshold=min(conf, *SSD_SWEEP), backend=backend, precision=precision
+    )
     low = {v: [det.detect(im) for im in vf.images] for v, vf in videos.items()}
     sweep = tuple(sorted({conf, *SSD_SWEEP}))
     only = {held: low[held]}
@@ -81,6 +111,7 @@ def ssd_rows(
     at_conf = {v: [d.subset(d.scores >= conf) for d in ds] for v, ds in low.items()}
     sup, sup_rows = suppression_rows(videos, held, at_conf, hcfg, f"ssd fine-tuned ≥ {conf:g}")
     info = {"ssd_model": path.name, "ssd_conf": conf, "ssd_train_s": card["train_seconds"]}
+    info["ssd_runtime"] = runtime
     return rows + sup_rows, {**info, "ssd_suppression": list(sup)}
 
 
