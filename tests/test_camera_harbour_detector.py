@@ -72,11 +72,13 @@ def test_precision_recall_on_unseen_seeds(frames, card):
     det = load_detector("onnx", demo_weights("onnx"), conf_threshold=card["conf_threshold"])
     m = evaluate(det, frames, min_box_px=card["train"]["min_box_px"])
     assert m["truth"] >= 20
-    # Measured on these 12 frames: precision 0.72, recall 0.70 (the model card's 24 frames of
-    # seeds 2000-2002: 0.59 / 0.68). Most misses and false alarms are trash boxes of 3-6 px,
-    # where a 1 px offset already costs IoU 0.5.
-    assert m["precision"] >= 0.6, m
-    assert m["recall"] >= 0.6, m
+    # Measured on these 12 frames: precision 0.59, recall 0.91 (49 of 54 boxes, 34 false; the
+    # model card's 24 frames of seeds 2000-2002: 0.52 / 0.85). The network bundled before
+    # gave 0.71 / 0.67 here: today's recipe finds the small floats and pays in false boxes
+    # (the demo pipeline runs it at 0.5). Most misses and false alarms are trash boxes of
+    # 3-6 px, where a 1 px offset already costs IoU 0.5.
+    assert m["precision"] >= 0.55, m
+    assert m["recall"] >= 0.85, m
 
 
 def test_wrong_input_shape_is_a_clear_error(frames):
