@@ -280,17 +280,17 @@ def test_unsupported_components_are_named():
     _refuse(gnn_in_mixture, r"data_associator: .*GNNWith2DAssignment")
 
 
-def test_readme_example_runs():
+def test_docs_example_runs():
     from pathlib import Path
 
-    text = (Path(__file__).parents[1] / "README.md").read_text()
+    text = (Path(__file__).parents[1] / "docs" / "tracker.md").read_text()
     start = text.index("## Stone Soup drop-in")
     block = text[
         text.index("```python", start) + len("```python") : text.index("```\n", start + 10)
     ]
     assert "from usvfast.stonesoup import MultiTargetMixtureTracker" in block
     scope: dict = {}
-    exec(compile(block, "README.md", "exec"), scope)
+    exec(compile(block, "docs/tracker.md", "exec"), scope)
     assert len(scope["tracks"]) == 2
 
 
