@@ -103,7 +103,8 @@ false / wall / moored-boat track, all ten seeds <= 0.3 m with mean float RMSE 0.
 
 Scored, once, after the replacement (`usvfast run` of the bundled recording for seed 7; this
 script with `--scored --seeds 1 2 3` for the others): detectable floats tracked 7: 11 / 12
-(a bottle seen 13.8 s is lost), 1: 10 / 10 (seed 1's bottle tracked), 2: 12 / 12, 3: 12 / 12
+(a bottle 13.8 s in range, seen 3.0 s, is lost), 1: 10 / 10 (seed 1's bottle tracked),
+2: 12 / 12, 3: 12 / 12
 (all floats alike); float RMSE 0.149 / 0.141 / 0.153 / 0.147 m; float ANIS 1.838 [1.772,
 2.047], 1.669 [1.734, 2.088] below, 1.847 [1.757, 2.063], 1.862 [1.775, 2.043]; no false,
 wall or moored-boat track; TRF mean 1.09 / 1.40 / 1.33 / 1.17.
