@@ -36,8 +36,11 @@ def as_float_array(
 
 
 def as_index_array(name: str, value: Any, length: int) -> np.ndarray:
-    """Return `value` as a 1-D C-contiguous int64 array of `length` non-negative integers."""
+    """Return `value` as a 1-D C-contiguous int64 array of `length` integers (an empty input of
+    any dtype is an empty int64 array; the sign is the caller's to check)."""
     arr = np.asarray(value)
+    if arr.size == 0:
+        arr = arr.astype(np.int64)
     if arr.dtype.kind not in "iu":
         raise TypeError(f"{name}: expected integers, got dtype {arr.dtype}")
     arr = np.ascontiguousarray(arr, dtype=np.int64)

@@ -13,7 +13,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from usvfast import _core
-from usvfast._validate import as_float_array
+from usvfast._validate import as_float_array, as_index_array
 from usvfast.kalman import MotionModel
 from usvfast.tracking.components import (
     GNN,
@@ -308,15 +308,7 @@ class Tracker:
             ids = np.asarray(sensor_ids)
             if ids.ndim == 0:
                 ids = np.full(len(z), int(ids), dtype=np.int64)
-            if ids.size == 0:
-                ids = ids.astype(np.int64)
-            if ids.dtype.kind not in "iu":
-                raise TypeError(f"sensor_ids: expected integers, got dtype {ids.dtype}")
-            ids = np.ascontiguousarray(ids, dtype=np.int64)
-            if ids.shape != (len(z),):
-                raise _core.DimensionError(
-                    f"sensor_ids: expected shape ({len(z)},), got {ids.shape}"
-                )
+            ids = as_index_array("sensor_ids", ids, len(z))
         return z, ids
 
     def _covariances(self, covariances: Any, k: int) -> np.ndarray | None:
@@ -386,14 +378,7 @@ class Tracker:
         o = self._origins(origins, len(z))
         if scan_index is None:
             raise TypeError("scan_index: required, one scan number per measurement row")
-        si = np.asarray(scan_index)
-        if si.size == 0:
-            si = si.astype(np.int64)
-        if si.dtype.kind not in "iu":
-            raise TypeError(f"scan_index: expected integers, got dtype {si.dtype}")
-        si = np.ascontiguousarray(si, dtype=np.int64)
-        if si.shape != (len(z),):
-            raise _core.DimensionError(f"scan_index: expected shape ({len(z)},), got {si.shape}")
+        si = as_index_array("scan_index", scan_index, len(z))
         with self._exclusive():
             out = self._core.run(t, z, ids, si, c, o)
         return RunResult(**out)
