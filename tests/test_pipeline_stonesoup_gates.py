@@ -21,7 +21,7 @@ from usvfast.pipeline.tracker import make_tracker
 
 def _settings(**kw) -> dict:
     s = {k: v for k, (_, v) in SCHEMA["tracker"].items()}
-    s.update(initiate_in_gates=False, **kw)
+    s.update({"initiate_in_gates": False, **kw})
     return s
 
 
@@ -128,3 +128,27 @@ def test_bundled_recording_same_tracks_through_stone_soup():
     births, worst = _compare([u.tracks for u in a], [u.tracks for u in b], 1e-6)
     assert births >= 4 and worst < 1e-6
     assert pipe.tracker.tracker.initiator.dropped > 0
+
+
+@pytest.mark.parametrize("association", ["jpda", "gnn"])
+@pytest.mark.parametrize("in_gates", [False, True])
+def test_non_starting_detections_same_tracks_through_stone_soup(association, in_gates):
+    # Half the camera's detections may not start tracks (camera.start_confidence): Stone
+    # Soup's initiator wrapped in StartingInitiator gives the native tracker's tracks.
+    rng = np.random.default_rng(11)
+    scans = [(t, z, s, c, (s == 0) | (rng.random(len(z)) < 0.5)) for t, z, s, c in _scans(seed=5)]
+    settings = _settings(
+        association=association, delete_steps=10, clutter_density=1.0, initiate_in_gates=in_gates
+    )
+    runs = []
+    for backend in ("native", "stonesoup"):
+        tr = make_tracker({**settings, "backend": backend})
+        runs.append([tr.step(*scan) for scan in scans])
+    births, worst = _compare(runs[0], runs[1], 1e-9)
+    assert births >= 3 and worst < 1e-9
+    # The mask matters: with every detection starting, the tracks are not the same.
+    every, _ = _run(settings, [scan[:4] for scan in scans])
+    assert any(
+        len(a.ids) != len(b.ids) or not np.allclose(a.states, b.states)
+        for a, b in zip(runs[0], every, strict=True)
+    )

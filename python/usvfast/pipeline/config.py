@@ -145,6 +145,10 @@ _CAMERA = {
     "min_depression_deg": ("float", 0.0),
     "max_range": ("float", 40.0),
     "min_confidence": ("float", 0.0),
+    # Boxes scored under start_confidence (and at least min_confidence and the detector's
+    # conf_threshold) update tracks, tentative ones included, but start none (the
+    # two-threshold association of ByteTrack, Zhang et al. 2022); None: every box may.
+    "start_confidence": ("float", None),
     "own_vessel_polygon": ("points", None),
     "horizon": ("str", "attitude"),
     "horizon_margin_deg": ("float", 0.5),
@@ -503,6 +507,11 @@ def _build(data: dict[str, Any], file: Path) -> PipelineConfig:
         raise ConfigError(
             f"{file}: key 'recording.heading_calibration_s': the heading calibration needs a "
             'LiDAR stream (sensor = "lidar", lidar.enabled = true)'
+        )
+    start = cam["start_confidence"]
+    if start is not None and not 0.0 <= start <= 1.0:
+        raise ConfigError(
+            f"{file}: key 'camera.start_confidence': expected a score in [0, 1], got {start}"
         )
     trk = tables["tracker"]
     if trk["deletion"] == "time":

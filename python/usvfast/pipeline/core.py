@@ -236,18 +236,20 @@ class Pipeline:
             sensor = "lidar"
             assert scan.lidar is not None
             z, covs, scores = scan.lidar
-            vessel = scan.vessel
+            vessel, starts = scan.vessel, None
         else:
             sensor = "camera"
             res = scan.chain.finish(raw, pose)
             z, covs, scores = res.positions, res.covariances, res.scores
             vessel = res.vessel
+            start = scan.chain.settings.get("start_confidence")
+            starts = None if start is None else np.asarray(scores) >= start
             if self.writer is not None:
                 with self.timer("outputs"):
                     self.writer.write_frame(t, scan.image)
         sid = SENSORS.index(sensor)
         with self.timer("tracker"):
-            snap = self._track(round(t - self.epoch, 6), z, sid, covs, vessel)
+            snap = self._track(round(t - self.epoch, 6), z, sid, covs, vessel, starts)
         self.scans += 1
         self.detections[sensor] += len(z)
         self.track_ids.update(snap.ids.tolist())
@@ -259,16 +261,24 @@ class Pipeline:
         return [TrackUpdate(t, sensor, scan.stream, len(z), snap, pose)]
 
     def _track(
-        self, t: float, z: np.ndarray, sid: int, covs: np.ndarray, vessel: np.ndarray | None
+        self,
+        t: float,
+        z: np.ndarray,
+        sid: int,
+        covs: np.ndarray,
+        vessel: np.ndarray | None,
+        starts: np.ndarray | None,
     ) -> Any:
         """One scan through the tracker; with a vessel tracker (tracker.vessels) the `vessel`
-        detections go to it, the rest to the floats' tracker, and the snapshots are joined."""
+        detections go to it, the rest to the floats' tracker, and the snapshots are joined.
+        `starts`: which detections may start tracks (None: all)."""
         sensors = np.full(len(z), sid, dtype=np.int64)
         if self.vessel_tracker is None:
-            return self.tracker.step(t, z, sensors, covs)
+            return self.tracker.step(t, z, sensors, covs, starts)
         v = np.zeros(len(z), bool) if vessel is None else vessel
-        snap = self.tracker.step(t, z[~v], sensors[~v], covs[~v])
-        ves = self.vessel_tracker.step(t, z[v], sensors[v], covs[v])
+        st = np.ones(len(z), bool) if starts is None else starts
+        snap = self.tracker.step(t, z[~v], sensors[~v], covs[~v], st[~v])
+        ves = self.vessel_tracker.step(t, z[v], sensors[v], covs[v], st[v])
         return join_snapshots(snap, ves, VESSEL_IDS)
 
     def _collect(self, scan: _Scan, fut: Future[tuple[Any, float]] | None) -> list[TrackUpdate]:

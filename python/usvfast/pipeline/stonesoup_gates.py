@@ -39,7 +39,7 @@ from stonesoup.measures import SquaredMahalanobis
 from stonesoup.types.detection import Detection
 from stonesoup.types.update import Update
 
-__all__ = ["GateRecorder", "InGateInitiator", "duplicate_gate"]
+__all__ = ["GateRecorder", "InGateInitiator", "StartingInitiator", "duplicate_gate"]
 
 
 def duplicate_gate(association_gate: float, ndim_meas: int = 2) -> float:
@@ -74,6 +74,28 @@ class GateRecorder(Hypothesiser):
         """The detections gated since the last call."""
         out, self.gated = self.gated, set()
         return out
+
+
+class StartingInitiator(MultiMeasurementInitiator):
+    """Stone Soup's `MultiMeasurementInitiator` whose new tentative tracks start only from
+    detections without `metadata["starts"] = False` (the native `Sensor.starts_tracks`): the
+    others are still associated with, and update, the tentative tracks it holds. The tracks it
+    would start from them are dropped as soon as they are made (a new track changes nothing
+    else in the scan)."""
+
+    def initiate(self, detections: Any, timestamp: Any, **kwargs: Any) -> set[Any]:
+        """The tracks confirmed at `timestamp`; see the class docstring."""
+        held = set(self.holding_tracks)
+        sure = super().initiate(detections, timestamp, **kwargs)
+        self.holding_tracks -= {
+            tr for tr in self.holding_tracks - held if not _first_detection_starts(tr)
+        }
+        return sure
+
+
+def _first_detection_starts(track: Any) -> bool:
+    meas = getattr(getattr(track.states[0], "hypothesis", None), "measurement", None)
+    return meas is None or meas.metadata.get("starts", True) is not False
 
 
 class InGateInitiator(Initiator):

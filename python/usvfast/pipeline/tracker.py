@@ -4,14 +4,18 @@ tracker built from the [tracker] table (defaults: the thesis's Code 5.7), run by
 `MultiTargetMixtureTracker` / `MultiTargetTracker` with the same components (each detection
 then carries a `LinearGaussian` with its own covariance, as Code 5.8 packages them).
 
-Both backends take scans `(t, z (k, 2), sensor (k,), R (k, 2, 2))` and return a `Snapshot` of
-the confirmed tracks plus, for every track updated by a detection, its normalised innovation
-squared (NIS) against the prediction from the track's previous state.
+Both backends take scans `(t, z (k, 2), sensor (k,), R (k, 2, 2)[, starts (k,)])` and return
+a `Snapshot` of the confirmed tracks plus, for every track updated by a detection, its
+normalised innovation squared (NIS) against the prediction from the track's previous state.
+A detection with `starts` False (e.g. a camera box scored under camera.start_confidence) may
+update tracks, tentative ones included, but never starts one: the native tracker gives it to a
+copy of its sensor with `Sensor.starts_tracks = False`; Stone Soup's initiator drops the
+tentative tracks it would start (`usvfast.pipeline.stonesoup_gates.StartingInitiator`).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from datetime import datetime, timedelta
 from typing import Any
 
@@ -130,9 +134,11 @@ class NativeTracker(_Base):
                 clutter_density=s["clutter_density"],
                 method=s["method"],
             )
+        # Sensors 2 and 3: the LiDAR and the camera for detections that start no track.
+        no_start = [replace(sensor, starts_tracks=False) for sensor in (lidar, camera)]
         self.tracker = tk.Tracker(
             motion_model=motion,
-            sensors=[lidar, camera],
+            sensors=[lidar, camera, *no_start],
             association=assoc,
             deleter=deleter,
             initiator=tk.MultiMeasurementInitiator(
@@ -147,13 +153,20 @@ class NativeTracker(_Base):
         self.uses_detection_covariance = self.per_detection
 
     def step(
-        self, t: float, z: np.ndarray, sensors: np.ndarray, covs: np.ndarray | None
+        self,
+        t: float,
+        z: np.ndarray,
+        sensors: np.ndarray,
+        covs: np.ndarray | None,
+        starts: np.ndarray | None = None,
     ) -> Snapshot:
-        """One scan at t (s since the pipeline's epoch)."""
+        """One scan at t (s since the pipeline's epoch); `starts` (k,) bool: which detections
+        may start tracks (None: all)."""
+        ids = sensors if starts is None else np.where(starts, sensors, sensors + len(SENSORS))
         if self.uses_detection_covariance and covs is not None and len(z):
-            tracks = self.tracker.step(t, z, sensors, covariances=covs)
+            tracks = self.tracker.step(t, z, ids, covariances=covs)
         else:
-            tracks = self.tracker.step(t, z, sensors)
+            tracks = self.tracker.step(t, z, ids)
         # the tracker's own NIS of each track's last update
         upd = (tracks.nis_dof > 0) & (tracks.times == t) & (tracks.detection >= 0)
         nis = [
@@ -190,7 +203,6 @@ class StoneSoupTracker(_Base):
         from stonesoup.deleter.time import UpdateTimeDeleter, UpdateTimeStepsDeleter
         from stonesoup.hypothesiser.distance import DistanceHypothesiser
         from stonesoup.hypothesiser.probability import PDAHypothesiser
-        from stonesoup.initiator.simple import MultiMeasurementInitiator
         from stonesoup.measures import Mahalanobis
         from stonesoup.models.measurement.linear import LinearGaussian
         from stonesoup.models.transition.linear import (
@@ -202,7 +214,12 @@ class StoneSoupTracker(_Base):
         from stonesoup.types.state import GaussianState
         from stonesoup.updater.kalman import KalmanUpdater
 
-        from usvfast.pipeline.stonesoup_gates import GateRecorder, InGateInitiator, duplicate_gate
+        from usvfast.pipeline.stonesoup_gates import (
+            GateRecorder,
+            InGateInitiator,
+            StartingInitiator,
+            duplicate_gate,
+        )
 
         s = settings
         self._LinearGaussian = LinearGaussian
@@ -229,7 +246,7 @@ class StoneSoupTracker(_Base):
                 [CovarianceBasedDeleter(covar_trace_thresh=s["covariance_trace"]), deleter],
                 intersect=False,
             )
-        initiator: Any = MultiMeasurementInitiator(
+        initiator: Any = StartingInitiator(
             prior_state=GaussianState(
                 np.zeros((4, 1)),
                 np.diag([0.0, s["prior_velocity_var"], 0.0, s["prior_velocity_var"]]),
@@ -321,9 +338,15 @@ class StoneSoupTracker(_Base):
         self._prev = {int(i): (t, states[k], covs[k]) for k, i in enumerate(ids.tolist())}
 
     def step(
-        self, t: float, z: np.ndarray, sensors: np.ndarray, covs: np.ndarray | None
+        self,
+        t: float,
+        z: np.ndarray,
+        sensors: np.ndarray,
+        covs: np.ndarray | None,
+        starts: np.ndarray | None = None,
     ) -> Snapshot:
-        """One scan at t (s since the pipeline's epoch, microsecond resolution)."""
+        """One scan at t (s since the pipeline's epoch, microsecond resolution); `starts` (k,)
+        bool: which detections may start tracks (None: all)."""
         ts = _EPOCH + timedelta(seconds=round(t, 6))
         noise = self._noise(sensors, covs)
         dets = []
@@ -338,7 +361,11 @@ class StoneSoupTracker(_Base):
                     z[k].reshape(2, 1),
                     timestamp=ts,
                     measurement_model=model,
-                    metadata={"sensor": int(sensors[k]), "row": k},
+                    metadata={
+                        "sensor": int(sensors[k]),
+                        "row": k,
+                        "starts": True if starts is None else bool(starts[k]),
+                    },
                 )
             )
         row_of = {id(d): k for k, d in enumerate(dets)}

@@ -63,6 +63,11 @@ class Sensor:
     are the model the initiator uses to start tracks from this sensor's detections (Stone
     Soup's initiator `measurement_model` for detections without their own model).
     `polar`: set by `Sensor.bearing_range` (then H only selects the mapped positions).
+    `starts_tracks`: whether this sensor's detections left over after association start
+    tentative tracks (True, as Stone Soup's initiator); False: they only update existing
+    tracks, tentative ones included — e.g. a detector's low-score boxes registered as a sensor
+    of their own beside its high-score ones (the two-threshold association of ByteTrack,
+    Zhang et al. 2022).
     """
 
     measurement_matrix: Any
@@ -70,6 +75,11 @@ class Sensor:
     initiation_matrix: Any = None
     initiation_noise: Any = None
     polar: BearingRange | None = None
+    starts_tracks: bool = True
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.starts_tracks, bool):
+            raise TypeError(f"starts_tracks: expected a bool, got {self.starts_tracks!r}")
 
     @classmethod
     def bearing_range(

@@ -551,6 +551,7 @@ pub(crate) struct SensorArgs<'py> {
     initiation_matrix: Option<Bound<'py, PyAny>>,
     initiation_noise: Option<Bound<'py, PyAny>>,
     polar: Option<BearingRangeArgs>,
+    starts_tracks: bool,
 }
 
 impl SensorArgs<'_> {
@@ -565,8 +566,11 @@ impl SensorArgs<'_> {
         };
         let hi = opt(&self.initiation_matrix, "initiation_matrix")?;
         let ri = opt(&self.initiation_noise, "initiation_noise")?;
+        let starts_tracks = self.starts_tracks;
         let Some(p) = self.polar else {
-            return Sensor::new(h, r, hi, ri, n, arg).map_err(to_py_err);
+            let mut s = Sensor::new(h, r, hi, ri, n, arg).map_err(to_py_err)?;
+            s.starts_tracks = starts_tracks;
+            return Ok(s);
         };
         let update = match p.update.as_str() {
             "ekf" => PolarUpdate::Extended,
@@ -586,6 +590,8 @@ impl SensorArgs<'_> {
             mapping: [p.mapping.0 .0, p.mapping.1 .0],
             update,
         };
-        Sensor::polar(pol, r, ri, n, arg).map_err(to_py_err)
+        let mut s = Sensor::polar(pol, r, ri, n, arg).map_err(to_py_err)?;
+        s.starts_tracks = starts_tracks;
+        Ok(s)
     }
 }

@@ -25,6 +25,16 @@ pub struct Sensor {
     /// rad², m²; `h` (and the initiation `H`) then only select the mapped positions. `None`:
     /// linear `z = H x + w`.
     pub polar: Option<crate::tracking::polar::Polar>,
+    /// Whether this sensor's detections left over after association start tentative tracks
+    /// (`true`, Stone Soup's initiator). `false`: they only update existing tracks, tentative
+    /// ones included (e.g. a detector's low-score boxes beside its high-score ones, the
+    /// two-threshold association of ByteTrack, Zhang et al. 2022).
+    #[serde(default = "starts_tracks_default")]
+    pub starts_tracks: bool,
+}
+
+fn starts_tracks_default() -> bool {
+    true
 }
 
 impl Sensor {
@@ -78,6 +88,7 @@ impl Sensor {
             init,
             init_noise_given,
             polar: None,
+            starts_tracks: true,
         })
     }
 
@@ -348,6 +359,7 @@ impl TrackerConfig {
             r,
             init_noise_given: false,
             polar: None,
+            starts_tracks: true,
         };
         let no_symmetry = false;
         Self {

@@ -216,7 +216,7 @@ impl Tracker {
             self.tentative = keep;
             self.scratch.spare_tentative = old;
         }
-        // New tentative tracks from every detection left. Per sensor (computed once, kept
+        // New tentative tracks from every detection left whose sensor starts tracks. Per sensor (computed once, kept
         // across scans while the sensor's initiation model is the same): H⁺, H⁺ R H⁺ᵀ and the
         // mapped state axes; H⁺ R_d H⁺ᵀ per detection with its own covariance R_d (unless the
         // sensor has its own initiation noise).
@@ -224,7 +224,7 @@ impl Tracker {
         self.scratch.init_models.resize_with(ns, || None);
         let mut started = 0usize;
         for &d in free {
-            if used[d] {
+            if used[d] || !self.cfg.sensors[det_sensor[d]].starts_tracks {
                 continue;
             }
             if init.max_new_tentative.is_some_and(|cap| started >= cap) {
