@@ -108,6 +108,31 @@ script with `--scored --seeds 1 2 3` for the others): detectable floats tracked 
 (all floats alike); float RMSE 0.149 / 0.141 / 0.153 / 0.147 m; float ANIS 1.838 [1.772,
 2.047], 1.669 [1.734, 2.088] below, 1.847 [1.757, 2.063], 1.862 [1.775, 2.043]; no false,
 wall or moored-boat track; TRF mean 1.09 / 1.40 / 1.33 / 1.17.
+
+Protocol 3 (a new experiment on the adopted network, declared and committed before any of its
+runs; protocols 1-2 stand as they are). Premise: protocol 2's grid showed that lower score
+gates (0.3-0.4) find more of the small floats but start false camera-only tracks. With
+`camera.start_confidence` the boxes scored under it still update tracks (tentative ones
+included) but start none (the two-threshold association of ByteTrack). Seed 7's lost bottle
+(scored seed, found by its diagnosis of the adopted run: two boxes >= 0.5 in 10 s of 2-3 px
+frames) is the kind of float this may keep; no scored seed is run before the decision.
+
+    python benches/demo_detector_heldout.py --work DIR \
+        --weights adopted=python/usvfast/data/models/harbour-demo.onnx --start-grid adopted
+
+- Baseline "adopted": the shipped settings (`--set detector.conf_threshold=0.5`; the held-out
+  recordings were simulated before the template carried it), current code.
+- Candidates "adopted-lowL", L in {0.3, 0.4, 0.45}: `--set detector.conf_threshold=L --set
+  camera.start_confidence=0.5` (effective low gate max(L, camera.min_confidence = 0.35));
+  pixel sigma and everything else unchanged; the ten held-out seeds, recordings reused.
+- A candidate passes when, summed over the ten seeds, clauses (a)-(d) of the adoption rule
+  hold against the baseline AND (e) all floats tracked (range rule, `floats tracked`) >= the
+  baseline's.
+- Choice: among passing candidates, the most floats tracked (range rule), then the most seeds
+  with ANIS in band, then the lowest mean float RMSE, then the higher L. If none passes,
+  nothing changes. If one is chosen, the simulator's template and the bundled recording get
+  `detector.conf_threshold = L` and `camera.start_confidence = 0.5`, and the scored seeds
+  7, 1, 2, 3 and fresh 15, 16, 17 are run once with `--scored`.
 """
 
 from __future__ import annotations
@@ -134,6 +159,9 @@ RMSE_MEAN_SLACK_M = 0.02
 #: Protocol 2's grid: detector.conf_threshold values and camera.pixel_sigma_uv scales.
 GRID_THRESHOLDS = (0.3, 0.4, 0.5)
 GRID_SIGMA_SCALES = (1.0, 1.2, 1.4)
+#: Protocol 3: the score from which boxes start tracks, and the low gates tried under it.
+START_CONFIDENCE = 0.5
+START_LOW_GATES = (0.3, 0.4, 0.45)
 
 
 def _nice(cmd: list[str]) -> list[str]:
@@ -157,6 +185,14 @@ def grid_sets(rec: Path, threshold: float, scale: float) -> list[str]:
     cam = tomllib.loads((rec / "recording.toml").read_text())["camera"]
     u, v = (scale * float(x) for x in cam["pixel_sigma_uv"])
     return [f"detector.conf_threshold={threshold}", f"camera.pixel_sigma_uv=[{u:.6g}, {v:.6g}]"]
+
+
+def start_sets(low: float | None) -> list[str]:
+    """Protocol 3's `--set` overrides: the shipped gate alone (`low` None), or boxes from `low`
+    of which only those scored >= START_CONFIDENCE start tracks."""
+    if low is None:
+        return [f"detector.conf_threshold={START_CONFIDENCE}"]
+    return [f"detector.conf_threshold={low}", f"camera.start_confidence={START_CONFIDENCE}"]
 
 
 def run(rec: Path, out: Path, weights: Path, sets: list[str] | None = None) -> float:
@@ -233,6 +269,8 @@ def totals(rows: list[dict[str, Any]]) -> dict[str, Any]:
     return {
         "det_tracked": sum(r["det_tracked"] for r in rows),
         "det_targets": sum(r["det_targets"] for r in rows),
+        "tracked": sum(r["tracked"] for r in rows),
+        "targets": sum(r["targets"] for r in rows),
         "fwm": sum(r["false"] + r["wall"] + r["moored"] for r in rows),
         "rmse_ok": sum(x <= RMSE_LIMIT_M for x in rmse),
         "rmse_mean": sum(rmse) / len(rmse),
@@ -257,6 +295,18 @@ def decide(base: dict[str, Any], cand: dict[str, Any]) -> tuple[bool, list[str]]
         f"(d) seeds ANIS in gated band {cand['anis_inside']} >= {base['anis_inside']}: {d}",
     ]
     return a and b and c and d, lines
+
+
+def choose_start(base: dict[str, Any], grid: dict[str, tuple[float, dict[str, Any]]]) -> str | None:
+    """Protocol 3's choice among `grid` {name: (low gate, totals)}: of the settings passing
+    (a)-(d) and (e) (all floats tracked >= the baseline's), the most floats tracked, then the
+    most seeds with ANIS in band, then the lowest mean float RMSE, then the higher gate."""
+    ok = [
+        (-t["tracked"], -t["anis_inside"], t["rmse_mean"], -low, name)
+        for name, (low, t) in grid.items()
+        if decide(base, t)[0] and t["tracked"] >= base["tracked"]
+    ]
+    return min(ok)[4] if ok else None
 
 
 def choose(base: dict[str, Any], grid: dict[str, tuple[float, dict[str, Any]]]) -> str | None:
@@ -284,6 +334,9 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument(
         "--grid", metavar="NAME", default=None, help="run NAME's weights on protocol 2's grid"
     )
+    ap.add_argument(
+        "--start-grid", metavar="NAME", default=None, help="protocol 3 with NAME's weights"
+    )
     args = ap.parse_args(argv)
 
     weights: dict[str, Path] = {}
@@ -295,17 +348,25 @@ def main(argv: list[str] | None = None) -> None:
         if not p.is_file():
             raise ValueError(f"--weights: no such file {str(p)!r}")
         weights[name] = p
-    # name -> (weights file, protocol 2 setting (threshold, sigma scale) or None)
-    cands: dict[str, tuple[Path, tuple[float, float] | None]] = {
-        n: (p, None) for n, p in weights.items()
+    # name -> (weights file, the threshold a choice ranks by, `--set` overrides of a recording)
+    cands: dict[str, tuple[Path, float | None, Any]] = {
+        n: (p, None, None) for n, p in weights.items()
     }
+    for grid_name in (args.grid, args.start_grid):
+        if grid_name is not None and grid_name not in weights:
+            raise ValueError(f"{grid_name!r} (a grid's weights) is not among --weights")
     if args.grid:
-        if args.grid not in weights:
-            raise ValueError(f"--grid: {args.grid!r} is not among --weights {sorted(weights)}")
         path = cands.pop(args.grid)[0]
         for thr in GRID_THRESHOLDS:
             for k in GRID_SIGMA_SCALES:
-                cands[f"{args.grid}-t{thr:g}-k{k:g}"] = (path, (thr, k))
+                sets = lambda rec, thr=thr, k=k: grid_sets(rec, thr, k)  # noqa: E731
+                cands[f"{args.grid}-t{thr:g}-k{k:g}"] = (path, thr, sets)
+    if args.start_grid:
+        path = weights[args.start_grid]
+        cands[args.start_grid] = (path, None, lambda rec: start_sets(None))
+        for low in START_LOW_GATES:
+            sets = lambda rec, low=low: start_sets(low)  # noqa: E731
+            cands[f"{args.start_grid}-low{low:g}"] = (path, low, sets)
     banned = sorted(set(args.seeds) & SCORED_SEEDS)
     if banned and not args.scored:
         raise ValueError(
@@ -326,9 +387,9 @@ def main(argv: list[str] | None = None) -> None:
         t_sim = simulate(seed, rec)
         if t_sim:
             print(f"<!-- simulated seed {seed} in {t_sim:.0f} s -->", file=sys.stderr)
-        for name, (path, setting) in cands.items():
+        for name, (path, _, sets) in cands.items():
             out = args.work / "runs" / str(seed) / name
-            t_run = run(rec, out, path, grid_sets(rec, *setting) if setting else None)
+            t_run = run(rec, out, path, sets(rec) if sets else None)
             if t_run:
                 print(f"<!-- ran seed {seed} {name} in {t_run:.0f} s -->", file=sys.stderr)
             f = figures(out)
@@ -339,12 +400,13 @@ def main(argv: list[str] | None = None) -> None:
     for name, t in sums.items():
         print(
             f"{name}: detectable floats tracked {t['det_tracked']} / {t['det_targets']}, "
+            f"floats tracked {t['tracked']} / {t['targets']}, "
             f"false + wall + moored {t['fwm']}, seeds RMSE <= {RMSE_LIMIT_M} m {t['rmse_ok']}, "
             f"mean RMSE {t['rmse_mean']:.4f} m, seeds ANIS in band {t['anis_inside']}"
         )
     if args.decide and args.grid:
         base = sums[args.decide[0]]
-        grid = {n: (c[1][0], sums[n]) for n, c in cands.items() if c[1] is not None}
+        grid = {n: (c[1], sums[n]) for n, c in cands.items() if c[1] is not None}
         print(
             "\n| setting | (a) det. floats | (b) f+w+m | (c) RMSE <= 0.3 / mean | (d) ANIS | pass |"
         )
@@ -359,6 +421,23 @@ def main(argv: list[str] | None = None) -> None:
             print()
             print("\n".join(decide(base, sums[pick])[1]))
         print(f"decision: {'ADOPT ' + pick if pick else 'KEEP the bundled weights (none passes)'}")
+    elif args.start_grid:
+        base = sums[args.start_grid]
+        grid = {n: (c[1], sums[n]) for n, c in cands.items() if c[1] is not None}
+        print(
+            "\n| setting | floats | (a) det. floats | (b) f+w+m | (c) RMSE <= 0.3 / mean "
+            "| (d) ANIS |"
+        )
+        print("| --- | --- | --- | --- | --- | --- |")
+        for n, t in [(args.start_grid, base), *((n, t) for n, (_, t) in grid.items())]:
+            print(
+                f"| {n} | {t['tracked']} | {t['det_tracked']} | {t['fwm']} | {t['rmse_ok']} / "
+                f"{t['rmse_mean']:.4f} | {t['anis_inside']} |"
+            )
+        pick = choose_start(base, grid)
+        if pick is not None:
+            print("\n".join(["", *decide(base, sums[pick])[1]]))
+        print(f"decision: {'ADOPT ' + pick if pick else 'KEEP the shipped gate (none passes)'}")
     elif args.decide:
         adopt, lines = decide(sums[args.decide[0]], sums[args.decide[1]])
         print()
