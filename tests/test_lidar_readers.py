@@ -336,3 +336,36 @@ def test_clock_step_confirmed_by_the_next_records_is_kept(tmp_path, clean):
         frames, reader = read(stepped)
     assert reader.stats.damaged == 0
     assert sum(len(f) for f in frames) == sum(len(f) for f in clean[0])
+
+
+def test_every_nth_rotation():
+    """`every`: the bundled VelodyneScan bag read with every=4 gives rotations 0, 4, 8, ... of
+    the full read, identical, with the others not deserialised; the pcap reader keeps every
+    n-th decoded rotation; a bad `every` names the argument."""
+    from importlib import resources
+
+    bag = resources.files("usvfast") / "data" / "harbour" / "bag"
+    full = []
+    for k, frame in enumerate(BagReader(str(bag), topic="/velodyne_packets")):
+        full.append(frame)
+        if k == 20:
+            break
+    reader = BagReader(str(bag), topic="/velodyne_packets", every=4)
+    some = []
+    for frame in reader:
+        some.append(frame)
+        if len(some) == 6:
+            break
+    assert reader.stats.packets < 6 * 80 and reader.stats.records == 21
+    for a, b in zip(full[::4], some, strict=True):
+        assert a.stamp == b.stamp
+        np.testing.assert_array_equal(a.points, b.points)
+    frames, _ = read(PCAP)
+    kept = list(VelodynePcapReader(PCAP, every=2))
+    assert len(frames) == 2 and len(kept) == 1
+    np.testing.assert_array_equal(kept[0].points, frames[0].points)
+    for bad, err in ((0, ValueError), (True, TypeError), (1.5, TypeError)):
+        with pytest.raises(err, match="every"):
+            BagReader(str(bag), every=bad)
+        with pytest.raises(err, match="every"):
+            VelodynePcapReader(PCAP, every=bad)

@@ -12,6 +12,7 @@ from pathlib import Path
 
 from usvfast._extras import require
 from usvfast._files import regular_file
+from usvfast._validate import integer
 from usvfast.lidar.frame import LidarFrame
 from usvfast.lidar.packets import (
     VELODYNE_PACKET_SIZE,
@@ -168,6 +169,10 @@ class VelodynePcapReader:
         Stamp frames with the sensor's own clock (top-of-hour packet stamps, only right
         when the sensor is GPS-synchronised) instead of the capture host's clock (default).
 
+    every : int
+        Yield only every `every`-th rotation (all are decoded: the rotations are cut from the
+        packet stream).
+
     Iterating yields `LidarFrame`s; `stats` counts records, packets, frames and damage.
     Raises ValueError at the end of iteration if no frame could be decoded.
     """
@@ -179,11 +184,13 @@ class VelodynePcapReader:
         model: object | None = None,
         data_port: int | None = None,
         device_time: bool = False,
+        every: int = 1,
     ) -> None:
         self.path = Path(path)
         self.model = model
         self.data_port = data_port
         self.device_time = device_time
+        self.every = integer("every", every, low=1)
         self.stats = ReadStats()
 
     def __iter__(self) -> Iterator[LidarFrame]:
@@ -242,8 +249,12 @@ class VelodynePcapReader:
                 decoder = vd.StreamDecoder(vd.Config(model=self.model))
                 continue
             if result is not None:
-                yield emit(result)
+                frame = emit(result)
+                if frame.index % self.every == 0:
+                    yield frame
         result = decoder.finish()
         if result is not None:
-            yield emit(result)
+            frame = emit(result)
+            if frame.index % self.every == 0:
+                yield frame
         finish_read(stats, source)

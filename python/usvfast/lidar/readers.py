@@ -25,6 +25,7 @@ import numpy as np
 
 from usvfast._extras import require
 from usvfast._time import ros_stamp_seconds
+from usvfast._validate import integer
 from usvfast.lidar.frame import POINT_DTYPE, LidarFrame
 from usvfast.lidar.packets import ReadStats, decoded_to_points, finish_read, packet_problems
 from usvfast.lidar.pcap import VelodynePcapReader
@@ -196,6 +197,8 @@ class BagReader:
     deserialise or convert, and malformed packets inside a scan, are skipped and counted.
     A damaged bag (cut short, damaged sqlite pages, no metadata.yaml, MCAP without summary) is
     recovered first (`usvfast._bagsalvage`): what cannot be read is counted as "bag container".
+    `every` > 1 yields only every `every`-th LiDAR message's rotation; the others are skipped
+    unread (not deserialised or decoded, so not checked for damage either).
     Raises ValueError when the bag holds no LiDAR topic or no usable frame.
     """
 
@@ -206,11 +209,13 @@ class BagReader:
         topic: str | None = None,
         model: object | None = None,
         device_time: bool = False,
+        every: int = 1,
     ) -> None:
         self.path = Path(path)
         self.topic = topic
         self.model = model
         self.device_time = device_time
+        self.every = integer("every", every, low=1)
         self.stats = ReadStats()
 
     def __iter__(self) -> Iterator[LidarFrame]:
@@ -238,6 +243,8 @@ class BagReader:
             decoder = None
             for conn, raw in _guarded(reader.messages(connections=conns), stats):
                 stats.records += 1
+                if (stats.records - 1) % self.every:
+                    continue
                 try:
                     msg = reader.deserialize(raw, conn.msgtype)
                 except Exception:  # rosbags raises several types on bad bytes

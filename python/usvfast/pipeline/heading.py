@@ -7,6 +7,7 @@ chain does it, their points above the water kept (quays, piers, moored boats, bu
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -93,16 +94,23 @@ def calibrate_heading(
 ) -> HeadingOffset:
     """The heading correction (degrees, to add to `nav`'s heading) from the LiDAR streams of
     `chains` (stream id -> its chain) over the recording's first `seconds` s
-    (`HeadingCalibrator`)."""
+    (`HeadingCalibrator`). Each stream is read with `every` = the calibrator's stride, so the
+    rotations it would not use are not decoded (a bag's are not even read)."""
+    calibrator = HeadingCalibrator(seconds)
+    stride, calibrator.stride = calibrator.stride, 1
+    recording = config.recording
+    strided = [
+        replace(s, options={**s.options, "every": stride}) if s.id in chains else s
+        for s in recording.streams
+    ]
     replay = Replay(
-        config.recording,
+        replace(recording, streams=tuple(strided)),
         pose_track=SimpleNamespace(pose_at=nav.pose_at),  # type: ignore[arg-type]
         skip_without_pose=True,
         streams=list(chains),
         start=nav.start,
         end=nav.start + seconds,
     )
-    calibrator = HeadingCalibrator(seconds)
     for message in replay:
         calibrator.add(message.data, message.pose, nav.pose_at, chains[message.stream])
     return calibrator.estimate()

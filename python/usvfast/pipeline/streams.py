@@ -5,7 +5,8 @@ and GNSS (NMEA text, nmea_msgs/Sentence, NavSatFix) use the built-in `bag` / `nm
 
 Registered on import:
 - `lidar`: path = a `.pcap` capture, a ROS1 `.bag` or a rosbag2 folder; topic (bags) = a
-  VelodyneScan or PointCloud2 topic; options `model` ("VLP-16", ...), `device_time`.
+  VelodyneScan or PointCloud2 topic; options `model` ("VLP-16", ...), `device_time`, `every`
+  (an integer >= 1: only every `every`-th rotation; a bag's others are skipped unread).
   Records are `(stamp, LidarFrame)`; `damaged` counts skipped messages/packets.
 - `video_times`: path = a video file, `times` = a CSV with columns frame,time (UNIX s);
   records `(time, image BGR)`; frames without a time are counted as damaged.
@@ -96,15 +97,20 @@ def open_lidar_stream(spec: StreamSpec, decode: bool = True) -> LidarRecords:
     assert spec.path is not None
     model = _model(spec.options.get("model"))
     device_time = bool(spec.options.get("device_time", False))
+    every = spec.options.get("every", 1)
     p = spec.path
     if p.suffix.lower() in (".pcap", ".cap"):
-        return LidarRecords(VelodynePcapReader(p, model=model, device_time=device_time))
+        return LidarRecords(
+            VelodynePcapReader(p, model=model, device_time=device_time, every=every)
+        )
     if p.suffix.lower() in (".db3", ".mcap"):
         p = p.parent
     if spec.topic is None:
         raise ValueError("topic: required for a LiDAR bag stream")
     check_topic(p, spec.topic, LIDAR_MSGTYPES)
-    return LidarRecords(BagReader(p, topic=spec.topic, model=model, device_time=device_time))
+    return LidarRecords(
+        BagReader(p, topic=spec.topic, model=model, device_time=device_time, every=every)
+    )
 
 
 class _VideoTimes:
@@ -156,5 +162,5 @@ def open_video_times(spec: StreamSpec, decode: bool = True) -> Iterable[Any]:
     return _VideoTimes(spec.path, times, decode)
 
 
-register_stream_type("lidar", open_lidar_stream, options=["model", "device_time"])
+register_stream_type("lidar", open_lidar_stream, options=["model", "device_time", "every"])
 register_stream_type("video_times", open_video_times, options=["times"])
