@@ -543,4 +543,33 @@ mod tests {
         let x = crate::tracking::imm::combine(&st.mu, &st.x, &st.p).0;
         assert!((&x - &on.tracks[0].x).amax() < 1e-9);
     }
+
+    #[test]
+    fn a_non_starting_sensor_updates_tentative_tracks_but_starts_none() {
+        let cv = || {
+            vec![Mode::Linear(
+                MotionModel::constant_velocity_2d(0.05).unwrap(),
+            )]
+        };
+        let mut tr = tracker(cv(), false);
+        let mut quiet = tr.cfg.sensors[0].clone();
+        quiet.starts_tracks = false;
+        tr.cfg.sensors.push(quiet);
+        // Sensor 1 alone: nothing starts.
+        for k in 0..3 {
+            let t = k as f64;
+            tr.step(t, &plot(t, 0.05, 5.0), &[1]).unwrap();
+            assert!(tr.tentative.is_empty() && tr.tracks.is_empty());
+        }
+        // One plot of sensor 0 starts a track; sensor 1's plots then update and confirm it.
+        for k in 3..8 {
+            let t = k as f64;
+            tr.step(t, &plot(t, 0.05, 5.0), &[usize::from(k > 3)])
+                .unwrap();
+        }
+        assert_eq!((tr.tentative.len(), tr.tracks.len()), (0, 1));
+        let h = &tr.tracks[0].history;
+        assert_eq!(h.sensor[0], 0);
+        assert!(h.sensor[1..].iter().all(|&s| s == 1));
+    }
 }
