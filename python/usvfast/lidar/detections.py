@@ -193,7 +193,7 @@ def _core_members(points: np.ndarray, radius: float, iterations: int = 10) -> np
     inside = np.sum((points - centre) ** 2, axis=1) <= r2
     for _ in range(iterations):
         new = points[inside].mean(axis=0)
-        if np.allclose(new, centre, rtol=0.0, atol=1e-6):
+        if abs(new[0] - centre[0]) <= 1e-6 and abs(new[1] - centre[1]) <= 1e-6:
             break
         centre = new
         inside = np.sum((points - centre) ** 2, axis=1) <= r2
