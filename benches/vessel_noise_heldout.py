@@ -1,0 +1,183 @@
+"""Whether the vessel tracker's noise settings change: the pipeline's vessel figures on the
+held-out simulated recordings for a small grid, and a choice rule fixed in advance.
+
+    python benches/vessel_noise_heldout.py --work DIR
+
+Protocol (declared and committed before any of its runs). Premise: with the shipped settings
+the moving vessels' tracks are far more cautious than their errors. On the ten held-out
+seeds (benches/demo_detector_heldout.py's runs of the shipped setting) the vessel tracks'
+pooled NIS is 0.50 from the camera (132 updates) and 0.62 from the LiDAR (48), against the
+1.91 a consistent filter gives under the 0.99 gate; no seed's vessel ANIS lies in its band,
+and the demo's vessel ANEES is 0.7. The floats' NIS, pooled by kind and sensor, lies at
+1.72-2.08: the misfit is the vessels'. Two settings shape the vessel tracks' covariance:
+`tracker.vessel_q` (process noise, m²/s³: P between updates) and the camera's vessel
+detections' `camera.vessel_along_std` / `vessel_across_std` (m, added along / across the line
+of sight: R).
+
+- Recordings: the held-out seeds 4, 5, 6, 8, 9, 10, 11, 12, 13, 14 of
+  benches/demo_detector_heldout.py (`usvfast simulate --seed S --duration 30`; reused when
+  present), each run with the shipped detector settings (`--set
+  detector.conf_threshold=0.45 --set camera.start_confidence=0.5`: the recordings were
+  simulated before the template carried them) and the bundled demo network.
+- Grid: vessel_q in {0.05 (shipped), 0.02, 0.01} x camera vessel stds scaled by k in
+  {1.0 (shipped: 1.0 / 0.6 m), 0.7}. Everything else unchanged. The scored seeds 1, 2, 3, 7
+  and fresh 15, 16, 17 are refused before the decision (`--scored` after it).
+- A setting passes when, summed over the ten seeds, (a) vessels tracked >= the shipped
+  setting's, (b) false + wall + moored-boat tracks <= its, (c) the mean vessel RMSE over the
+  seeds with a vessel track <= its + 0.05 m, (d) floats tracked >= its.
+- Choice among passing settings: the most seeds with the vessel ANIS inside its gated 95 %
+  band, then the most seeds with the all-targets ANIS inside its band, then the lower mean
+  vessel RMSE, then the shipped values' side (higher q, then higher k). It replaces the
+  shipped setting only with strictly more seeds with the vessel ANIS in band; then the
+  simulator's template and the bundled recording take it and the scored and fresh seeds
+  are run once with `--scored`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+from pathlib import Path
+from typing import Any
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from demo_detector_heldout import HELDOUT_SEEDS, SCORED_SEEDS, run, simulate
+
+#: The grid: tracker.vessel_q values and scales of the camera's vessel stds (1.0 / 0.6 m).
+VESSEL_Q = (0.05, 0.02, 0.01)
+STD_SCALES = (1.0, 0.7)
+SHIPPED = (0.05, 1.0)
+SHIPPED_DETECTOR = ["detector.conf_threshold=0.45", "camera.start_confidence=0.5"]
+RMSE_SLACK_M = 0.05
+WEIGHTS = Path(__file__).resolve().parents[1] / "python/usvfast/data/models/harbour-demo.onnx"
+
+
+def sets(q: float, k: float) -> list[str]:
+    """The `--set` overrides of the setting (q, k)."""
+    return [
+        *SHIPPED_DETECTOR,
+        f"tracker.vessel_q={q}",
+        f"camera.vessel_along_std={1.0 * k:.6g}",
+        f"camera.vessel_across_std={0.6 * k:.6g}",
+    ]
+
+
+def figures(run_dir: Path) -> dict[str, Any]:
+    """The protocol's per-seed figures from `run_dir`/metrics.json."""
+    m = json.loads((run_dir / "metrics.json").read_text())
+    ves, floats = m["groups"]["vessels"], m["groups"]["floats"]
+    anis = ves.get("anis") or {}
+    walls = m["walls"]
+    return {
+        "vessels": ves["targets_tracked"],
+        "vessel_targets": ves["n_targets"],
+        "vessel_rmse": ves.get("rmse"),
+        "vessel_anis": anis.get("mean"),
+        "vessel_band": (anis.get("lower"), anis.get("upper")),
+        "vessel_in": bool(anis.get("inside", False)),
+        "all_anis": m["thesis"]["anis"]["mean"],
+        "all_in": bool(m["thesis"]["anis"]["inside"]),
+        "floats": floats["targets_tracked"],
+        "fwm": len(m["thesis"]["false_tracks"])
+        + len(walls["tracks_on_walls"])
+        + len(walls["tracks_on_moored_boats"]),
+    }
+
+
+def totals(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """The sums of the rule over one setting's seeds."""
+    rmse = [r["vessel_rmse"] for r in rows if r["vessel_rmse"] is not None]
+    return {
+        "vessels": sum(r["vessels"] for r in rows),
+        "fwm": sum(r["fwm"] for r in rows),
+        "rmse_mean": sum(rmse) / len(rmse) if rmse else math.inf,
+        "floats": sum(r["floats"] for r in rows),
+        "vessel_in": sum(r["vessel_in"] for r in rows),
+        "all_in": sum(r["all_in"] for r in rows),
+    }
+
+
+def passes(base: dict[str, Any], t: dict[str, Any]) -> bool:
+    """Clauses (a)-(d) of the module doc."""
+    return (
+        t["vessels"] >= base["vessels"]
+        and t["fwm"] <= base["fwm"]
+        and t["rmse_mean"] <= base["rmse_mean"] + RMSE_SLACK_M
+        and t["floats"] >= base["floats"]
+    )
+
+
+def choose(grid: dict[tuple[float, float], dict[str, Any]]) -> tuple[float, float]:
+    """The choice rule of the module doc over {(q, k): totals}."""
+    base = grid[SHIPPED]
+    ok = [
+        (-t["vessel_in"], -t["all_in"], t["rmse_mean"], -q, -k)
+        for (q, k), t in grid.items()
+        if passes(base, t)
+    ]
+    best = min(ok)
+    pick = (-best[3], -best[4])
+    return pick if grid[pick]["vessel_in"] > base["vessel_in"] else SHIPPED
+
+
+def _fmt(x: float | None) -> str:
+    return "–" if x is None or not math.isfinite(x) else f"{x:.3f}"
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Simulate, run and tabulate (module doc)."""
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--work", type=Path, required=True, help="recordings and runs go here")
+    ap.add_argument("--seeds", type=int, nargs="+", default=list(HELDOUT_SEEDS))
+    ap.add_argument("--scored", action="store_true", help="allow scored / fresh seeds")
+    ap.add_argument(
+        "--setting", type=float, nargs=2, metavar=("Q", "K"), default=None, help="one setting only"
+    )
+    args = ap.parse_args(argv)
+    banned = sorted(set(args.seeds) & SCORED_SEEDS)
+    if banned and not args.scored:
+        raise ValueError(f"--seeds: {banned} are scored / fresh seeds (--scored after the choice)")
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    grid = [tuple(args.setting)] if args.setting else [(q, k) for q in VESSEL_Q for k in STD_SCALES]
+    rows: dict[tuple[float, float], list[dict[str, Any]]] = {s: [] for s in grid}
+    print(
+        "| seed | q | k | vessels | vessel RMSE m | vessel ANIS [band] | all-targets ANIS | "
+        "floats | f+w+m |\n| --- | --- | --- | --- | --- | --- | --- | --- | --- |"
+    )
+    for seed in args.seeds:
+        rec = args.work / "rec" / f"s{seed}"
+        simulate(seed, rec)
+        for q, k in grid:
+            out = args.work / "runs" / str(seed) / f"vessel-q{q:g}-k{k:g}"
+            run(rec, out, WEIGHTS, sets(q, k))
+            f = figures(out)
+            rows[(q, k)].append(f)
+            lo, hi = f["vessel_band"]
+            va = _fmt(f["vessel_anis"])
+            print(
+                f"| {seed} | {q:g} | {k:g} | {f['vessels']} / {f['vessel_targets']} | "
+                f"{_fmt(f['vessel_rmse'])} | {va if f['vessel_in'] else f'**{va}**'} "
+                f"[{_fmt(lo)}, {_fmt(hi)}] | {f['all_anis']:.3f} {'in' if f['all_in'] else 'out'} "
+                f"| {f['floats']} | {f['fwm']} |",
+                flush=True,
+            )
+    sums = {s: totals(r) for s, r in rows.items()}
+    print("\n| q | k | vessels | f+w+m | mean vessel RMSE m | floats | vessel ANIS in | all in |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- |")
+    for (q, k), t in sums.items():
+        print(
+            f"| {q:g} | {k:g} | {t['vessels']} | {t['fwm']} | {t['rmse_mean']:.4f} | "
+            f"{t['floats']} | {t['vessel_in']} | {t['all_in']} |"
+        )
+    if SHIPPED in sums and len(sums) > 1 and set(args.seeds) == set(HELDOUT_SEEDS):
+        pick = choose(sums)
+        print(f"passing: {[s for s, t in sums.items() if passes(sums[SHIPPED], t)]}")
+        print(f"decision: {'KEEP the shipped setting' if pick == SHIPPED else f'ADOPT {pick}'}")
+
+
+if __name__ == "__main__":
+    main()
