@@ -34,7 +34,7 @@ of sight: R).
 
 Result (run once after the protocol's commit): summed over the ten seeds,
 
-| vessel_q | k | vessels | f+w+m | mean vessel RMSE m | floats | seeds vessel ANIS in band | seeds all-targets ANIS in band |
+| vessel_q | k | vessels | f+w+m | vessel RMSE m | floats | vessel ANIS in | all ANIS in |
 | --- | --- | --- | --- | --- | --- | --- | --- |
 | 0.05 (shipped) | 1.0 | 8 | 0 | 0.8170 | 103 | 0 | 7 |
 | 0.05 | 0.7 | 8 | 0 | 0.9043 | 103 | 0 | 7 |
