@@ -203,6 +203,9 @@ _TRACKER = {
     "vessel_prior_velocity_var": ("float", 6.25),
     "vessel_delete_after_s": ("float", 2.0),
     "vessel_covariance_trace": ("float", None),
+    # The vessel tracker's per-track camera offset (as camera_offset_std / camera_offset_q for
+    # the floats; m, 0: none): a hull's camera detections err by a slowly changing offset.
+    "vessel_camera_offset_std": ("float", 0.0),
 }
 _OUTPUTS = {
     "animation": ("bool", True),
@@ -521,13 +524,15 @@ def _build(data: dict[str, Any], file: Path) -> PipelineConfig:
                     f"{file}: key 'tracker.{key}': a number of seconds > 0 is needed with "
                     'tracker.deletion = "time"'
                 )
-    if trk["camera_offset_std"] < 0 or trk["camera_offset_q"] < 0:
+    for key in ("camera_offset_std", "camera_offset_q", "vessel_camera_offset_std"):
+        if trk[key] < 0:
+            raise ConfigError(f"{file}: key 'tracker.{key}': must be >= 0, got {trk[key]}")
+    offset = next(
+        (k for k in ("camera_offset_std", "vessel_camera_offset_std") if trk[k] > 0), None
+    )
+    if offset is not None and trk["backend"] == "stonesoup":
         raise ConfigError(
-            f"{file}: key 'tracker.camera_offset_std' / 'tracker.camera_offset_q': must be >= 0"
-        )
-    if trk["camera_offset_std"] > 0 and trk["backend"] == "stonesoup":
-        raise ConfigError(
-            f"{file}: key 'tracker.camera_offset_std': the camera-offset state needs backend "
+            f"{file}: key 'tracker.{offset}': the camera-offset state needs backend "
             '"native" (Stone Soup\'s initiator would split a detection between position and offset)'
         )
     det = tables["detector"]

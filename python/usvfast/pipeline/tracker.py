@@ -418,7 +418,7 @@ def make_vessel_tracker(settings: dict[str, Any]) -> NativeTracker | StoneSoupTr
     s = dict(settings)
     s["q"] = settings["vessel_q"]
     s["prior_velocity_var"] = settings["vessel_prior_velocity_var"]
-    s["camera_offset_std"] = 0.0
+    s["camera_offset_std"] = settings["vessel_camera_offset_std"]
     s["covariance_trace"] = settings["vessel_covariance_trace"]
     if s["deletion"] == "time":
         s["delete_after_s"] = settings["vessel_delete_after_s"]
