@@ -223,9 +223,7 @@ def main(argv: list[str] | None = None) -> None:
                 flush=True,
             )
     sums = {s: totals(r) for s, r in rows.items()}
-    print(
-        f"\n| {first} | k | vessels | f+w+m | mean vessel RMSE m | floats | vessel ANIS in | all in |"
-    )
+    print(f"\n| {first} | k | vessels | f+w+m | vessel RMSE m | floats | vessel ANIS in | all in |")
     print("| --- | --- | --- | --- | --- | --- | --- | --- |")
     for (q, k), t in sums.items():
         print(
