@@ -53,11 +53,13 @@ def test_offset_is_estimated_and_the_track_follows_the_lidar():
     assert nis0.size < 25 or nis0.mean() > 10 * nis.mean()
 
 
-def test_vessel_tracker_has_no_offset_state():
+def test_vessel_tracker_offset_state_is_its_own():
     from usvfast.pipeline.tracker import make_vessel_tracker
 
     vt = make_vessel_tracker(_settings(camera_offset_std=0.5, vessels=True))
     assert vt is not None and vt.tracker.sensors[1].measurement_matrix.shape == (2, 4)
+    vt = make_vessel_tracker(_settings(vessel_camera_offset_std=1.0, vessels=True))
+    assert vt is not None and vt.tracker.sensors[1].measurement_matrix.shape == (2, 6)
 
 
 @pytest.mark.parametrize(
@@ -66,6 +68,8 @@ def test_vessel_tracker_has_no_offset_state():
         ({"camera_offset_std": -0.1}, "camera_offset_std"),
         ({"camera_offset_q": -1.0}, "camera_offset_q"),
         ({"camera_offset_std": 0.2, "backend": "stonesoup"}, "native"),
+        ({"vessel_camera_offset_std": -1.0}, "vessel_camera_offset_std"),
+        ({"vessel_camera_offset_std": 1.0, "backend": "stonesoup"}, "vessel_camera_offset_std"),
     ],
 )
 def test_bad_offset_settings_are_named(over, match):
