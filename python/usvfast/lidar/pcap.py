@@ -201,7 +201,9 @@ class VelodynePcapReader:
             # memory-mapped: captures of several GB are streamed, not loaded
             data = mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) if size else b""
             try:
-                yield from self._frames(data, vd)
+                for frame in self._frames(data, vd):
+                    if frame.index % self.every == 0:
+                        yield frame
             finally:
                 if isinstance(data, mmap.mmap):
                     data.close()
@@ -249,12 +251,8 @@ class VelodynePcapReader:
                 decoder = vd.StreamDecoder(vd.Config(model=self.model))
                 continue
             if result is not None:
-                frame = emit(result)
-                if frame.index % self.every == 0:
-                    yield frame
+                yield emit(result)
         result = decoder.finish()
         if result is not None:
-            frame = emit(result)
-            if frame.index % self.every == 0:
-                yield frame
+            yield emit(result)
         finish_read(stats, source)

@@ -27,6 +27,8 @@ __all__ = ["HeadingCalibrator", "calibrate_heading", "static_points"]
 MIN_HEIGHT = 0.5
 MIN_RANGE = 3.0
 MAX_RANGE = 40.0
+#: The calibration takes every STRIDE-th LiDAR rotation.
+STRIDE = 5
 
 
 def static_points(levelled: np.ndarray, mount: Mount, waterline_height: float) -> np.ndarray:
@@ -47,7 +49,7 @@ class HeadingCalibrator:
     (`estimate_heading_offset`). Used by `Pipeline.run` over the recording's first seconds
     and by `Pipeline.process` on live frames."""
 
-    def __init__(self, seconds: float, stride: int = 5) -> None:
+    def __init__(self, seconds: float, stride: int = STRIDE) -> None:
         self.seconds = float(seconds)
         self.stride = int(stride)
         self.frames = 0
@@ -94,13 +96,12 @@ def calibrate_heading(
 ) -> HeadingOffset:
     """The heading correction (degrees, to add to `nav`'s heading) from the LiDAR streams of
     `chains` (stream id -> its chain) over the recording's first `seconds` s
-    (`HeadingCalibrator`). Each stream is read with `every` = the calibrator's stride, so the
-    rotations it would not use are not decoded (a bag's are not even read)."""
-    calibrator = HeadingCalibrator(seconds)
-    stride, calibrator.stride = calibrator.stride, 1
+    (`HeadingCalibrator`). Each stream is read with `every` = STRIDE, so the rotations the
+    calibration does not use are not decoded (a bag's are not even read)."""
+    calibrator = HeadingCalibrator(seconds, stride=1)
     recording = config.recording
     strided = [
-        replace(s, options={**s.options, "every": stride}) if s.id in chains else s
+        replace(s, options={**s.options, "every": STRIDE}) if s.id in chains else s
         for s in recording.streams
     ]
     replay = Replay(

@@ -25,6 +25,7 @@ import cv2
 import numpy as np
 
 from usvfast._extras import require
+from usvfast._validate import integer
 
 #: Inference back-ends of :class:`SsdRuntime`.
 BACKENDS: tuple[str, ...] = ("opencv", "openvino")
@@ -65,8 +66,8 @@ class SsdRuntime:
             raise ValueError(f"precision: expected one of {PRECISIONS}, got {precision!r}")
         if backend == "opencv" and precision != "f32":
             raise ValueError(f"precision: OpenCV DNN runs 'f32' only, got {precision!r}")
-        if threads is not None and threads < 1:
-            raise ValueError(f"threads: expected >= 1, got {threads}")
+        if threads is not None:
+            threads = integer("threads", threads, low=1)
         self.path = Path(path)
         self.backend, self.precision = backend, precision
         if backend == "opencv":
