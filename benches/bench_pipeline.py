@@ -102,6 +102,10 @@ def main() -> None:
     print(
         "load (1 min)".ljust(width) + "".join(f"{results[n]['load']:.1f}".rjust(24) for n in names)
     )
+    print(
+        "camera network on".ljust(width)
+        + "".join(str(results[n].get("detector_runtime") or "-").rjust(24) for n in names)
+    )
     print("tracks".ljust(width) + "".join(str(results[n]["tracks"]).rjust(24) for n in names))
     ours, thesis = results[names[0]], results[names[3]]
     print(

@@ -5,6 +5,8 @@ are clear errors; the training is reproducible from its seed."""
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 import pytest
 import torch
@@ -66,6 +68,45 @@ def test_both_backends_same_boxes_on_rendered_frames(frames):
         np.testing.assert_array_equal(do.classes, dt.classes)
         n += len(do.boxes)
     assert n >= len(frames)  # the comparison covered real detections
+
+
+def test_openvino_runtime_gives_opencv_dnns_boxes(frames):
+    """runtime="openvino" runs the same float32 network: raw outputs within 1e-3 (measured
+    9e-5), boxes within 1e-3 px (measured 2e-5) and scores within 1e-5 (3e-7)."""
+    cv = load_detector("onnx", demo_weights("onnx"), conf_threshold=0.3, runtime="opencv")
+    ov = load_detector("onnx", demo_weights("onnx"), conf_threshold=0.3, runtime="openvino")
+    assert (cv.runtime, ov.runtime) == ("opencv", "openvino")  # pyright: ignore[reportAttributeAccessIssue]
+    n = 0
+    for f in frames:
+        np.testing.assert_allclose(ov.raw([f.image])[0], cv.raw([f.image])[0], atol=1e-3)
+        (dc,), (do,) = cv([f.image]), ov([f.image])
+        assert len(dc.boxes) == len(do.boxes)
+        np.testing.assert_allclose(do.boxes, dc.boxes, atol=1e-3)
+        np.testing.assert_allclose(do.scores, dc.scores, atol=1e-5)
+        np.testing.assert_array_equal(do.classes, dc.classes)
+        n += len(dc.boxes)
+    assert n >= len(frames)
+
+
+def test_runtime_choice_and_errors(monkeypatch):
+    from usvfast._extras import MissingExtraError
+    from usvfast.pipeline import ConfigError, load_config
+    from usvfast.pipeline.camera_chain import load_detector as from_table
+
+    bundled = demo_weights("onnx").parents[1] / "harbour" / "recording.toml"
+    cfg = load_config(bundled, {"detector.runtime": "opencv"})
+    assert from_table(cfg.detector, bundled.parent).runtime == "opencv"
+    assert load_config(bundled).detector["runtime"] == "auto"
+    with pytest.raises(ConfigError, match=r"key 'detector\.runtime'"):
+        load_config(bundled, {"detector.runtime": "tensorrt"})
+    with pytest.raises(ConfigError, match=r"key 'detector\.runtime': 'openvino' runs ONNX"):
+        load_config(bundled, {"detector.runtime": "openvino", "detector.backend": "torch"})
+    with pytest.raises(ValueError, match="runtime: expected one of"):
+        OnnxDetector(demo_weights("onnx"), runtime="tensorrt")
+    monkeypatch.setitem(sys.modules, "openvino", None)
+    assert OnnxDetector(demo_weights("onnx")).runtime == "opencv"  # auto without OpenVINO
+    with pytest.raises(MissingExtraError, match=r"usvfast\[openvino\]"):
+        OnnxDetector(demo_weights("onnx"), runtime="openvino")
 
 
 def test_precision_recall_on_unseen_seeds(frames, card):

@@ -1,4 +1,6 @@
-"""YOLO-layout detection from an ONNX file through OpenCV's DNN module (no torch).
+"""YOLO-layout detection from an ONNX file through OpenCV's DNN module (no torch), or through
+OpenVINO's CPU plugin when the `openvino` extra is installed (the same float32 arithmetic,
+outputs within ~1e-4, about 1.6x faster).
 
 The letterbox, decoding and Rust NMS are those of :mod:`usvfast.camera.detect`, shared with the
 torch backend (:class:`usvfast.camera.yolo.YoloDetector`): the same network exported to
@@ -14,7 +16,12 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from usvfast._openvino import BACKENDS, core, infer_request, resolve_backend
 from usvfast.camera.detect import GridDetector
+
+#: `OnnxDetector(runtime=...)` values: an inference back-end, or "auto" (OpenVINO when it
+#: imports, else OpenCV DNN).
+RUNTIMES: tuple[str, ...] = ("auto", *BACKENDS)
 
 
 class OnnxDetector(GridDetector):
@@ -27,11 +34,13 @@ class OnnxDetector(GridDetector):
     pixels. `input_size` (width, height) = (w, h) of that input; None takes it from the file
     (640 x 640 when the file leaves it dynamic). The other keywords are those of
     :class:`usvfast.camera.detect.GridDetector`. Frames run one at a time (networks exported
-    with a fixed batch of 1 are the common case).
+    with a fixed batch of 1 are the common case). `runtime` (:data:`RUNTIMES`) runs the
+    network on OpenCV DNN or, in float32, on OpenVINO; the resolved name is `self.runtime`.
 
     Raises FileNotFoundError for a missing file, ValueError for a file OpenCV cannot read or a
     network whose declared input differs from `input_size` or that rejects it (checked once,
-    at construction: OpenCV may otherwise clamp mismatched shapes silently).
+    at construction: OpenCV may otherwise clamp mismatched shapes silently), or an unknown
+    `runtime`; MissingExtraError for runtime="openvino" without OpenVINO.
     """
 
     def __init__(
@@ -46,7 +55,10 @@ class OnnxDetector(GridDetector):
         agnostic: bool = False,
         max_det: int = 300,
         bgr: bool = True,
+        runtime: str = "auto",
     ) -> None:
+        if runtime not in RUNTIMES:
+            raise ValueError(f"runtime: expected one of {RUNTIMES}, got {runtime!r}")
         path = Path(weights)
         if not path.is_file():
             raise FileNotFoundError(f"weights: no such ONNX file: {path}")
@@ -80,7 +92,13 @@ class OnnxDetector(GridDetector):
             )
         if declared is not None and declared[1] not in (None, 3):
             raise ValueError(f"weights: {path.name} takes {declared[1]} channels, expected 3")
+        self.runtime = resolve_backend(runtime)
+        self._request = None
         self.forward(np.zeros((1, 3, h, w), np.float32))  # fail now, naming input_size
+        if self.runtime == "openvino":  # OpenCV has checked the network and its input size
+            model = core("the OpenVINO detector runtime").read_model(str(path))
+            model.reshape([1, 3, h, w])
+            self._request = infer_request(model, "f32", None)
 
     def forward(self, batch: np.ndarray) -> np.ndarray:
         """Run the network on a preprocessed (N, 3, h, w) float32 batch, one frame at a time;
@@ -88,6 +106,10 @@ class OnnxDetector(GridDetector):
         the input shape."""
         outs = []
         for x in batch:
+            if self._request is not None:
+                self._request.infer({0: np.ascontiguousarray(x[None])})
+                outs.append(self._request.get_output_tensor(0).data.copy())
+                continue
             self.net.setInput(np.ascontiguousarray(x[None]))
             try:
                 y = self.net.forward()

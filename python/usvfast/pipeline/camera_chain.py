@@ -73,6 +73,8 @@ def load_detector(settings: dict[str, Any], base: Any = None) -> Any:
         options["input_size"] = tuple(int(v) for v in settings["input_size"])
     if settings.get("classes") is not None:
         options["classes"] = [int(c) for c in settings["classes"]]
+    if backend == "onnx":
+        options["runtime"] = settings.get("runtime", "auto")
     try:
         return _load_backend(backend, settings["weights"], base=base, **options)
     except FileNotFoundError as exc:

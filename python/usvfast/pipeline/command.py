@@ -53,6 +53,8 @@ def summary_tables(summary: dict[str, Any]) -> list[Table]:
         ("damaged messages (skipped)", str(summary["damaged_messages"])),
         ("tracker", summary["tracker_backend"]),
     ]
+    if summary.get("detector_runtime"):
+        rows.append(("camera network on", summary["detector_runtime"]))
     cal = summary.get("heading_calibration")
     if cal is not None:
         found = (

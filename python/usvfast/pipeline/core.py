@@ -89,11 +89,14 @@ class Pipeline:
             for spec in cfg.streams_of("lidar"):
                 self.chains[spec.id] = LidarChain(cfg.lidar, spec.mount, self.timer)
         cameras = cfg.streams_of("camera") if cfg.camera["enabled"] else []
+        #: the camera network's inference back-end ("opencv", "openvino"), None without one
+        self.detector_runtime: str | None = None
         if cameras:
             det = detector
             if det is None:
                 base = cfg.path.parent if cfg.path is not None else None
                 det = load_detector(cfg.detector, base)
+            self.detector_runtime = getattr(det, "runtime", None)
             for spec in cameras:
                 self.chains[spec.id] = CameraChain(cfg.camera, det, spec.mount, self.timer)
         self.tracker = make_tracker(cfg.tracker)
@@ -446,6 +449,7 @@ class Pipeline:
             "config": str(cfg.path),
             "origin": list(self.origin),
             "tracker_backend": cfg.tracker["backend"],
+            "detector_runtime": self.detector_runtime,
             "per_detection_covariance": bool(
                 getattr(self.tracker, "uses_detection_covariance", self.tracker.per_detection)
             ),

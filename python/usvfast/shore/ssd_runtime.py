@@ -18,30 +18,21 @@ resizes."""
 
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
 
 import cv2
 import numpy as np
 
-from usvfast._extras import require
+from usvfast._openvino import BACKENDS, core, infer_request, openvino, resolve_backend
 from usvfast._validate import integer
 
-#: Inference back-ends of :class:`SsdRuntime`.
-BACKENDS: tuple[str, ...] = ("opencv", "openvino")
+__all__ = ["BACKENDS", "HALF_RANGE", "MEAN", "PRECISIONS", "SsdRuntime", "resolve_backend"]
+
 #: OpenVINO inference precisions (OpenCV DNN runs float32 only).
 PRECISIONS: tuple[str, ...] = ("f32", "bf16")
 #: The network's input conversion: x_net = (x_u8 − MEAN) / HALF_RANGE (= x · 2/255 − 1).
 MEAN = 127.5
 HALF_RANGE = 127.5
-
-
-def resolve_backend(backend: str) -> str:
-    """`backend`, with "auto" resolved: "openvino" when the package imports, else "opencv"
-    (float32 scores of the two agree to 1e-5: the chain's choice when speed matters)."""
-    if backend != "auto":
-        return backend
-    return "openvino" if importlib.util.find_spec("openvino") is not None else "opencv"
 
 
 class SsdRuntime:
@@ -89,19 +80,13 @@ class SsdRuntime:
         return self._request.get_output_tensor(0).data[0].copy()
 
 
-_CORE = None
-
-
 def _openvino_request(path: Path, precision: str, threads: int | None):
     """An OpenVINO infer request of the ONNX model at `path` taking (1, H, W, 3) u8 BGR, with
     the input conversion compiled in, at inference `precision`, latency-tuned."""
-    ov = require("openvino", "openvino", "the OpenVINO SSD back-end")
+    ov = openvino("the OpenVINO SSD back-end")
     from openvino.preprocess import ColorFormat, PrePostProcessor
 
-    global _CORE
-    if _CORE is None:
-        _CORE = ov.Core()
-    model = _CORE.read_model(str(path))
+    model = core("the OpenVINO SSD back-end").read_model(str(path))
     ppp = PrePostProcessor(model)
     tensor = ppp.input().tensor()
     tensor.set_element_type(ov.Type.u8).set_layout(ov.Layout("NHWC"))
@@ -110,11 +95,4 @@ def _openvino_request(path: Path, precision: str, threads: int | None):
     steps = ppp.input().preprocess()
     steps.convert_element_type(ov.Type.f32).convert_color(ColorFormat.RGB)
     steps.mean(MEAN).scale(HALF_RANGE)
-    config: dict[str, object] = {
-        "PERFORMANCE_HINT": "LATENCY",
-        "INFERENCE_PRECISION_HINT": precision,
-    }
-    if threads is not None:
-        config["INFERENCE_NUM_THREADS"] = int(threads)
-    compiled = _CORE.compile_model(ppp.build(), "CPU", config)
-    return compiled.create_infer_request()
+    return infer_request(ppp.build(), precision, threads)
