@@ -86,13 +86,21 @@ pub fn map_sharpness(
             }
         })
         .collect();
-    let grid = Grid {
-        points,
+    let mut grid = Grid {
+        points: Vec::new(),
         cell,
         origin: (i0 as i64, j0 as i64),
         cols,
         cells: rows * cols,
     };
+    // The points in the order of their cells without correction: every trial's placements
+    // then walk the grid nearly in order (the counts, and so the scores, do not depend on it).
+    let mut keyed: Vec<(usize, Placed)> = points
+        .into_iter()
+        .map(|p| (grid.index(&p, 1.0, 0.0, 0.0), p))
+        .collect();
+    keyed.sort_unstable_by_key(|(key, _)| *key);
+    grid.points = keyed.into_iter().map(|(_, p)| p).collect();
     // Trial corrections split over the cores, each thread with its own grid.
     const MIN_PLACEMENTS_PER_THREAD: usize = 1 << 20;
     let threads = std::thread::available_parallelism()
