@@ -245,6 +245,24 @@ def test_topics_listed(bag):
         assert topics[topic].count == len(items) + n_corrupt
 
 
+def test_topics_are_read_again_when_the_bag_changes(tmp_path):
+    """bag_topics opens a bag once while its files are unchanged; a bag rewritten at the same
+    path is read again."""
+    ts = bag_typestore(ros2=True)
+    path = tmp_path / "run"
+    for topic in ("/first", "/second"):
+        if path.exists():
+            for f in path.iterdir():
+                f.unlink()
+            path.rmdir()
+        with Writer2(path, version=9) as writer:
+            writer.add_connection(topic, "std_msgs/msg/String", typestore=ts)
+        topics = bag_topics(path)
+        assert list(topics) == [topic]
+        topics.clear()  # the caller's copy: the next call is unaffected
+        assert list(bag_topics(path)) == [topic]
+
+
 def test_navsatfix_exact(bag):
     path, msgs = bag
     reader, got = _read(path, "/fix")

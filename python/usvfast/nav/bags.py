@@ -22,6 +22,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 from contextlib import AbstractContextManager
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 from typing import Any, Literal
 
@@ -132,19 +133,33 @@ def _open(path: Path) -> AbstractContextManager[AnyReader]:
 
 
 def bag_topics(path: Path | str) -> dict[str, BagTopicInfo]:
-    """Topics of a bag (ROS1 `.bag` file, or ROS2 folder / `.db3` / `.mcap`), by name.
+    """Topics of a bag (ROS1 `.bag` file, or ROS2 folder / `.db3` / `.mcap`), by name. A bag
+    is opened for this once per process while its files are unchanged (an open costs ~30 ms:
+    rosbags parses the metadata and the message definitions).
 
     Raises ValueError naming the path when it is missing or not a readable bag.
     """
     p = _bag_path(path)
+    return dict(_topics(str(p), _file_stamp(p)))
+
+
+def _file_stamp(path: Path) -> tuple:
+    """(name, size, modification time ns) of the bag file, or of a bag folder and its files."""
+    entries = sorted(path.iterdir()) if path.is_dir() else []
+    return tuple((q.name, q.stat().st_size, q.stat().st_mtime_ns) for q in [path, *entries])
+
+
+@lru_cache(maxsize=16)
+def _topics(path: str, stamp: tuple) -> dict[str, BagTopicInfo]:
+    """The topics of the bag at `path` as it was at `stamp` (`_file_stamp`)."""
     try:
-        with _open(p) as reader:
+        with _open(Path(path)) as reader:
             return {
                 name: BagTopicInfo(info.msgtype or "", info.msgcount)
                 for name, info in reader.topics.items()
             }
     except (AnyReaderError, OSError) as exc:
-        raise ValueError(f"bag: cannot read {p}: {exc}") from exc
+        raise ValueError(f"bag: cannot read {path}: {exc}") from exc
 
 
 def _bag_path(path: Path | str) -> Path:

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import csv
 from collections.abc import Iterable, Iterator
-from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
@@ -34,25 +33,12 @@ _MODELS = {
 }
 
 
-def _stamp(path: Path) -> float:
-    try:
-        return max(p.stat().st_mtime for p in [path, *path.glob("*")])
-    except (OSError, ValueError):
-        return 0.0
-
-
-@lru_cache(maxsize=16)
-def _topics(path: str, stamp: float) -> dict[str, Any]:
-    """bag_topics, opened once per bag (and modification time) in a process."""
-    from usvfast.nav.bags import bag_topics
-
-    return bag_topics(path)
-
-
 def check_topic(path: Path, topic: str, msgtypes: Iterable[str] | None = None) -> str:
     """The message type of `topic` in the bag at `path`; ValueError naming the bag, the topic
     and the topics it holds when it is absent (or not of one of `msgtypes`)."""
-    topics = _topics(str(path), _stamp(path))
+    from usvfast.nav.bags import bag_topics
+
+    topics = bag_topics(path)
     if topic not in topics:
         listing = ", ".join(f"{k} ({v.msgtype})" for k, v in sorted(topics.items()))
         raise ValueError(f"topic: {topic!r} is not in bag {path} (topics: {listing})")
