@@ -7,18 +7,20 @@ report."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
 
+import usvfast
 from usvfast.camera.calibration import CameraModel
 from usvfast.camera.chain import CameraPipeline
 from usvfast.frames import Mount
 from usvfast.lidar.pipeline import LidarDetection
 from usvfast.metrics.tables import Nav, Truth
 from usvfast.pipeline.camera_chain import CameraChain, _depth_table
-from usvfast.pipeline.config import SCHEMA
+from usvfast.pipeline.config import SCHEMA, ConfigError, load_config
 from usvfast.pipeline.lidar_chain import LidarChain
 from usvfast.pipeline.pose import VesselPose
 from usvfast.pipeline.timing import StageTimer
@@ -143,6 +145,34 @@ def test_camera_class_with_a_known_depth():
     for bad in ({"class_depth_m": (1.0, 2.0)}, {"class_depth_std_m": (-1.0,)}):
         with pytest.raises(ValueError, match="class_depth"):
             _depth_table({**chain.settings, **bad})
+
+
+def test_camera_centre_error_along_and_across_the_line_of_sight():
+    # A float 10 m ahead and 5 m to starboard: camera.centre_along_std / centre_across_std
+    # add (0.1 m)^2 along the line of sight from the camera and (0.05 m)^2 across it.
+    pose = VesselPose(0.0, 0.0, 0.0, 0.0)
+    chain, model = _camera_chain(0.0)
+    chain.depth_table = _depth_table(chain.settings)
+    chain.filters = CameraPipeline(detector=lambda ims: [], camera=model, height=1.2)
+    u, v = _image(model, 10.0, 5.0)
+    box = [[u - 5.0 + 0.5, v - 8.0, u + 5.0 + 0.5, v + 0.5]]
+    plain = chain.finish((box, [0.9], [0]), pose)
+    chain.settings.update(centre_along_std=0.1, centre_across_std=0.05)
+    wider = chain.finish((box, [0.9], [0]), pose)
+    np.testing.assert_array_equal(wider.positions, plain.positions)
+    los = plain.positions[0] - chain.position[:2]
+    along = los / np.linalg.norm(los)
+    across = np.array([-along[1], along[0]])
+    added = wider.covariances[0] - plain.covariances[0]
+    assert along @ added @ along == pytest.approx(0.01, abs=1e-12)
+    assert across @ added @ across == pytest.approx(0.0025, abs=1e-12)
+    assert along @ added @ across == pytest.approx(0.0, abs=1e-12)
+
+
+def test_camera_centre_error_must_not_be_negative():
+    bundled = Path(usvfast.__file__).parent / "data" / "harbour" / "recording.toml"
+    with pytest.raises(ConfigError, match=r"key 'camera\.centre_across_std': must be >= 0"):
+        load_config(bundled, {"camera.centre_across_std": -0.1})
 
 
 def test_camera_coverage_is_the_calibrated_field_of_view():

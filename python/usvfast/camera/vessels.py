@@ -183,7 +183,8 @@ def hull_covariance(
 ) -> np.ndarray:
     """(k, 2, 2) m² covariance with `along_std` m along each line of sight (camera ->
     `contact`) and `across_std` m across it: the spread of a hull's centre about the point
-    taken from a box that boxes it whole or in part."""
+    taken from a box that boxes it whole or in part (and of a floating object's centre about
+    the point taken from its box)."""
     los = np.asarray(contact, float) - np.asarray(camera_ne, float)[None]
     u = los / np.maximum(np.hypot(los[:, 0], los[:, 1]), 1e-9)[:, None]
     c = np.stack([-u[:, 1], u[:, 0]], axis=1)

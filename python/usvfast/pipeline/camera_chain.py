@@ -212,6 +212,10 @@ class CameraChain:
                 with tm("camera.georeference"):
                     positions = self._to_centre(boxes[good], positions, pose, depth, fixed)
                 covs = covs + (sigma**2)[:, None, None] * np.eye(2)
+            s = self.settings
+            along, across = s.get("centre_along_std", 0.0), s.get("centre_across_std", 0.0)
+            if (along > 0 or across > 0) and good.any():
+                covs = covs + hull_covariance(positions, self._camera_ne(pose), along, across)
         keep = reason == OK
         rejected: dict[str, int] = {}
         for code in np.unique(reason[~keep & (reason >= 0)]):

@@ -114,6 +114,11 @@ _CAMERA = {
     # standard deviation of that centre (m, added to the covariance), e.g. vessels: half the
     # beam, since a long hull's seen width is no measure of its depth.
     "depth_classes": ("floats:0", None),
+    # The error of a floating object's centre placed from its box (its unknown shape and yaw,
+    # the box's fit about it), m along / across the line of sight: the same at every range,
+    # added to each of its detections' covariance (the pixel terms grow with the range).
+    "centre_along_std": ("float", 0.0),
+    "centre_across_std": ("float", 0.0),
     "class_depth_m": ("floats:0", None),
     "class_depth_std_m": ("floats:0", None),
     # Boat classes (usvfast.camera.vessels): their boxes are fused per hull and kept only
@@ -531,6 +536,10 @@ def _build(data: dict[str, Any], file: Path) -> PipelineConfig:
     for key in ("camera_offset_std", "camera_offset_q", "vessel_camera_offset_std"):
         if trk[key] < 0:
             raise ConfigError(f"{file}: key 'tracker.{key}': must be >= 0, got {trk[key]}")
+    for key in ("centre_along_std", "centre_across_std"):
+        if tables["camera"][key] < 0:
+            value = tables["camera"][key]
+            raise ConfigError(f"{file}: key 'camera.{key}': must be >= 0, got {value}")
     offset = next(
         (k for k in ("camera_offset_std", "vessel_camera_offset_std") if trk[k] > 0), None
     )
