@@ -30,3 +30,6 @@ pub use decode::{
     decode_scan, device_time, DecodedScan, VelodyneModel, MAX_RANGE_M, MIN_RANGE_M, PACKET_SIZE,
     POINT_COLUMNS, RETURN_BOTH, RETURN_LAST, RETURN_STRONGEST,
 };
+
+#[cfg(test)]
+mod tests;
