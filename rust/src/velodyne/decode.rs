@@ -196,27 +196,20 @@ pub fn decode_scan(
     };
     let host_stamp = packet_times[k - 1];
     let device_stamp = device(&payloads[(k - 1) * PACKET_SIZE..], host_stamp);
-    let mut out = PacketSink {
-        points: Vec::with_capacity(k * BLOCKS * CHANNELS * POINT_COLUMNS / 2),
-        last_column: None,
-    };
+    // at most one point per channel (dual mode: two per pair of blocks); the unused part is
+    // handed back at the end (an in-place shrink)
+    let mut points = Vec::with_capacity(k * BLOCKS * CHANNELS * POINT_COLUMNS);
     for (pkt, &host) in payloads.chunks_exact(PACKET_SIZE).zip(packet_times) {
         // time of the packet's first firing from the scan stamp, rounded to single
         let rel_stamp = (device(pkt, host) - device_stamp) as f32;
-        decode_packet(tables, rotation, pkt, rel_stamp, &mut out);
+        decode_packet(tables, rotation, pkt, rel_stamp, &mut points);
     }
+    points.shrink_to_fit();
     Ok(DecodedScan {
         host_stamp,
         device_stamp,
-        points: out.points,
+        points,
     })
-}
-
-/// The points of a scan so far and the column of the last one (a packet's columns continue
-/// from it).
-struct PacketSink {
-    points: Vec<f32>,
-    last_column: Option<u16>,
 }
 
 fn block_u16(pkt: &[u8], block: usize, at: usize) -> u16 {
@@ -229,18 +222,25 @@ fn wrap_units(a: i32) -> u16 {
     ((a + 36_000) % 36_000) as u16
 }
 
-/// An interpolated azimuth (0.01° units, single) rounded half away from zero into 0..36000.
-fn wrap_azimuth(a: f32) -> usize {
-    let rounded = (a + 36_000.0_f32).round() as i64;
-    usize::from((rounded % 36_000) as u16)
+/// An interpolated azimuth `a` (0.01° units, single, 0 ≤ a < 2¹⁷) shifted by a turn, rounded
+/// half away from zero (`lroundf`) and wrapped into 0..36000.
+pub(crate) fn wrap_azimuth(a: f32) -> usize {
+    let shifted = a + 36_000.0_f32;
+    // round half away from zero of a non-negative value below 2²³: the fraction after
+    // truncation is exact
+    let whole = shifted as u32;
+    let rounded = whole + u32::from(shifted - whole as f32 >= 0.5);
+    (rounded % 36_000) as usize
 }
 
+/// Appends the points of one packet to `points` (rows of [`POINT_COLUMNS`]); `rel_stamp`
+/// is the time of its first firing from the scan stamp, s.
 fn decode_packet(
     tables: &ModelTables,
     rotation: &RotationTable,
     pkt: &[u8],
     rel_stamp: f32,
-    out: &mut PacketSink,
+    points: &mut Vec<f32>,
 ) {
     let mode = pkt[MODE_AT];
     let dual = mode == MODE_DUAL;
@@ -249,7 +249,11 @@ fn decode_packet(
     } else {
         RETURN_STRONGEST
     };
-    let mut column = out.last_column.map_or(0, |c| c.wrapping_add(1));
+    // columns continue from the scan's last point (not from the last block)
+    let mut column = match points.len() {
+        0 => 0,
+        n => (points[n - POINT_COLUMNS + 5] as u16).wrapping_add(1),
+    };
     // mean rotation rate over the packet, 0.01° per second
     let first_to_last =
         wrap_units(i32::from(block_u16(pkt, BLOCKS - 1, 2)) - i32::from(block_u16(pkt, 0, 2)));
@@ -261,47 +265,47 @@ fn decode_packet(
         if block_u16(pkt, block, 0) != BLOCK_FLAG {
             return; // the decoder drops the rest of a packet at a foreign block
         }
-        let timing = &tables.timing[if dual { block / 2 } else { block }];
+        let row = if dual { block / 2 } else { block };
+        let (timing, since_first) = (&tables.timing[row], &tables.since_first[row]);
         let azimuth = f32::from(block_u16(pkt, block, 2));
-        for ch in 0..CHANNELS {
-            let o = block * BLOCK_SIZE + 4 + 3 * ch;
-            let first = (u16::from_le_bytes([pkt[o], pkt[o + 1]]), pkt[o + 2]);
-            let second = if dual {
-                let o2 = o + BLOCK_SIZE;
-                (u16::from_le_bytes([pkt[o2], pkt[o2 + 1]]), pkt[o2 + 2])
-            } else {
-                (0, 0)
-            };
+        let returns = &pkt[block * BLOCK_SIZE + 4..(block + 1) * BLOCK_SIZE];
+        // dual mode: the strongest returns of the same firings, in the next block
+        let strongest = if dual {
+            &pkt[(block + 1) * BLOCK_SIZE + 4..(block + 2) * BLOCK_SIZE]
+        } else {
+            &[0_u8; 3 * CHANNELS][..]
+        };
+        for (ch, (first, second)) in returns
+            .chunks_exact(3)
+            .zip(strongest.chunks_exact(3))
+            .enumerate()
+        {
+            let first = (u16::from_le_bytes([first[0], first[1]]), first[2]);
+            let second = (u16::from_le_bytes([second[0], second[1]]), second[2]);
             if first.0 == 0 && second.0 == 0 {
                 continue;
             }
-            let time = timing[ch];
-            let dt = time - timing[0];
-            let az = wrap_azimuth(azimuth + rate * dt);
-            let time = rel_stamp + time;
-            let (laser, col) = if tables.lasers.len() == 16 && ch >= 16 {
-                (ch - 16, column.wrapping_add(1))
-            } else {
-                (ch, column)
-            };
+            let az = wrap_azimuth(azimuth + rate * since_first[ch]);
+            let [cos, sin] = rotation.cos_sin[az];
+            let (laser, next_column) = tables.channel_laser[ch];
             let at = Firing {
-                laser: &tables.lasers[laser],
-                cos: rotation.cos[az],
-                sin: rotation.sin[az],
-                time,
-                column: col,
+                laser: &tables.lasers[usize::from(laser)],
+                cos,
+                sin,
+                time: rel_stamp + timing[ch],
+                column: column.wrapping_add(u16::from(next_column)),
             };
             if !dual {
-                at.emit(first, single_type, out);
+                at.emit(first, single_type, points);
             } else if first.0 == second.0 {
-                at.emit(second, RETURN_BOTH, out);
+                at.emit(second, RETURN_BOTH, points);
             } else {
                 // first = last return, second = strongest return
                 if first.0 > 0 {
-                    at.emit(first, RETURN_LAST, out);
+                    at.emit(first, RETURN_LAST, points);
                 }
                 if second.0 > 0 {
-                    at.emit(second, RETURN_STRONGEST, out);
+                    at.emit(second, RETURN_STRONGEST, points);
                 }
             }
         }
@@ -322,20 +326,21 @@ struct Firing<'a> {
 impl Firing<'_> {
     /// Appends the point of return `(distance counts, reflectivity)` when its distance is in
     /// range.
-    fn emit(&self, (counts, reflectivity): (u16, u8), return_type: f32, out: &mut PacketSink) {
+    fn emit(&self, (counts, reflectivity): (u16, u8), return_type: f32, points: &mut Vec<f32>) {
         let l = self.laser;
         let distance = f32::from(counts) * DISTANCE_RESOLUTION_M;
-        // cos(a − b) and sin(a − b) of the azimuth a and the laser's rotation correction b
-        let cos_rot = self.cos * l.cos_rot + self.sin * l.sin_rot;
-        let sin_rot = self.sin * l.cos_rot - self.cos * l.sin_rot;
         if !(MIN_RANGE_M..=MAX_RANGE_M).contains(&distance) {
             return;
         }
+        // The decoder turns the azimuth a by the laser's rotation correction b: cos(a − b) =
+        // cos a · cos b + sin a · sin b. Every laser of these models has b = 0, and then that
+        // is cos a bit for bit (· 1 is exact, + (±0) leaves a non-zero value alone, and only
+        // sin 0 is zero, +0); likewise sin(a − b) is sin a (the tests check every entry).
         let xy = distance * l.cos_vert;
-        let x = xy * cos_rot;
-        let y = -xy * sin_rot;
+        let x = xy * self.cos;
+        let y = -xy * self.sin;
         let z = distance * l.sin_vert + l.vert_offset;
-        out.points.extend_from_slice(&[
+        points.extend_from_slice(&[
             x,
             y,
             z,
@@ -345,6 +350,5 @@ impl Firing<'_> {
             l.ring,
             return_type,
         ]);
-        out.last_column = Some(self.column);
     }
 }

@@ -43,8 +43,6 @@ const VLP16_FOCAL_DISTANCE_M: f64 = 41.91e-3;
 pub(crate) struct Laser {
     pub cos_vert: f32,
     pub sin_vert: f32,
-    pub cos_rot: f32,
-    pub sin_rot: f32,
     /// Height of the laser's origin, m.
     pub vert_offset: f32,
     /// Rank of the laser's elevation, 0 = lowest.
@@ -56,6 +54,11 @@ pub(crate) struct ModelTables {
     pub lasers: Vec<Laser>,
     /// Firing time of (block, channel) from the packet's first firing, s.
     pub timing: [[f32; CHANNELS]; BLOCKS],
+    /// `timing[row][ch] - timing[row][0]`, s: the time from the row's first firing.
+    pub since_first: [[f32; CHANNELS]; BLOCKS],
+    /// The laser (by laser id) of each channel of a block, and whether it belongs to the
+    /// block's second firing sequence (its column is one more).
+    pub channel_laser: [(u8, bool); CHANNELS],
     /// Firing sequences (columns) per block: 2 for the 16-laser models, 1 for the HDL-32E.
     pub columns_per_block: u16,
 }
@@ -88,7 +91,6 @@ impl ModelTables {
             .iter()
             .map(|&deg| (f64::from(deg as f32) * std::f64::consts::PI / 180.0) as f32)
             .collect();
-        let rot = black_box(0.0_f32);
         let mut order: Vec<usize> = (0..vert.len()).collect();
         // stable, by `<` as the decoder sorts: ties keep laser order
         order.sort_by(|&a, &b| vert[a].partial_cmp(&vert[b]).unwrap_or(Ordering::Equal));
@@ -96,7 +98,7 @@ impl ModelTables {
         for (r, &laser) in order.iter().enumerate() {
             ring[laser] = r as f32;
         }
-        let lasers = vert
+        let lasers: Vec<Laser> = vert
             .iter()
             .enumerate()
             .map(|(i, &v)| {
@@ -108,16 +110,20 @@ impl ModelTables {
                 Laser {
                     cos_vert: v.cos(),
                     sin_vert: v.sin(),
-                    cos_rot: rot.cos(),
-                    sin_rot: rot.sin(),
                     vert_offset,
                     ring: ring[i],
                 }
             })
             .collect();
+        let timing = firing_times(model);
+        let since_first = timing.map(|row| row.map(|t| t - row[0]));
+        let per_block = lasers.len();
+        let channel_laser = std::array::from_fn(|ch| ((ch % per_block) as u8, ch >= per_block));
         ModelTables {
             lasers,
-            timing: firing_times(model),
+            timing,
+            since_first,
+            channel_laser,
             columns_per_block: if model == VelodyneModel::Hdl32e { 1 } else { 2 },
         }
     }
@@ -143,8 +149,8 @@ fn firing_times(model: VelodyneModel) -> [[f32; CHANNELS]; BLOCKS] {
 
 /// Cosine and sine of every azimuth count (0.01°), single.
 pub(crate) struct RotationTable {
-    pub cos: Vec<f32>,
-    pub sin: Vec<f32>,
+    /// `[cos, sin]` of azimuth count `i` at index `i`.
+    pub cos_sin: Vec<[f32; 2]>,
 }
 
 /// The table, built on first use.
@@ -152,15 +158,12 @@ pub(crate) fn rotation_table() -> &'static RotationTable {
     static TABLE: OnceLock<RotationTable> = OnceLock::new();
     TABLE.get_or_init(|| {
         let deg_to_rad = (std::f64::consts::PI / 180.0) as f32;
-        let (mut cos, mut sin) = (
-            Vec::with_capacity(AZIMUTH_UNITS),
-            Vec::with_capacity(AZIMUTH_UNITS),
-        );
-        for units in 0..AZIMUTH_UNITS {
-            let a = black_box(0.01_f32 * units as f32 * deg_to_rad);
-            cos.push(a.cos());
-            sin.push(a.sin());
-        }
-        RotationTable { cos, sin }
+        let cos_sin = (0..AZIMUTH_UNITS)
+            .map(|units| {
+                let a = black_box(0.01_f32 * units as f32 * deg_to_rad);
+                [a.cos(), a.sin()]
+            })
+            .collect();
+        RotationTable { cos_sin }
     })
 }

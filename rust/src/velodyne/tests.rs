@@ -1,8 +1,11 @@
 //! Hand-built packets through the decoder (bit-exactness against velodyne-decoder itself is
 //! tested from Python, `tests/test_velodyne_decoder.py`).
 
+use super::decode::wrap_azimuth;
+use super::tables::rotation_table;
 use super::*;
 use crate::error::{Error, Result};
+use std::hint::black_box;
 
 const START: f64 = 1_686_909_600.0; // a whole hour, UNIX s
 
@@ -156,4 +159,24 @@ fn models_by_name_and_packet_id() {
     }
     assert_eq!(VelodyneModel::from_packet_id(0x28), None);
     assert_eq!(VelodyneModel::from_name("VLP-32C"), None);
+}
+
+#[test]
+fn zero_rotation_correction_leaves_every_table_entry_alone() {
+    // the decoder's cos(a − b), sin(a − b) with b = 0, as it computes them, against cos a, sin a
+    let (cos_b, sin_b) = (black_box(0.0_f32).cos(), black_box(0.0_f32).sin());
+    for (i, &[c, s]) in rotation_table().cos_sin.iter().enumerate() {
+        assert_eq!((c * cos_b + s * sin_b).to_bits(), c.to_bits(), "cos at {i}");
+        assert_eq!((s * cos_b - c * sin_b).to_bits(), s.to_bits(), "sin at {i}");
+    }
+}
+
+#[test]
+fn azimuth_rounding_is_lroundf() {
+    for a in [
+        0.0_f32, 0.5, 1.5, 2.4999998, 35_999.5, 35_999.49, 36_000.0, 65_535.0, 70_123.7,
+    ] {
+        let expected = ((f64::from(a) + 36_000.0) as f32).round() as u32 % 36_000;
+        assert_eq!(wrap_azimuth(a), expected as usize, "{a}");
+    }
 }
