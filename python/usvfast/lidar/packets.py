@@ -92,9 +92,13 @@ def velodyne_packet_problem(payload: bytes, model_id: int | None = None) -> str 
     return None
 
 
-_FLAG_ARRAY = np.array(sorted(_BLOCK_FLAGS), dtype=np.uint16)
-_RETURN_ARRAY = np.array(sorted(_RETURN_MODES), dtype=np.uint8)
-_MODEL_ARRAY = np.array(sorted(_KNOWN_MODEL_IDS), dtype=np.uint8)
+# lookup tables: value -> valid (one gather per check, no np.isin sort)
+_FLAG_OK = np.zeros(1 << 16, dtype=bool)
+_FLAG_OK[sorted(_BLOCK_FLAGS)] = True
+_RETURN_OK = np.zeros(256, dtype=bool)
+_RETURN_OK[sorted(_RETURN_MODES)] = True
+_MODEL_OK = np.zeros(256, dtype=bool)
+_MODEL_OK[sorted(_KNOWN_MODEL_IDS)] = True
 
 
 def packet_problems(payloads: list[bytes]) -> list[str | None]:
@@ -109,16 +113,17 @@ def packet_problems(payloads: list[bytes]) -> list[str | None]:
     raw = np.frombuffer(b"".join(payloads[k] for k in full), dtype=np.uint8)
     raw = raw.reshape(len(full), VELODYNE_PACKET_SIZE)
     blocks = raw[:, :1200].copy().view("<u2").reshape(len(full), 12, 50)
-    bad_flag = ~np.all(np.isin(blocks[:, :, 0], _FLAG_ARRAY), axis=1)
+    bad_flag = ~_FLAG_OK[blocks[:, :, 0]].all(axis=1)
     bad_azimuth = (blocks[:, :, 1] >= 36000).any(axis=1)
-    bad_factory = ~np.isin(raw[:, 1204], _RETURN_ARRAY) | ~np.isin(raw[:, 1205], _MODEL_ARRAY)
-    for j, k in enumerate(full):
+    bad_factory = ~(_RETURN_OK[raw[:, 1204]] & _MODEL_OK[raw[:, 1205]])
+    bad = (bad_flag | bad_azimuth | bad_factory).nonzero()[0]
+    for j in bad.tolist():
         if bad_flag[j]:
-            out[k] = "block flag"
+            out[full[j]] = "block flag"
         elif bad_azimuth[j]:
-            out[k] = "azimuth"
-        elif bad_factory[j]:
-            out[k] = "factory bytes"
+            out[full[j]] = "azimuth"
+        else:
+            out[full[j]] = "factory bytes"
     return out
 
 

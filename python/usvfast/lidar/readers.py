@@ -283,7 +283,7 @@ class BagReader:
         good: list[bytes] = []
         times: list[float] = []
         model_id = None
-        payloads = [bytes(np.asarray(pkt.data, dtype=np.uint8)) for pkt in msg.packets]
+        payloads = [np.asarray(pkt.data, dtype=np.uint8).tobytes() for pkt in msg.packets]
         problems = packet_problems(payloads)
         for pkt, payload, problem in zip(msg.packets, payloads, problems, strict=True):
             if problem is None and model_id is not None and payload[1205] != model_id:

@@ -196,20 +196,33 @@ pub fn decode_scan(
     };
     let host_stamp = packet_times[k - 1];
     let device_stamp = device(&payloads[(k - 1) * PACKET_SIZE..], host_stamp);
-    // at most one point per channel (dual mode: two per pair of blocks); the unused part is
-    // handed back at the end (an in-place shrink)
-    let mut points = Vec::with_capacity(k * BLOCKS * CHANNELS * POINT_COLUMNS);
+    let mut points = Vec::with_capacity(returns_bound(payloads) * POINT_COLUMNS);
     for (pkt, &host) in payloads.chunks_exact(PACKET_SIZE).zip(packet_times) {
         // time of the packet's first firing from the scan stamp, rounded to single
         let rel_stamp = (device(pkt, host) - device_stamp) as f32;
         decode_packet(tables, rotation, pkt, rel_stamp, &mut points);
     }
-    points.shrink_to_fit();
     Ok(DecodedScan {
         host_stamp,
         device_stamp,
         points,
     })
+}
+
+/// At least the number of points the packets give: their non-zero distances (in dual mode a
+/// pair of blocks gives at most one point per non-zero distance too). Sizing the output by it
+/// keeps the allocation near the result's size.
+fn returns_bound(payloads: &[u8]) -> usize {
+    payloads
+        .chunks_exact(PACKET_SIZE)
+        .flat_map(|pkt| pkt[..BLOCKS * BLOCK_SIZE].chunks_exact(BLOCK_SIZE))
+        .map(|block| {
+            block[4..]
+                .chunks_exact(3)
+                .filter(|r| r[0] | r[1] != 0)
+                .count()
+        })
+        .sum()
 }
 
 fn block_u16(pkt: &[u8], block: usize, at: usize) -> u16 {
