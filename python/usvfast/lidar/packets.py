@@ -99,6 +99,7 @@ _RETURN_OK = np.zeros(256, dtype=bool)
 _RETURN_OK[sorted(_RETURN_MODES)] = True
 _MODEL_OK = np.zeros(256, dtype=bool)
 _MODEL_OK[sorted(_KNOWN_MODEL_IDS)] = True
+_PROBLEMS = {1: "block flag", 2: "azimuth", 3: "factory bytes"}
 
 
 def packet_problems(payloads: list[bytes]) -> list[str | None]:
@@ -113,17 +114,14 @@ def packet_problems(payloads: list[bytes]) -> list[str | None]:
     raw = np.frombuffer(b"".join(payloads[k] for k in full), dtype=np.uint8)
     raw = raw.reshape(len(full), VELODYNE_PACKET_SIZE)
     blocks = raw[:, :1200].copy().view("<u2").reshape(len(full), 12, 50)
-    bad_flag = ~_FLAG_OK[blocks[:, :, 0]].all(axis=1)
+    bad_flag = (~_FLAG_OK[blocks[:, :, 0]]).any(axis=1)
     bad_azimuth = (blocks[:, :, 1] >= 36000).any(axis=1)
     bad_factory = ~(_RETURN_OK[raw[:, 1204]] & _MODEL_OK[raw[:, 1205]])
-    bad = (bad_flag | bad_azimuth | bad_factory).nonzero()[0]
-    for j in bad.tolist():
-        if bad_flag[j]:
-            out[full[j]] = "block flag"
-        elif bad_azimuth[j]:
-            out[full[j]] = "azimuth"
-        else:
-            out[full[j]] = "factory bytes"
+    # the first problem of each packet, in the order of velodyne_packet_problem's checks
+    code = np.where(bad_flag, 1, np.where(bad_azimuth, 2, np.where(bad_factory, 3, 0)))
+    bad = code.nonzero()[0]
+    for j, c in zip(bad.tolist(), code[bad].tolist(), strict=True):
+        out[full[j]] = _PROBLEMS[c]
     return out
 
 
