@@ -5,7 +5,8 @@
 //! manuals, "Data Packet Format"):
 //!
 //! ```text
-//! 12 × [ flag 0xFFEE (u16 LE) | azimuth, 0.01° (u16) | 32 × (distance, 2 mm (u16), reflectivity (u8)) ]
+//! 12 blocks × [ flag: bytes FF EE (0xEEFF as u16 LE) | azimuth, 0.01° (u16)
+//!               | 32 × (distance, 2 mm (u16), reflectivity (u8)) ]
 //! timestamp of the first firing, µs past the hour (u32) | return mode | model id
 //! ```
 //!

@@ -131,7 +131,10 @@ fn device_time_resolves_the_hour_from_the_host_clock() {
 #[test]
 fn bad_input_is_an_error_naming_the_argument() {
     let p = packet(VelodyneModel::Vlp16, 0x37, [0; 12], 0);
-    let dim = |r: Result<DecodedScan>| matches!(r, Err(Error::Dimension { ref arg, .. }) if arg == "payloads");
+    let dim = |r: Result<DecodedScan>| match r {
+        Err(Error::Dimension { arg, .. }) => arg == "payloads",
+        _ => false,
+    };
     assert!(dim(decode_scan(VelodyneModel::Vlp16, &p[..1205], &[START])));
     assert!(dim(decode_scan(VelodyneModel::Vlp16, &p, &[START, START])));
     assert!(dim(decode_scan(VelodyneModel::Vlp16, &[], &[])));
@@ -163,7 +166,7 @@ fn models_by_name_and_packet_id() {
 
 #[test]
 fn zero_rotation_correction_leaves_every_table_entry_alone() {
-    // the decoder's cos(a − b), sin(a − b) with b = 0, as it computes them, against cos a, sin a
+    // the decoder's cos(a − b), sin(a − b) with b = 0 as it computes them, against cos a, sin a
     let (cos_b, sin_b) = (black_box(0.0_f32).cos(), black_box(0.0_f32).sin());
     for (i, &[c, s]) in rotation_table().cos_sin.iter().enumerate() {
         assert_eq!((c * cos_b + s * sin_b).to_bits(), c.to_bits(), "cos at {i}");
