@@ -97,13 +97,12 @@ def test_simulated_vlp16_rotations(sim_scans):
 
 
 @st.composite
-def rotations(draw):
-    """(payloads (k, 1206), host times (k,), model) of random but structurally valid packets:
-    every model and return mode; distances anywhere in 0..65535 with zeros and counts around
+def rotations(draw, model: str, mode: int):
+    """(payloads (k, 1206), host times (k,), model) of random but structurally valid packets
+    of `model` in return `mode`: distances anywhere in 0..65535 with zeros and counts around
     the 0.1 m minimum range; azimuths of a steady spin through the 35999 -> 0 wrap or at
     random; device stamps anywhere in the hour; host times before the epoch, around it and
     in any hour; an 0xDDFF block now and then (the decoder stops reading the packet there)."""
-    model = draw(st.sampled_from(sorted(MODELS)))
     k = draw(st.integers(1, 8))
     rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
     raw = np.zeros(k, dtype=PACKET)
@@ -121,7 +120,6 @@ def rotations(draw):
     near = rng.random(counts.shape) < 0.2
     counts[near] = rng.integers(45, 56, int(near.sum()))  # 0.1 m = 50 counts
     counts[zeros] = 0
-    mode = draw(st.sampled_from([0x37, 0x38, 0x39]))
     if mode == 0x39:  # dual: some strongest returns equal to the last ones
         same = rng.random((k, 6, 32)) < 0.4
         counts[:, 1::2] = np.where(same, counts[:, 0::2], counts[:, 1::2])
@@ -145,9 +143,11 @@ def rotations(draw):
     return payloads, times, model
 
 
-@given(rotations())
-def test_random_packets(rotation):
-    assert_bit_identical(*rotation)
+@pytest.mark.parametrize("mode", [0x37, 0x38, 0x39])
+@pytest.mark.parametrize("model", sorted(MODELS))
+@given(data=st.data())
+def test_random_packets(model, mode, data):
+    assert_bit_identical(*data.draw(rotations(model, mode)))
 
 
 @pytest.mark.parametrize("model", sorted(MODELS))
