@@ -83,6 +83,13 @@ def mean_shift(
     max_iter: int = 300,
 ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.int64], int, bool]: ...
 
+# --- velodyne (rust/src/py/velodyne.rs) ---
+def decode_velodyne_scan(
+    payloads: npt.NDArray[np.uint8],
+    packet_times: npt.NDArray[np.float64],
+    model: str,
+) -> tuple[tuple[float, float], npt.NDArray[np.float32]]: ...
+
 # --- geodesy (rust/src/py/geodesy.rs) ---
 _F = npt.NDArray[np.float64]
 

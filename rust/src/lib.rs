@@ -19,6 +19,7 @@ pub mod nms;
 pub mod particle;
 pub mod sharpness;
 pub mod tracking;
+pub mod velodyne;
 
 #[cfg(feature = "python")]
 pub mod py;

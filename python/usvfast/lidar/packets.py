@@ -1,6 +1,7 @@
 """Velodyne data packets: structural checks (size, block flags, return mode, model id),
-decoding to points by velodyne-decoder, and the counts and warning every LiDAR reader shares
-(`ReadStats`, `LidarDataWarning`).
+decoding to points (`VelodyneScanDecoder`: usvfast's own decoder for the VLP-16, VLP-16 Hi-Res
+and HDL-32E, velodyne-decoder for the other models), and the counts and warning every LiDAR
+reader shares (`ReadStats`, `LidarDataWarning`).
 
 Payload bytes that are corrupted but still structurally valid (a flipped distance byte)
 cannot be detected: Velodyne sensors send UDP checksums of zero.
@@ -14,7 +15,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from usvfast._core import decode_velodyne_scan
 from usvfast._damage import DamagedRecordsWarning
+from usvfast._extras import require
 from usvfast.lidar.frame import POINT_DTYPE
 
 #: Size of the UDP payload of a Velodyne data packet, bytes.
@@ -23,6 +26,8 @@ VELODYNE_PACKET_SIZE = 1206
 _KNOWN_MODEL_IDS = {0x21, 0x22, 0x24, 0x28, 0x31, 0xA1}
 _BLOCK_FLAGS = {0xEEFF, 0xDDFF}  # upper / lower block (HDL-64E uses both)
 _RETURN_MODES = {0x37, 0x38, 0x39}
+#: Model id -> model name of the sensors usvfast decodes itself (`_core.decode_velodyne_scan`).
+NATIVE_MODELS = {0x21: "HDL-32E", 0x22: "VLP-16", 0x24: "VLP-16 Hi-Res"}
 
 
 class LidarDataWarning(DamagedRecordsWarning):
@@ -87,9 +92,14 @@ def velodyne_packet_problem(payload: bytes, model_id: int | None = None) -> str 
     return None
 
 
-_FLAG_ARRAY = np.array(sorted(_BLOCK_FLAGS), dtype=np.uint16)
-_RETURN_ARRAY = np.array(sorted(_RETURN_MODES), dtype=np.uint8)
-_MODEL_ARRAY = np.array(sorted(_KNOWN_MODEL_IDS), dtype=np.uint8)
+# lookup tables: value -> valid (one gather per check, no np.isin sort)
+_FLAG_OK = np.zeros(1 << 16, dtype=bool)
+_FLAG_OK[sorted(_BLOCK_FLAGS)] = True
+_RETURN_OK = np.zeros(256, dtype=bool)
+_RETURN_OK[sorted(_RETURN_MODES)] = True
+_MODEL_OK = np.zeros(256, dtype=bool)
+_MODEL_OK[sorted(_KNOWN_MODEL_IDS)] = True
+_PROBLEMS = {1: "block flag", 2: "azimuth", 3: "factory bytes"}
 
 
 def packet_problems(payloads: list[bytes]) -> list[str | None]:
@@ -104,16 +114,14 @@ def packet_problems(payloads: list[bytes]) -> list[str | None]:
     raw = np.frombuffer(b"".join(payloads[k] for k in full), dtype=np.uint8)
     raw = raw.reshape(len(full), VELODYNE_PACKET_SIZE)
     blocks = raw[:, :1200].copy().view("<u2").reshape(len(full), 12, 50)
-    bad_flag = ~np.all(np.isin(blocks[:, :, 0], _FLAG_ARRAY), axis=1)
+    bad_flag = (~_FLAG_OK[blocks[:, :, 0]]).any(axis=1)
     bad_azimuth = (blocks[:, :, 1] >= 36000).any(axis=1)
-    bad_factory = ~np.isin(raw[:, 1204], _RETURN_ARRAY) | ~np.isin(raw[:, 1205], _MODEL_ARRAY)
-    for j, k in enumerate(full):
-        if bad_flag[j]:
-            out[k] = "block flag"
-        elif bad_azimuth[j]:
-            out[k] = "azimuth"
-        elif bad_factory[j]:
-            out[k] = "factory bytes"
+    bad_factory = ~(_RETURN_OK[raw[:, 1204]] & _MODEL_OK[raw[:, 1205]])
+    # the first problem of each packet, in the order of velodyne_packet_problem's checks
+    code = np.where(bad_flag, 1, np.where(bad_azimuth, 2, np.where(bad_factory, 3, 0)))
+    bad = code.nonzero()[0]
+    for j, c in zip(bad.tolist(), code[bad].tolist(), strict=True):
+        out[full[j]] = _PROBLEMS[c]
     return out
 
 
@@ -125,3 +133,56 @@ def decoded_to_points(arr: np.ndarray) -> np.ndarray:
     out["time"] = arr[:, 4]
     out["ring"] = arr[:, 6].astype(np.uint16)
     return out
+
+
+class VelodyneScanDecoder:
+    """Decodes the packets of one rotation at a time as one velodyne-decoder
+    `ScanDecoder(Config(model=model))` does over a stream of rotations, to the same points and
+    stamps bit for bit: VLP-16, VLP-16 Hi-Res and HDL-32E packets by usvfast's decoder, the
+    other models by velodyne-decoder.
+
+    `model`: a `velodyne_decoder.Model` or None. None takes the model from the first rotation
+    decoded; after that (or with a model set) a rotation of another model id raises
+    RuntimeError, as velodyne-decoder does. A model usvfast does not decode (HDL-64E, VLP-32,
+    VLS-128) sends every rotation to velodyne-decoder.
+    """
+
+    def __init__(self, model: object | None = None) -> None:
+        self.model = model
+        self._model_id: int | None = None  # the model id the stream is bound to
+        self._native = model is None
+        if model is not None:
+            vd = require("velodyne_decoder", "lidar", "Velodyne packets")
+            native = {vd.Model.HDL32E: 0x21, vd.Model.VLP16: 0x22, vd.Model.PuckHiRes: 0x24}
+            if isinstance(model, vd.Model) and model in native:
+                self._native = True
+                self._model_id = native[model]
+        self._peer = None
+
+    def decode(
+        self, payloads: list[bytes], packet_times: list[float]
+    ) -> tuple[tuple[float, float], np.ndarray]:
+        """((host stamp, device stamp) UNIX s, (n, 8) float32 columns x, y, z, intensity, time,
+        column, ring, return type) of one rotation's packets, which must pass
+        `packet_problems` and share one model id; `packet_times` are their host times, UNIX s.
+        Raises RuntimeError for a rotation the stream's decoder refuses (another model id, a
+        model velodyne-decoder cannot decode)."""
+        model_id = payloads[0][1205]
+        if self._model_id is not None and model_id != self._model_id:
+            raise RuntimeError(f"Expected model ID <{self._model_id}> in packet, got <{model_id}>")
+        if self._native and model_id in NATIVE_MODELS:
+            raw = np.frombuffer(b"".join(payloads), dtype=np.uint8)
+            times = np.array(packet_times, dtype=np.float64)
+            stamps, points = decode_velodyne_scan(
+                raw.reshape(len(payloads), VELODYNE_PACKET_SIZE), times, NATIVE_MODELS[model_id]
+            )
+        else:
+            vd = require("velodyne_decoder", "lidar", "Velodyne packets")
+            if self._peer is None:
+                self._peer = vd.ScanDecoder(vd.Config(model=self.model))
+            packets = [vd.VelodynePacket(t, p) for t, p in zip(packet_times, payloads, strict=True)]
+            pair, points = self._peer.decode(vd.PacketVector(packets))
+            stamps = (pair.host, pair.device)
+        if self.model is None:
+            self._model_id = model_id
+        return stamps, points

@@ -2,7 +2,8 @@
 PointCloud2) and `open_lidar` for any LiDAR file (Velodyne `.pcap` captures:
 `usvfast.lidar.pcap`).
 
-Packets are decoded by velodyne-decoder (`usvfast.lidar.packets`), bags are read by rosbags;
+Packets are decoded by usvfast's own decoder for the VLP-16, VLP-16 Hi-Res and HDL-32E and by
+velodyne-decoder for the other models (`usvfast.lidar.packets`), bags are read by rosbags;
 these modules add the robustness layer field data needs. Damaged input (a record header that
 does not parse, a truncated record, a Velodyne packet whose structure is wrong, a message that
 does not deserialise) is skipped and counted in `reader.stats`; a `LidarDataWarning`
@@ -23,11 +24,16 @@ from typing import Any
 
 import numpy as np
 
-from usvfast._extras import require
 from usvfast._time import ros_stamp_seconds
 from usvfast._validate import integer
 from usvfast.lidar.frame import POINT_DTYPE, LidarFrame
-from usvfast.lidar.packets import ReadStats, decoded_to_points, finish_read, packet_problems
+from usvfast.lidar.packets import (
+    ReadStats,
+    VelodyneScanDecoder,
+    decoded_to_points,
+    finish_read,
+    packet_problems,
+)
 from usvfast.lidar.pcap import VelodynePcapReader
 
 VELODYNE_SCAN_MSG = """\
@@ -192,9 +198,11 @@ class BagReader:
     """Stream LiDAR frames from a ROS1 `.bag` or a ROS2 bag directory (rosbags).
 
     Reads `velodyne_msgs/VelodyneScan` messages (one rotation of raw packets each, decoded by
-    velodyne-decoder) and `sensor_msgs/PointCloud2` messages (one rotation each). `topic`
-    selects one topic; None takes every topic of those two types. Messages that fail to
-    deserialise or convert, and malformed packets inside a scan, are skipped and counted.
+    `VelodyneScanDecoder` as velodyne-decoder decodes them; `model` is a
+    `velodyne_decoder.Model` or None to take it from the packets) and `sensor_msgs/PointCloud2`
+    messages (one rotation each). `topic` selects one topic; None takes every topic of those
+    two types. Messages that fail to deserialise or convert, and malformed packets inside a
+    scan, are skipped and counted.
     A damaged bag (cut short, damaged sqlite pages, no metadata.yaml, MCAP without summary) is
     recovered first (`usvfast._bagsalvage`): what cannot be read is counted as "bag container".
     `every` > 1 yields only every `every`-th LiDAR message's rotation; the others are skipped
@@ -258,9 +266,7 @@ class BagReader:
                         continue
                 else:
                     if decoder is None:
-                        vd = require("velodyne_decoder", "lidar", "Velodyne scans")
-
-                        decoder = vd.ScanDecoder(vd.Config(model=self.model))
+                        decoder = VelodyneScanDecoder(self.model)
                     decoded = self._decode_scan(msg, decoder, stats)
                     if decoded is None:
                         continue
@@ -271,12 +277,13 @@ class BagReader:
                 yield frame
         finish_read(stats, source)
 
-    def _decode_scan(self, msg, decoder, stats: ReadStats) -> tuple[float, np.ndarray] | None:
-        vd = require("velodyne_decoder", "lidar", "Velodyne packets")
-
-        packets = []
+    def _decode_scan(
+        self, msg, decoder: VelodyneScanDecoder, stats: ReadStats
+    ) -> tuple[float, np.ndarray] | None:
+        good: list[bytes] = []
+        times: list[float] = []
         model_id = None
-        payloads = [bytes(np.asarray(pkt.data, dtype=np.uint8)) for pkt in msg.packets]
+        payloads = [np.asarray(pkt.data, dtype=np.uint8).tobytes() for pkt in msg.packets]
         problems = packet_problems(payloads)
         for pkt, payload, problem in zip(msg.packets, payloads, problems, strict=True):
             if problem is None and model_id is not None and payload[1205] != model_id:
@@ -285,19 +292,18 @@ class BagReader:
                 stats.damage(problem)
                 continue
             model_id = payload[1205]
-            t = ros_stamp_seconds(pkt.stamp)
-            packets.append(vd.VelodynePacket(t, payload))
-        if not packets:
+            good.append(payload)
+            times.append(ros_stamp_seconds(pkt.stamp))
+        if not good:
             stats.damage("empty scan")
             return None
-        stats.packets += len(packets)
+        stats.packets += len(good)
         try:
-            stamp_pair, arr = decoder.decode(vd.PacketVector(packets))
+            (host, device), arr = decoder.decode(good, times)
         except RuntimeError:
             stats.damage("decoder")
             return None
-        stamp = stamp_pair.device if self.device_time else stamp_pair.host
-        return float(stamp), decoded_to_points(arr)
+        return float(device if self.device_time else host), decoded_to_points(arr)
 
 
 @contextmanager

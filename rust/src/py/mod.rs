@@ -15,6 +15,7 @@ mod stonesoup;
 mod stonesoup_scan;
 mod tracker;
 mod tracker_config;
+mod velodyne;
 
 pub use errors::to_py_err;
 
@@ -47,5 +48,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     particle::register(m)?;
     stonesoup::register(m)?;
     stonesoup_scan::register(m)?;
+    velodyne::register(m)?;
     Ok(())
 }
