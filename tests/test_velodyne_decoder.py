@@ -331,3 +331,14 @@ def test_reader_on_mixed_and_damaged_rotations(tmp_path, real, sim_scans):
             frames = assert_same_reads(path, model=model)
             decoded += len(frames)
     assert decoded > 20
+
+
+def test_every_lidar_stream_model_name_is_a_velodyne_decoder_model():
+    """The `lidar` stream's `model` option: every name resolves to velodyne-decoder's Model;
+    an unknown one is a ValueError naming the option."""
+    from usvfast.pipeline.streams import _MODELS, _model
+
+    for name in _MODELS:
+        assert isinstance(_model(name), vd.Model), name
+    with pytest.raises(ValueError, match="model: expected one of"):
+        _model("HDL-64E")

@@ -23,12 +23,15 @@ from usvfast.nav.stream_types import StreamSpec, register_stream_type
 
 __all__ = ["LidarRecords", "check_topic", "open_lidar_stream", "open_video_times"]
 
+#: The `lidar` stream's `model` names -> velodyne-decoder's Model members.
 _MODELS = {
     "VLP-16": "VLP16",
     "VLP16": "VLP16",
+    "VLP-16 Hi-Res": "PuckHiRes",
     "VLP-32C": "VLP32C",
     "HDL-32E": "HDL32E",
-    "HDL-64E": "HDL64E",
+    "HDL-64E S2": "HDL64E_S2",
+    "HDL-64E S3": "HDL64E_S3",
     "VLS-128": "VLS128",
 }
 
