@@ -86,21 +86,13 @@ pub fn map_sharpness(
             }
         })
         .collect();
-    let mut grid = Grid {
-        points: Vec::new(),
+    let grid = Grid {
+        points,
         cell,
         origin: (i0 as i64, j0 as i64),
         cols,
         cells: rows * cols,
     };
-    // The points in the order of their cells without correction: every trial's placements
-    // then walk the grid nearly in order (the counts, and so the scores, do not depend on it).
-    let mut keyed: Vec<(usize, Placed)> = points
-        .into_iter()
-        .map(|p| (grid.indices(&p, 1.0, 0.0).0, p))
-        .collect();
-    keyed.sort_unstable_by_key(|(key, _)| *key);
-    grid.points = keyed.into_iter().map(|(_, p)| p).collect();
     // Trial corrections split over the cores, each thread with its own grid.
     const MIN_PLACEMENTS_PER_THREAD: usize = 1 << 20;
     let threads = std::thread::available_parallelism()
@@ -159,50 +151,44 @@ struct Grid {
 }
 
 impl Grid {
-    /// The grid cells of `p` placed with its heading plus the offset whose cos and sin are
-    /// `co`, `so`: in the grid and in the grid shifted by half a cell.
-    fn indices(&self, p: &Placed, co: f64, so: f64) -> (usize, usize) {
+    /// The grid cell of `p` placed with its heading plus the offset whose cos and sin are
+    /// `co`, `so`, the grid shifted by `shift` cells.
+    fn index(&self, p: &Placed, co: f64, so: f64, shift: f64) -> usize {
         // sin and cos of heading + offset by the angle-sum formulas
         let (s, c) = (p.sin * co + p.cos * so, p.cos * co - p.sin * so);
-        let a = (p.north + c * p.x - s * p.y) / self.cell;
-        let b = (p.east + s * p.x + c * p.y) / self.cell;
-        let at = |shift: f64| {
-            let i = floor(a + shift) - self.origin.0;
-            let j = floor(b + shift) - self.origin.1;
-            (i as usize) * self.cols + j as usize
-        };
-        (at(0.0), at(0.5))
+        let i = floor((p.north + c * p.x - s * p.y) / self.cell + shift) - self.origin.0;
+        let j = floor((p.east + s * p.x + c * p.y) / self.cell + shift) - self.origin.1;
+        (i as usize) * self.cols + j as usize
     }
 
     /// The score of each of `offsets` (rad).
     fn scores(&self, offsets: &[f64]) -> Vec<f64> {
         let n = self.points.len();
         let total = (n as f64) * (n as f64);
-        let mut counts = [vec![0u32; self.cells], vec![0u32; self.cells]];
-        let mut touched: [Vec<usize>; 2] = [Vec::with_capacity(n), Vec::with_capacity(n)];
+        let mut counts = vec![0u32; self.cells];
+        let mut touched: Vec<usize> = Vec::with_capacity(n);
         let mut out = Vec::with_capacity(offsets.len());
         for &offset in offsets {
             let (so, co) = offset.sin_cos();
-            // Σ n² over the cells, built as each point adds (c + 1)² − c² = 2c + 1
-            let mut sums = [0u64; 2];
-            for p in &self.points {
-                let (plain, shifted) = self.indices(p, co, so);
-                for (g, idx) in [(0, plain), (1, shifted)] {
-                    let c = counts[g][idx];
-                    if c == 0 {
-                        touched[g].push(idx);
+            let mut score = 0.0;
+            for shift in [0.0, 0.5] {
+                touched.clear();
+                for p in &self.points {
+                    let idx = self.index(p, co, so, shift);
+                    if counts[idx] == 0 {
+                        touched.push(idx);
                     }
-                    sums[g] += 2 * u64::from(c) + 1;
-                    counts[g][idx] = c + 1;
+                    counts[idx] += 1;
                 }
-            }
-            for g in 0..2 {
-                for &idx in &touched[g] {
-                    counts[g][idx] = 0;
+                let mut sum = 0.0;
+                for &idx in &touched {
+                    let c = f64::from(counts[idx]);
+                    sum += c * c;
+                    counts[idx] = 0;
                 }
-                touched[g].clear();
+                score += sum / total;
             }
-            out.push((sums[0] as f64 / total + sums[1] as f64 / total) / 2.0);
+            out.push(score / 2.0);
         }
         out
     }
