@@ -169,7 +169,10 @@ class VelodyneScanDecoder:
         model velodyne-decoder cannot decode)."""
         model_id = payloads[0][1205]
         if self._model_id is not None and model_id != self._model_id:
-            raise RuntimeError(f"Expected model ID <{self._model_id}> in packet, got <{model_id}>")
+            raise RuntimeError(
+                f"Expected model ID <{self._model_id}> in packet, got <{model_id}>. Note: if "
+                "the device is HDL-64E, please set the model in Config explicitly."
+            )  # velodyne-decoder's words: the pcap reader lets the last rotation's error out
         if self._native and model_id in NATIVE_MODELS:
             raw = np.frombuffer(b"".join(payloads), dtype=np.uint8)
             times = np.array(packet_times, dtype=np.float64)

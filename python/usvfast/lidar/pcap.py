@@ -17,6 +17,7 @@ from usvfast.lidar.frame import LidarFrame
 from usvfast.lidar.packets import (
     VELODYNE_PACKET_SIZE,
     ReadStats,
+    VelodyneScanDecoder,
     decoded_to_points,
     finish_read,
     velodyne_packet_problem,
@@ -154,6 +155,76 @@ def _udp_payload(linktype: int, frame: bytes) -> tuple[int, bytes] | None:
     return int(udp.dport), bytes(udp.data)
 
 
+#: Byte offset of the last block's azimuth in a data packet (block 11, after its flag).
+_LAST_AZIMUTH_AT = 11 * 100 + 2
+#: A rotation spanning more host time than this, s, ends before the packet that exceeds it
+#: (a rotation takes at most ~0.25 s at the slowest spin, 300 rpm).
+_MAX_ROTATION_S = 0.3
+
+
+class RotationCutter:
+    """Cuts a stream of Velodyne data packets into rotations exactly where velodyne-decoder's
+    `StreamDecoder` (default `Config`: no cut angle, stamped by the last packet) cuts it.
+
+    A rotation's coverage is the azimuth of each packet's last block past the rotation's
+    start azimuth (0.01° units, modulo a turn). The start azimuth is that of the previous
+    rotation's last packet (of the first packet for the stream's first rotation). A packet
+    whose coverage is smaller than the coverage before it, once that passed half a turn,
+    ends the rotation and belongs to it. A packet more than `_MAX_ROTATION_S` of host time
+    after the rotation's first packet ends the rotation before it, and starts the next one.
+    `finish` gives what is left.
+
+    Packets must have passed `velodyne_packet_problem` (azimuths below 36000). The cutter
+    keeps plain lists; `push` is a few integer operations per packet.
+    """
+
+    def __init__(self) -> None:
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget everything: the next packet starts the first rotation of a new stream."""
+        self._payloads: list[bytes] = []
+        self._times: list[float] = []
+        self._start = -1  # start azimuth of the rotation, 0.01°; -1 before the first packet
+        self._last = -1  # azimuth of the last packet pushed
+        self._coverage = 0
+
+    def push(self, payload: bytes, host_time: float) -> tuple[list[bytes], list[float]] | None:
+        """Add one packet (1206-byte payload, host time UNIX s); returns the (payloads, host
+        times) of the rotation this packet completes, or None."""
+        azimuth = payload[_LAST_AZIMUTH_AT] | payload[_LAST_AZIMUTH_AT + 1] << 8
+        if self._start < 0:
+            self._start = azimuth
+        if self._payloads and host_time - self._times[0] > _MAX_ROTATION_S:
+            done = (self._payloads, self._times)
+            self._start = self._last
+            self._payloads, self._times = [payload], [host_time]
+            self._coverage = (azimuth - self._start) % 36000
+            self._last = azimuth
+            return done
+        self._payloads.append(payload)
+        self._times.append(host_time)
+        coverage = (azimuth - self._start) % 36000
+        complete = self._coverage > 18000 and self._coverage > coverage
+        self._coverage = coverage
+        self._last = azimuth
+        if not complete:
+            return None
+        done = (self._payloads, self._times)
+        self._payloads, self._times = [], []
+        self._start, self._coverage = azimuth, 0
+        return done
+
+    def finish(self) -> tuple[list[bytes], list[float]] | None:
+        """The (payloads, host times) of the unfinished rotation, or None when it is empty;
+        the cutter is empty afterwards."""
+        if not self._payloads:
+            return None
+        done = (self._payloads, self._times)
+        self._payloads, self._times = [], []
+        return done
+
+
 class VelodynePcapReader:
     """Stream the rotations of a Velodyne `.pcap` capture (libpcap format).
 
@@ -194,29 +265,41 @@ class VelodynePcapReader:
         self.stats = ReadStats()
 
     def __iter__(self) -> Iterator[LidarFrame]:
-        vd = require("velodyne_decoder", "lidar", "Velodyne packets")
-
         with regular_file(self.path, "path").open("rb") as fh:
             size = os.fstat(fh.fileno()).st_size
             # memory-mapped: captures of several GB are streamed, not loaded
             data = mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) if size else b""
             try:
-                for frame in self._frames(data, vd):
+                for frame in self._frames(data):
                     if frame.index % self.every == 0:
                         yield frame
             finally:
                 if isinstance(data, mmap.mmap):
                     data.close()
 
-    def _frames(self, data, vd) -> Iterator[LidarFrame]:
+    def _frames(self, data) -> Iterator[LidarFrame]:
         self.stats = stats = ReadStats()
         source = str(self.path)
-        decoder = vd.StreamDecoder(vd.Config(model=self.model))
+        decoder = VelodyneScanDecoder(self.model)
+        cutter = RotationCutter()
         model_id: int | None = None
 
-        def emit(result: tuple) -> LidarFrame:
-            stamp_pair, arr = result
-            stamp = stamp_pair.device if self.device_time else stamp_pair.host
+        def decode(rotation: tuple[list[bytes], list[float]], last: bool) -> LidarFrame | None:
+            """The rotation's frame, or None (counted as "decoder" damage, the stream starts
+            again from the next packet) when the decoder refuses it; the decoder's
+            RuntimeError propagates for the `last` rotation of the stream, as velodyne-decoder's
+            `StreamDecoder.finish` raises it."""
+            nonlocal decoder
+            try:
+                (host, device), arr = decoder.decode(*rotation)
+            except RuntimeError:
+                if last:
+                    raise
+                stats.damage("decoder")
+                decoder = VelodyneScanDecoder(self.model)
+                cutter.reset()
+                return None
+            stamp = device if self.device_time else host
             frame = LidarFrame(
                 float(stamp), decoded_to_points(arr), source=source, index=stats.frames
             )
@@ -244,15 +327,10 @@ class VelodynePcapReader:
                 continue
             model_id = payload[1205]
             stats.packets += 1
-            try:
-                result = decoder.decode(stamp, payload)
-            except RuntimeError:
-                stats.damage("decoder")
-                decoder = vd.StreamDecoder(vd.Config(model=self.model))
-                continue
-            if result is not None:
-                yield emit(result)
-        result = decoder.finish()
-        if result is not None:
-            yield emit(result)
+            rotation = cutter.push(payload, stamp)
+            if rotation is not None and (frame := decode(rotation, False)) is not None:
+                yield frame
+        rotation = cutter.finish()
+        if rotation is not None and (frame := decode(rotation, True)) is not None:
+            yield frame
         finish_read(stats, source)

@@ -26,6 +26,7 @@ returns from wave crests.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -313,3 +314,45 @@ def _micros_past_hour(t: np.ndarray) -> np.ndarray:
     """UNIX s -> µs past the UTC hour (uint32), the VLP-16's GPS-synchronised timestamp."""
     us = np.floor((np.asarray(t) % 3600.0) * 1e6 + 0.5).astype(np.int64)
     return np.mod(us, 3_600_000_000).astype(np.uint32)
+
+
+def write_velodyne_pcap(
+    path: str | Path, packets: np.ndarray, packet_times: np.ndarray, *, port: int = 2368
+) -> None:
+    """Write data packets to a libpcap capture as a laptop records them: one Ethernet / IPv4
+    / UDP broadcast frame per packet (sensor 192.168.1.201, destination `port`), stamped with
+    its `packet_times` entry.
+
+    packets : (p, 1206) uint8 payloads; packet_times : (p,) UNIX s. Needs dpkt (the `sim`
+    extra). Raises ValueError when the shapes disagree.
+    """
+    import dpkt
+
+    packets = np.asarray(packets, dtype=np.uint8)
+    times = np.asarray(packet_times, dtype=np.float64)
+    if packets.ndim != 2 or packets.shape[1] != PACKET_SIZE or times.shape != packets.shape[:1]:
+        raise ValueError(
+            f"packets, packet_times: expected (p, {PACKET_SIZE}) and (p,), got "
+            f"{packets.shape} and {times.shape}"
+        )
+    with open(path, "wb") as fh:
+        writer = dpkt.pcap.Writer(fh, snaplen=1600, linktype=dpkt.pcap.DLT_EN10MB)
+        for k, (row, t) in enumerate(zip(packets, times.tolist(), strict=True)):
+            udp = dpkt.udp.UDP(sport=port, dport=port, data=row.tobytes())
+            udp.ulen = len(udp)  # pyright: ignore[reportAttributeAccessIssue]
+            ip = dpkt.ip.IP(
+                src=bytes([192, 168, 1, 201]),
+                dst=b"\xff" * 4,
+                p=dpkt.ip.IP_PROTO_UDP,
+                ttl=64,
+                id=k & 0xFFFF,
+                data=udp,
+            )
+            ip.len = len(ip)
+            eth = dpkt.ethernet.Ethernet(
+                src=bytes.fromhex("60768800a1b2"),
+                dst=b"\xff" * 6,
+                type=dpkt.ethernet.ETH_TYPE_IP,
+                data=ip,
+            )
+            writer.writepkt(bytes(eth), ts=t)
