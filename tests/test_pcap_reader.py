@@ -7,7 +7,6 @@ returns, long gaps, other models and a model switch mid-stream."""
 from __future__ import annotations
 
 import warnings
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -15,23 +14,11 @@ import pytest
 import velodyne_decoder as vd
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from pcap_peer import PeerPcapReader
 
 from usvfast.lidar import LidarDataWarning
-from usvfast.lidar.frame import LidarFrame
-from usvfast.lidar.packets import (
-    VELODYNE_PACKET_SIZE,
-    ReadStats,
-    decoded_to_points,
-    finish_read,
-    packet_problems,
-    velodyne_packet_problem,
-)
-from usvfast.lidar.pcap import (
-    RotationCutter,
-    VelodynePcapReader,
-    _iter_pcap_records,
-    _udp_payload,
-)
+from usvfast.lidar.packets import VELODYNE_PACKET_SIZE, ReadStats, packet_problems
+from usvfast.lidar.pcap import RotationCutter, VelodynePcapReader, _iter_pcap_records
 from usvfast.sim.scene import make_world
 from usvfast.sim.velodyne import Vlp16Recorder, write_velodyne_pcap
 
@@ -43,60 +30,6 @@ _BLOCK = np.dtype([("flag", "<u2"), ("azimuth", "<u2"), ("channels", _CHANNEL, (
 PACKET = np.dtype(
     [("blocks", _BLOCK, (12,)), ("stamp", "<u4"), ("return_mode", "u1"), ("model", "u1")]
 )
-
-
-class PeerPcapReader(VelodynePcapReader):
-    """The pcap reader as it was before it had its own rotation cutter and decoder: every
-    packet goes to one velodyne-decoder `StreamDecoder`, which cuts and decodes rotations."""
-
-    def _frames(self, data) -> Iterator[LidarFrame]:
-        self.stats = stats = ReadStats()
-        source = str(self.path)
-        decoder = vd.StreamDecoder(vd.Config(model=self.model))
-        model_id: int | None = None
-
-        def emit(result: tuple) -> LidarFrame:
-            stamp_pair, arr = result
-            stamp = stamp_pair.device if self.device_time else stamp_pair.host
-            frame = LidarFrame(
-                float(stamp), decoded_to_points(arr), source=source, index=stats.frames
-            )
-            stats.frames += 1
-            return frame
-
-        for stamp, linktype, frame_bytes in _iter_pcap_records(data, stats, source):
-            try:
-                udp = _udp_payload(linktype, frame_bytes)
-            except ValueError as exc:
-                stats.damage(str(exc))
-                continue
-            if udp is None:
-                continue
-            port, payload = udp
-            if self.data_port is not None and port != self.data_port:
-                continue
-            if len(payload) != VELODYNE_PACKET_SIZE:
-                if self.data_port is not None:
-                    stats.damage("packet length")
-                continue
-            problem = velodyne_packet_problem(payload, model_id)
-            if problem is not None:
-                stats.damage(problem)
-                continue
-            model_id = payload[1205]
-            stats.packets += 1
-            try:
-                result = decoder.decode(stamp, payload)
-            except RuntimeError:
-                stats.damage("decoder")
-                decoder = vd.StreamDecoder(vd.Config(model=self.model))
-                continue
-            if result is not None:
-                yield emit(result)
-        result = decoder.finish()
-        if result is not None:
-            yield emit(result)
-        finish_read(stats, source)
 
 
 def read_both(path: Path, **kwargs) -> list:

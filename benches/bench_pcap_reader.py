@@ -1,0 +1,111 @@
+"""Velodyne pcap reader: usvfast's rotation cutter and decoder vs the velodyne-decoder path,
+same capture, one process.
+
+The capture is 30 s of a simulated VLP-16 at 10 Hz (`Vlp16Recorder`, buildings behind the
+quays: about 10,000 points per rotation), written as a pcap (Ethernet / IPv4 / UDP, as a
+laptop records it) to a temporary folder, or `--pcap FILE`. Timed over the whole capture (best
+pass of `--repeat`), per rotation:
+
+- reader: `list(VelodynePcapReader(path))` against the same reader with every packet going
+  through one velodyne-decoder `StreamDecoder` (`tests/pcap_peer.py`, the reader as it was);
+- records: the part both share, reading the pcap records and their UDP payloads and checking
+  each packet (`_iter_pcap_records`, `_udp_payload`, `velodyne_packet_problem`);
+
+and the reader's time without that shared part. Both readers give the same frames bit for
+bit (checked here). Prints the times per rotation and the ratios.
+
+    python benches/bench_pcap_reader.py [--pcap FILE] [--seconds 30] [--repeat 5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from usvfast.lidar.packets import ReadStats, velodyne_packet_problem
+from usvfast.lidar.pcap import VelodynePcapReader, _iter_pcap_records, _udp_payload
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from pcap_peer import PeerPcapReader
+
+
+def simulate_pcap(folder: Path, seconds: float) -> Path:
+    """`seconds` of simulated VLP-16 packets (buildings included) as `folder`/vlp16.pcap,
+    stamped when a laptop would receive them."""
+    from usvfast.sim.scene import make_world
+    from usvfast.sim.velodyne import Vlp16Recorder, write_velodyne_pcap
+
+    start = 1_686_909_600.0123
+    recorder = Vlp16Recorder(make_world(1, seconds), start=start, seed=1, buildings=True)
+    packets, times = [], []
+    while (scan := recorder.next_scan()).stamp < start + seconds:
+        packets.append(scan.packets)
+        times.append(scan.packet_times + 24 * 55.296e-6 + 1e-4)
+    path = folder / "vlp16.pcap"
+    write_velodyne_pcap(path, np.concatenate(packets), np.concatenate(times))
+    return path
+
+
+def read_records(path: Path) -> int:
+    """The shared part: every record, its UDP payload and the packet checks; the number of
+    data packets."""
+    data = path.read_bytes()
+    stats, model_id, n = ReadStats(), None, 0
+    for _, linktype, frame in _iter_pcap_records(data, stats, str(path)):
+        udp = _udp_payload(linktype, frame)
+        if udp is not None and len(udp[1]) == 1206:
+            if velodyne_packet_problem(udp[1], model_id) is None:
+                model_id = udp[1][1205]
+                n += 1
+    return n
+
+
+def best(fn, repeat: int) -> float:
+    """Best wall time of `repeat` calls of `fn`, s."""
+    out = float("inf")
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        out = min(out, time.perf_counter() - t0)
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--pcap", type=Path, help="a Velodyne capture (default: simulate one)")
+    ap.add_argument("--seconds", type=float, default=30.0, help="simulated duration, s")
+    ap.add_argument("--repeat", type=int, default=5)
+    args = ap.parse_args()
+    warnings.simplefilter("ignore")
+    with tempfile.TemporaryDirectory() as tmp:
+        path = args.pcap or simulate_pcap(Path(tmp), args.seconds)
+        ours, ref = list(VelodynePcapReader(path)), list(PeerPcapReader(path))
+        assert len(ours) == len(ref)
+        for a, b in zip(ours, ref, strict=True):
+            assert a.stamp == b.stamp and a.points.tobytes() == b.points.tobytes()
+        t_ours = best(lambda: list(VelodynePcapReader(path)), args.repeat)
+        t_peer = best(lambda: list(PeerPcapReader(path)), args.repeat)
+        t_records = best(lambda: read_records(path), args.repeat)
+        packets = read_records(path)
+    n = len(ours)
+    points = sum(len(f) for f in ours) / n
+    name = args.pcap or f"simulated {args.seconds:g} s VLP-16 capture"
+    print(f"{name}: {n} rotations, {packets / n:.1f} packets, {points:.0f} points per rotation")
+    print("  per rotation                 usvfast   velodyne-decoder   ratio")
+    rows = [
+        ("reader (list of frames)", t_ours, t_peer),
+        ("beyond the shared records", t_ours - t_records, t_peer - t_records),
+    ]
+    for label, a, b in rows:
+        print(f"  {label:<26} {a / n * 1e3:8.3f} ms   {b / n * 1e3:8.3f} ms   {b / a:6.2f}x")
+    print(f"  shared records + checks    {t_records / n * 1e3:8.3f} ms")
+
+
+if __name__ == "__main__":
+    main()
