@@ -1,21 +1,81 @@
-"""The Velodyne pcap reader as it was before it had its own rotation cutter and decoder
-(`PeerPcapReader`): the peer of `test_pcap_reader.py` and `benches/bench_pcap_reader.py`."""
+"""The Velodyne pcap reader as it was before it had its own rotation cutter, decoder and
+header parsing (`PeerPcapReader`): UDP payloads taken out by dpkt, packets checked by numpy,
+every packet through one velodyne-decoder `StreamDecoder`. The peer of `test_pcap_reader.py`
+and `benches/bench_pcap_reader.py`."""
 
 from __future__ import annotations
 
+import struct
 from collections.abc import Iterator
 
+import dpkt
+import numpy as np
 import velodyne_decoder as vd
 
 from usvfast.lidar.frame import LidarFrame
 from usvfast.lidar.packets import (
+    _BLOCK_FLAGS,
+    _KNOWN_MODEL_IDS,
+    _RETURN_MODES,
     VELODYNE_PACKET_SIZE,
     ReadStats,
     decoded_to_points,
     finish_read,
-    velodyne_packet_problem,
 )
-from usvfast.lidar.pcap import VelodynePcapReader, _iter_pcap_records, _udp_payload
+from usvfast.lidar.pcap import VelodynePcapReader, _iter_pcap_records
+
+
+def udp_payload(linktype: int, frame: bytes) -> tuple[int, bytes] | None:
+    """(destination port, payload) of a UDP/IPv4 frame, None for anything else.
+
+    Raises ValueError when the frame claims to be IPv4/UDP but its headers are broken
+    (IP header checksum, lengths).
+    """
+    try:
+        if linktype == 1:
+            eth = dpkt.ethernet.Ethernet(frame)
+            ip = eth.data
+        elif linktype in (101, 12):
+            ip = dpkt.ip.IP(frame)
+        elif linktype == 113:
+            ip = dpkt.sll.SLL(frame).data
+        else:
+            return None
+    except (dpkt.dpkt.UnpackError, struct.error) as exc:
+        raise ValueError("link/IP header") from exc
+    if not isinstance(ip, dpkt.ip.IP):
+        return None
+    # the header as stored (pack_hdr keeps the received checksum): sums to 0 when intact
+    if dpkt.in_cksum(ip.pack_hdr() + bytes(ip.opts)) != 0:
+        raise ValueError("IP checksum")
+    udp = ip.data
+    if not isinstance(udp, dpkt.udp.UDP):
+        return None
+    if udp.ulen != 8 + len(udp.data):
+        raise ValueError("UDP length")
+    return int(udp.dport), bytes(udp.data)
+
+
+def packet_problem(payload: bytes, model_id: int | None = None) -> str | None:
+    """Return why a 1206-byte Velodyne data packet is malformed, or None if it looks valid.
+
+    Checks the block flags, the azimuths (< 36000 hundredths of a degree), the factory bytes
+    (return mode, model id, and the model id against `model_id` when given).
+    """
+    if len(payload) != VELODYNE_PACKET_SIZE:
+        return "packet length"
+    blocks = np.frombuffer(payload, dtype="<u2", count=600).reshape(12, 50)
+    flags = blocks[:, 0].tolist()  # 12 values: plain Python is faster than np.isin here
+    if not all(f in _BLOCK_FLAGS for f in flags):
+        return "block flag"
+    if max(blocks[:, 1].tolist()) >= 36000:
+        return "azimuth"
+    return_mode, model = payload[1204], payload[1205]
+    if return_mode not in _RETURN_MODES or model not in _KNOWN_MODEL_IDS:
+        return "factory bytes"
+    if model_id is not None and model != model_id:
+        return "model id"
+    return None
 
 
 class PeerPcapReader(VelodynePcapReader):
@@ -39,7 +99,7 @@ class PeerPcapReader(VelodynePcapReader):
 
         for stamp, linktype, frame_bytes in _iter_pcap_records(data, stats, source):
             try:
-                udp = _udp_payload(linktype, frame_bytes)
+                udp = udp_payload(linktype, frame_bytes)
             except ValueError as exc:
                 stats.damage(str(exc))
                 continue
@@ -52,7 +112,7 @@ class PeerPcapReader(VelodynePcapReader):
                 if self.data_port is not None:
                     stats.damage("packet length")
                 continue
-            problem = velodyne_packet_problem(payload, model_id)
+            problem = packet_problem(payload, model_id)
             if problem is not None:
                 stats.damage(problem)
                 continue

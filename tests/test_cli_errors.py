@@ -35,11 +35,23 @@ def test_user_error_is_one_line_and_exit_2(monkeypatch, capsys, tmp_path):
     assert "Traceback" not in err
 
 
-def test_missing_extra_names_what_to_install(monkeypatch, capsys):
+def test_missing_extra_names_what_to_install(monkeypatch, capsys, tmp_path):
+    # VLP-16 and HDL-32E packets are decoded by usvfast itself; a VLP-32C's by velodyne-decoder
+    import dpkt
+
+    vlp32c = tmp_path / "vlp32c.pcap"
+    with PCAP.open("rb") as src, vlp32c.open("wb") as dst:
+        writer = dpkt.pcap.Writer(dst)
+        for ts, buf in dpkt.pcap.Reader(src):
+            if len(buf) == 42 + 1206:
+                buf = buf[:-1] + b"\x28"  # the model id byte
+            writer.writepkt(buf, ts=ts)
+    assert len(list(VelodynePcapReader(PCAP))) == 2
     monkeypatch.setitem(sys.modules, "velodyne_decoder", None)  # as if not installed
+    assert len(list(VelodynePcapReader(PCAP))) == 2
     with pytest.raises(MissingExtraError, match=r"install usvfast\[lidar\] for"):
-        list(VelodynePcapReader(PCAP))
-    code, _, err = run(monkeypatch, capsys, "lidar", str(PCAP))
+        list(VelodynePcapReader(vlp32c))
+    code, _, err = run(monkeypatch, capsys, "lidar", str(vlp32c))
     assert code == 2 and "install usvfast[lidar]" in err and err.count("\n") == 1
 
 

@@ -15,10 +15,22 @@ import velodyne_decoder as vd
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from pcap_peer import PeerPcapReader
+from pcap_peer import packet_problem as peer_packet_problem
+from pcap_peer import udp_payload as peer_udp_payload
 
 from usvfast.lidar import LidarDataWarning
-from usvfast.lidar.packets import VELODYNE_PACKET_SIZE, ReadStats, packet_problems
-from usvfast.lidar.pcap import RotationCutter, VelodynePcapReader, _iter_pcap_records
+from usvfast.lidar.packets import (
+    VELODYNE_PACKET_SIZE,
+    ReadStats,
+    packet_problems,
+    velodyne_packet_problem,
+)
+from usvfast.lidar.pcap import (
+    RotationCutter,
+    VelodynePcapReader,
+    _iter_pcap_records,
+    _udp_payload,
+)
 from usvfast.sim.scene import make_world
 from usvfast.sim.velodyne import Vlp16Recorder, write_velodyne_pcap
 
@@ -242,3 +254,62 @@ def test_cutter_cuts_after_the_wrap_and_before_a_gap():
     rest = cutter.finish()
     assert rest is not None and rest[1] == [0.5]
     assert cutter.finish() is None
+
+
+# --- the frame and packet checks against dpkt and numpy --------------------------------
+
+
+@pytest.fixture(scope="module")
+def real_frames() -> list[tuple[int, bytes]]:
+    data = PCAP.read_bytes()
+    return [(link, frame) for _, link, frame in _iter_pcap_records(data, ReadStats(), "x")]
+
+
+def outcome(fn, *args):
+    """fn(*args), or ("error", message) of the ValueError it raises."""
+    try:
+        return fn(*args)
+    except ValueError as exc:
+        return ("error", str(exc))
+
+
+@settings(max_examples=300)
+@given(
+    frame=st.integers(0, 99),
+    edits=st.lists(st.tuples(st.integers(0, 45), st.integers(0, 255)), max_size=4),
+    cut=st.none() | st.integers(0, 1300),
+    link=st.sampled_from([1, 1, 1, 101, 113, 105]),
+)
+def test_udp_payload_reads_as_dpkt_does(real_frames, frame, edits, cut, link):
+    """Header bytes (Ethernet, IPv4, UDP) set at random, frames cut short, other link types:
+    the same (port, payload), None or error as the dpkt reading."""
+    raw = bytearray(real_frames[frame][1])
+    for at, value in edits:
+        raw[at] = value
+    if edits and edits[0][1] < 10:  # a valid IPv4 header checksum now and then
+        raw[24:26] = b"\0\0"
+        words = sum(int.from_bytes(raw[k : k + 2], "big") for k in range(14, 34, 2))
+        while words > 0xFFFF:
+            words = (words >> 16) + (words & 0xFFFF)
+        raw[24:26] = (~words & 0xFFFF).to_bytes(2, "big")
+    buf = bytes(raw[:cut])
+    assert outcome(_udp_payload, link, buf) == outcome(peer_udp_payload, link, buf)
+
+
+@settings(max_examples=300)
+@given(
+    packet=st.integers(0, 83),
+    edits=st.lists(st.tuples(st.integers(0, 1205), st.integers(0, 255)), max_size=4),
+    model_id=st.sampled_from([None, 0x21, 0x22]),
+)
+def test_packet_problem_as_numpy_checks(real_frames, packet, edits, model_id):
+    payloads = [f[42:] for _, f in real_frames if len(f) == 42 + VELODYNE_PACKET_SIZE]
+    raw = bytearray(payloads[packet])
+    for at, value in edits:
+        raw[at] = value
+    head = [*range(0, 1200, 100), *range(1, 1200, 100)]
+    if edits and edits[0][1] < 128:  # flags and azimuths of another kind
+        raw[head[edits[0][1] % 24]] = 0xDD if edits[0][1] % 2 else 0x8C
+    assert velodyne_packet_problem(bytes(raw), model_id) == peer_packet_problem(
+        bytes(raw), model_id
+    )

@@ -9,6 +9,7 @@ cannot be detected: Velodyne sensors send UDP checksums of zero.
 
 from __future__ import annotations
 
+import struct
 import warnings
 from collections import Counter
 from dataclasses import dataclass, field
@@ -26,6 +27,8 @@ VELODYNE_PACKET_SIZE = 1206
 _KNOWN_MODEL_IDS = {0x21, 0x22, 0x24, 0x28, 0x31, 0xA1}
 _BLOCK_FLAGS = {0xEEFF, 0xDDFF}  # upper / lower block (HDL-64E uses both)
 _RETURN_MODES = {0x37, 0x38, 0x39}
+#: The flag and azimuth (u16 LE) at the head of each of the 12 blocks of 100 bytes.
+_BLOCK_HEADS = struct.Struct("<" + "HH96x" * 12)
 #: Model id -> model name of the sensors usvfast decodes itself (`_core.decode_velodyne_scan`).
 NATIVE_MODELS = {0x21: "HDL-32E", 0x22: "VLP-16", 0x24: "VLP-16 Hi-Res"}
 
@@ -78,11 +81,10 @@ def velodyne_packet_problem(payload: bytes, model_id: int | None = None) -> str 
     """
     if len(payload) != VELODYNE_PACKET_SIZE:
         return "packet length"
-    blocks = np.frombuffer(payload, dtype="<u2", count=600).reshape(12, 50)
-    flags = blocks[:, 0].tolist()  # 12 values: plain Python is faster than np.isin here
-    if not all(f in _BLOCK_FLAGS for f in flags):
+    heads = _BLOCK_HEADS.unpack_from(payload)  # flag, azimuth of each of the 12 blocks
+    if not _BLOCK_FLAGS.issuperset(heads[0::2]):
         return "block flag"
-    if max(blocks[:, 1].tolist()) >= 36000:
+    if max(heads[1::2]) >= 36000:
         return "azimuth"
     return_mode, model = payload[1204], payload[1205]
     if return_mode not in _RETURN_MODES or model not in _KNOWN_MODEL_IDS:
