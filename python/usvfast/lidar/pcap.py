@@ -1,6 +1,8 @@
 """Velodyne `.pcap` captures (`VelodynePcapReader`), one frame per rotation. The record
 stream resynchronises on the next plausible record header after a damaged record; damaged
-records are skipped and counted (`usvfast.lidar.packets`)."""
+records are skipped and counted (`usvfast.lidar.packets`). The packets are cut into rotations
+(`RotationCutter`) where velodyne-decoder's `StreamDecoder` cuts them and decoded by
+`VelodyneScanDecoder`: the frames are the ones velodyne-decoder gives, bit for bit."""
 
 from __future__ import annotations
 
@@ -260,7 +262,10 @@ class VelodynePcapReader:
     ----------
     path : path of the capture.
     model : velodyne_decoder.Model or None
-        Sensor model; None lets velodyne-decoder detect it from the packets.
+        Sensor model; None takes it from the first rotation (as velodyne-decoder does). A
+        rotation the decoder refuses (another model) is counted as "decoder" damage and the
+        stream starts again after it; the last rotation's refusal raises RuntimeError, as
+        velodyne-decoder's `StreamDecoder.finish` does.
     data_port : int or None
         UDP destination port of data packets; None accepts any port (position/telemetry
         packets are recognised by their size and ignored).
