@@ -11,7 +11,9 @@ pass of `--repeat`), per rotation:
   velodyne-decoder `StreamDecoder` (`tests/pcap_peer.py`);
 - records: the first part of each, reading the pcap records, their UDP payloads and checking
   each packet (`_iter_pcap_records` with each reader's own `udp_payload` and packet check);
-- rotations: the rest (cutting, decoding, points as `POINT_DTYPE`, frames).
+- rotations: the rest (cutting, decoding, points as `POINT_DTYPE`, frames);
+- reader with `every=2`: every other rotation (the peer decodes all of them, the reader
+  only the ones it yields).
 
 Both readers give the same frames bit for bit (checked here). Prints the times per rotation
 and the ratios.
@@ -87,13 +89,18 @@ def main() -> None:
     warnings.simplefilter("ignore")
     with tempfile.TemporaryDirectory() as tmp:
         path = args.pcap or simulate_pcap(Path(tmp), args.seconds)
-        ours, ref = list(VelodynePcapReader(path)), list(PeerPcapReader(path))
-        assert len(ours) == len(ref)
-        for a, b in zip(ours, ref, strict=True):
-            assert a.stamp == b.stamp and a.points.tobytes() == b.points.tobytes()
+        for every in (1, 2):
+            ours = list(VelodynePcapReader(path, every=every))
+            ref = list(PeerPcapReader(path, every=every))
+            assert len(ours) == len(ref)
+            for a, b in zip(ours, ref, strict=True):
+                assert a.stamp == b.stamp and a.points.tobytes() == b.points.tobytes()
+        ours = list(VelodynePcapReader(path))
         r = args.repeat
         t_ours = best(lambda: list(VelodynePcapReader(path)), r)
         t_peer = best(lambda: list(PeerPcapReader(path)), r)
+        t_every = best(lambda: list(VelodynePcapReader(path, every=2)), r)
+        t_peer_every = best(lambda: list(PeerPcapReader(path, every=2)), r)
         t_records = best(lambda: read_records(path, _udp_payload, velodyne_packet_problem), r)
         t_peer_records = best(lambda: read_records(path, udp_payload, packet_problem), r)
         packets = read_records(path, _udp_payload, velodyne_packet_problem)
@@ -106,6 +113,7 @@ def main() -> None:
         ("reader (list of frames)", t_ours, t_peer),
         ("records, payloads, checks", t_records, t_peer_records),
         ("rotations (the rest)", t_ours - t_records, t_peer - t_peer_records),
+        ("reader, every=2", t_every, t_peer_every),
     ]
     for label, a, b in rows:
         print(f"  {label:<25} {a / n * 1e3:8.3f} ms   {b / n * 1e3:8.3f} ms   {b / a:6.2f}x")

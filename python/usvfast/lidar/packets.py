@@ -161,6 +161,27 @@ class VelodyneScanDecoder:
                 self._model_id = native[model]
         self._peer = None
 
+    def _check_model(self, model_id: int) -> None:
+        if self._model_id is not None and model_id != self._model_id:
+            raise RuntimeError(
+                f"Expected model ID <{self._model_id}> in packet, got <{model_id}>. Note: if "
+                "the device is HDL-64E, please set the model in Config explicitly."
+            )  # velodyne-decoder's words: the pcap reader lets the last rotation's error out
+
+    def skip(self, payloads: list[bytes]) -> bool:
+        """Move the stream past one rotation without decoding it when what `decode` would do is
+        known without decoding (usvfast's models: it decodes every rotation of the bound model
+        id): returns True, and the stream is as `decode` leaves it. Returns False, untouched,
+        when only decoding tells (velodyne-decoder's models). `payloads` as for `decode`;
+        raises RuntimeError where `decode` would (another model id)."""
+        model_id = payloads[0][1205]
+        self._check_model(model_id)
+        if not (self._native and model_id in NATIVE_MODELS):
+            return False
+        if self.model is None:
+            self._model_id = model_id
+        return True
+
     def decode(
         self, payloads: list[bytes], packet_times: list[float]
     ) -> tuple[tuple[float, float], np.ndarray]:
@@ -170,11 +191,7 @@ class VelodyneScanDecoder:
         Raises RuntimeError for a rotation the stream's decoder refuses (another model id, a
         model velodyne-decoder cannot decode)."""
         model_id = payloads[0][1205]
-        if self._model_id is not None and model_id != self._model_id:
-            raise RuntimeError(
-                f"Expected model ID <{self._model_id}> in packet, got <{model_id}>. Note: if "
-                "the device is HDL-64E, please set the model in Config explicitly."
-            )  # velodyne-decoder's words: the pcap reader lets the last rotation's error out
+        self._check_model(model_id)
         if self._native and model_id in NATIVE_MODELS:
             raw = np.frombuffer(b"".join(payloads), dtype=np.uint8)
             times = np.array(packet_times, dtype=np.float64)

@@ -274,8 +274,8 @@ class VelodynePcapReader:
         when the sensor is GPS-synchronised) instead of the capture host's clock (default).
 
     every : int
-        Yield only every `every`-th rotation (all are decoded: the rotations are cut from the
-        packet stream).
+        Yield only every `every`-th rotation (the rotations are cut from the packet stream, so
+        all are read; those left out are decoded only where velodyne-decoder decodes them).
 
     Iterating yields `LidarFrame`s; `stats` counts records, packets, frames and damage.
     Raises ValueError at the end of iteration if no frame could be decoded.
@@ -318,12 +318,16 @@ class VelodynePcapReader:
         model_id: int | None = None
 
         def decode(rotation: tuple[list[bytes], list[float]], last: bool) -> LidarFrame | None:
-            """The rotation's frame, or None (counted as "decoder" damage, the stream starts
-            again from the next packet) when the decoder refuses it; the decoder's
+            """The rotation's frame; None when `every` leaves it out, or when the decoder
+            refuses it (counted as "decoder" damage, the stream starts again from the next
+            packet); the decoder's
             RuntimeError propagates for the `last` rotation of the stream, as velodyne-decoder's
             `StreamDecoder.finish` raises it."""
             nonlocal decoder
             try:
+                if stats.frames % self.every and decoder.skip(rotation[0]):
+                    stats.frames += 1  # a rotation `every` leaves out: not decoded
+                    return None
                 (host, device), arr = decoder.decode(*rotation)
             except RuntimeError:
                 if last:
