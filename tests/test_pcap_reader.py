@@ -313,3 +313,10 @@ def test_packet_problem_as_numpy_checks(real_frames, packet, edits, model_id):
     assert velodyne_packet_problem(bytes(raw), model_id) == peer_packet_problem(
         bytes(raw), model_id
     )
+
+
+def test_simulated_capture_writer_checks_shapes(tmp_path):
+    packets, times = np.zeros((3, 1206), dtype=np.uint8), np.zeros(3)
+    for bad in ((packets[:, :1205], times), (packets, times[:2]), (packets[0], times[:1])):
+        with pytest.raises(ValueError, match="packets, packet_times: expected"):
+            write_velodyne_pcap(tmp_path / "x.pcap", *bad)
