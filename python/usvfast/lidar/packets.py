@@ -162,6 +162,7 @@ class VelodyneScanDecoder:
         self._peer = None
 
     def _check_model(self, model_id: int) -> None:
+        """Raise RuntimeError when the stream is bound to another model id than `model_id`."""
         if self._model_id is not None and model_id != self._model_id:
             raise RuntimeError(
                 f"Expected model ID <{self._model_id}> in packet, got <{model_id}>. Note: if "

@@ -149,8 +149,7 @@ def _udp_payload(linktype: int, frame: bytes) -> tuple[int, bytes] | None:
         # The frame of nearly every capture, read without building dpkt objects: what dpkt
         # reads in that case (the UDP datagram inside the IP total length). Anything else
         # (VLAN tags, IP options, fragments, short or odd lengths, other links) goes to dpkt.
-        # the header's one's-complement sum (the Internet checksum, RFC 1071) is 0xFFFF
-        # when intact
+        # An intact header's one's-complement sum (Internet checksum, RFC 1071) is 0xFFFF.
         total = sum(_IP_HEADER_WORDS.unpack_from(frame, 14))
         total = (total >> 16) + (total & 0xFFFF)
         total += total >> 16
@@ -188,7 +187,7 @@ def _udp_payload(linktype: int, frame: bytes) -> tuple[int, bytes] | None:
 #: Byte offset of the last block's azimuth in a data packet (block 11, after its flag).
 _LAST_AZIMUTH_AT = 11 * 100 + 2
 #: A rotation spanning more host time than this, s, ends before the packet that exceeds it
-#: (a rotation takes at most ~0.25 s at the slowest spin, 300 rpm).
+#: (a rotation takes 0.2 s at the slowest spin, 300 rpm).
 _MAX_ROTATION_S = 0.3
 
 
@@ -320,9 +319,8 @@ class VelodynePcapReader:
         def decode(rotation: tuple[list[bytes], list[float]], last: bool) -> LidarFrame | None:
             """The rotation's frame; None when `every` leaves it out, or when the decoder
             refuses it (counted as "decoder" damage, the stream starts again from the next
-            packet); the decoder's
-            RuntimeError propagates for the `last` rotation of the stream, as velodyne-decoder's
-            `StreamDecoder.finish` raises it."""
+            packet). For the `last` rotation of the stream the decoder's RuntimeError
+            propagates, as velodyne-decoder's `StreamDecoder.finish` raises it."""
             nonlocal decoder
             try:
                 if stats.frames % self.every and decoder.skip(rotation[0]):
