@@ -33,10 +33,6 @@ _PCAP_MAGICS = {
 }
 
 
-#: The ten 16-bit words of an IPv4 header without options.
-_IP_HEADER_WORDS = struct.Struct("<10H")
-
-
 def _close_in_time(ref_sec: int, sec: int) -> bool:
     """True when `sec` can follow `ref_sec` in one capture stream (1 s of reordering back,
     up to a minute of silence forward)."""
@@ -132,33 +128,10 @@ def _udp_payload(linktype: int, frame: bytes) -> tuple[int, bytes] | None:
     """(destination port, payload) of a UDP/IPv4 frame, None for anything else.
 
     Raises ValueError when the frame claims to be IPv4/UDP but its headers are broken
-    (IP header checksum, lengths). Frames are read as dpkt reads them (the same result or
-    error for every frame); the plain Ethernet / IPv4 / UDP frame is read directly.
+    (IP header checksum, lengths).
     """
-    if (
-        linktype == 1
-        and len(frame) >= 42
-        and frame[12] == 0x08  # Ethernet II, IPv4
-        and frame[13] == 0x00
-        and frame[14] == 0x45  # IPv4 without options
-        and frame[23] == 17  # UDP
-        and frame[20] & 0x1F == 0  # the first fragment (offset 0)
-        and frame[21] == 0
-        and 28 <= (ip_len := frame[16] << 8 | frame[17]) <= len(frame) - 14
-    ):
-        # The frame of nearly every capture, read without building dpkt objects: what dpkt
-        # reads in that case (the UDP datagram inside the IP total length). Anything else
-        # (VLAN tags, IP options, fragments, short or odd lengths, other links) goes to dpkt.
-        # An intact header's one's-complement sum (Internet checksum, RFC 1071) is 0xFFFF.
-        total = sum(_IP_HEADER_WORDS.unpack_from(frame, 14))
-        total = (total >> 16) + (total & 0xFFFF)
-        total += total >> 16
-        if ~total & 0xFFFF:
-            raise ValueError("IP checksum")
-        if frame[38] << 8 | frame[39] != ip_len - 20:
-            raise ValueError("UDP length")
-        return frame[36] << 8 | frame[37], frame[42 : 14 + ip_len]
     dpkt = require("dpkt", "lidar", "pcap files")
+
     try:
         if linktype == 1:
             eth = dpkt.ethernet.Ethernet(frame)
