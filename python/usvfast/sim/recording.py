@@ -43,7 +43,7 @@ from usvfast.sim.camera import (
 from usvfast.sim.configs import TOPICS, write_configs
 from usvfast.sim.gnss import GnssErrors, simulate_gnss, simulate_imu
 from usvfast.sim.scene import World, make_world
-from usvfast.sim.velodyne import Vlp16Recorder
+from usvfast.sim.velodyne import Vlp16Recorder, udp_frame
 from usvfast.sim.visibility import VisibilityLog
 
 #: UNIX time of the start of every simulated recording: 2023-06-16 10:00:00 UTC (the day the
@@ -392,7 +392,6 @@ class _D1Writer:
                 "d1: writing the pcap needs dpkt (pip install usvfast[sim])"
             ) from exc
 
-        self.dpkt = dpkt
         folder.mkdir(parents=True, exist_ok=False)
         self.folder = folder
         self._pcap_fh = open(folder / "lidar.pcap", "wb")
@@ -408,26 +407,9 @@ class _D1Writer:
         self._next_position = EPOCH + 0.5
 
     def _udp(self, payload: bytes, port: int) -> bytes:
-        dpkt = self.dpkt
-        udp = dpkt.udp.UDP(sport=port, dport=port, data=payload)
-        udp.ulen = len(udp)  # pyright: ignore[reportAttributeAccessIssue]
-        ip = dpkt.ip.IP(
-            src=bytes([192, 168, 1, 201]),
-            dst=bytes([255, 255, 255, 255]),
-            p=dpkt.ip.IP_PROTO_UDP,
-            ttl=64,
-            id=self._ip_id & 0xFFFF,
-            data=udp,
-        )
-        ip.len = len(ip)
+        frame = udp_frame(payload, port, self._ip_id)
         self._ip_id += 1
-        eth = dpkt.ethernet.Ethernet(
-            src=bytes.fromhex("60768800a1b2"),
-            dst=b"\xff" * 6,
-            type=dpkt.ethernet.ETH_TYPE_IP,
-            data=ip,
-        )
-        return bytes(eth)
+        return frame
 
     def scan(self, scan: Any, gnss_text: Callable[[float], str]) -> None:
         """Write a scan's packets, stamped when the laptop received them (the packet's last

@@ -316,12 +316,34 @@ def _micros_past_hour(t: np.ndarray) -> np.ndarray:
     return np.mod(us, 3_600_000_000).astype(np.uint32)
 
 
+def udp_frame(payload: bytes, port: int, ip_id: int) -> bytes:
+    """One Ethernet / IPv4 / UDP broadcast frame as a laptop captures a Velodyne's packets:
+    from the sensor (192.168.1.201) to `port`, IPv4 identification `ip_id` (taken mod 2^16).
+    Needs dpkt (the `sim` extra)."""
+    import dpkt
+
+    udp = dpkt.udp.UDP(sport=port, dport=port, data=payload)
+    udp.ulen = len(udp)  # pyright: ignore[reportAttributeAccessIssue]
+    ip = dpkt.ip.IP(
+        src=bytes([192, 168, 1, 201]),
+        dst=b"\xff" * 4,
+        p=dpkt.ip.IP_PROTO_UDP,
+        ttl=64,
+        id=ip_id & 0xFFFF,
+        data=udp,
+    )
+    ip.len = len(ip)
+    eth = dpkt.ethernet.Ethernet(
+        src=bytes.fromhex("60768800a1b2"), dst=b"\xff" * 6, type=dpkt.ethernet.ETH_TYPE_IP, data=ip
+    )
+    return bytes(eth)
+
+
 def write_velodyne_pcap(
     path: str | Path, packets: np.ndarray, packet_times: np.ndarray, *, port: int = 2368
 ) -> None:
-    """Write data packets to a libpcap capture as a laptop records them: one Ethernet / IPv4
-    / UDP broadcast frame per packet (sensor 192.168.1.201, destination `port`), stamped with
-    its `packet_times` entry.
+    """Write data packets to a libpcap capture as a laptop records them: one `udp_frame` per
+    packet, stamped with its `packet_times` entry.
 
     packets : (p, 1206) uint8 payloads; packet_times : (p,) UNIX s. Needs dpkt (the `sim`
     extra). Raises ValueError when the shapes disagree.
@@ -338,21 +360,4 @@ def write_velodyne_pcap(
     with open(path, "wb") as fh:
         writer = dpkt.pcap.Writer(fh, snaplen=1600, linktype=dpkt.pcap.DLT_EN10MB)
         for k, (row, t) in enumerate(zip(packets, times.tolist(), strict=True)):
-            udp = dpkt.udp.UDP(sport=port, dport=port, data=row.tobytes())
-            udp.ulen = len(udp)  # pyright: ignore[reportAttributeAccessIssue]
-            ip = dpkt.ip.IP(
-                src=bytes([192, 168, 1, 201]),
-                dst=b"\xff" * 4,
-                p=dpkt.ip.IP_PROTO_UDP,
-                ttl=64,
-                id=k & 0xFFFF,
-                data=udp,
-            )
-            ip.len = len(ip)
-            eth = dpkt.ethernet.Ethernet(
-                src=bytes.fromhex("60768800a1b2"),
-                dst=b"\xff" * 6,
-                type=dpkt.ethernet.ETH_TYPE_IP,
-                data=ip,
-            )
-            writer.writepkt(bytes(eth), ts=t)
+            writer.writepkt(udp_frame(row.tobytes(), port, k), ts=t)
