@@ -1,6 +1,7 @@
-"""The Velodyne pcap reader as it was before it had its own rotation cutter, decoder and
-header parsing (`PeerPcapReader`): UDP payloads taken out by dpkt, packets checked by numpy,
-every packet through one velodyne-decoder `StreamDecoder`. The peer of `test_pcap_reader.py`
+"""The Velodyne pcap reader as it was before it had its own rotation cutter and decoder
+(`PeerPcapReader`): UDP payloads taken out by dpkt, packets checked by numpy, every packet
+through one velodyne-decoder `StreamDecoder`; a refusal of the last rotation is counted as
+damage, as every other refusal (it raised RuntimeError before). The peer of `test_pcap_reader.py`
 and `benches/bench_pcap_reader.py`."""
 
 from __future__ import annotations
@@ -126,7 +127,11 @@ class PeerPcapReader(VelodynePcapReader):
                 continue
             if result is not None:
                 yield emit(result)
-        result = decoder.finish()
+        try:
+            result = decoder.finish()
+        except RuntimeError:  # counted, as the refusals above (the reader's damage policy)
+            stats.damage("decoder")
+            result = None
         if result is not None:
             yield emit(result)
         finish_read(stats, source)

@@ -99,6 +99,16 @@ def test_real_capture(options):
         assert [len(f) for f in frames] == [18154, 1425]
 
 
+def test_a_capture_of_another_model_is_damage_not_a_crash():
+    """Every rotation refused by the configured model, the last one included: counted as
+    "decoder" damage, then the reader's ValueError for a capture without a usable frame."""
+    reader = VelodynePcapReader(PCAP, model=vd.Model.VLP16)
+    with pytest.raises(ValueError, match="no usable LiDAR frame"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", LidarDataWarning)
+        list(reader)
+    assert reader.stats.reasons["decoder"] == 2 and reader.stats.frames == 0
+
+
 @pytest.mark.parametrize("cut", [5_000, 60_000, 61_300, 100_000, 115_000])
 def test_truncated_capture(tmp_path, cut):
     path = tmp_path / "cut.pcap"

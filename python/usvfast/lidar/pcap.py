@@ -236,8 +236,7 @@ class VelodynePcapReader:
     model : velodyne_decoder.Model or None
         Sensor model; None takes it from the first rotation (as velodyne-decoder does). A
         rotation the decoder refuses (another model) is counted as "decoder" damage and the
-        stream starts again after it; the last rotation's refusal raises RuntimeError, as
-        velodyne-decoder's `StreamDecoder.finish` does.
+        stream starts again after it.
     data_port : int or None
         UDP destination port of data packets; None accepts any port (position/telemetry
         packets are recognised by their size and ignored).
@@ -289,11 +288,10 @@ class VelodynePcapReader:
         cutter = RotationCutter()
         model_id: int | None = None
 
-        def decode(rotation: tuple[list[bytes], list[float]], last: bool) -> LidarFrame | None:
+        def decode(rotation: tuple[list[bytes], list[float]]) -> LidarFrame | None:
             """The rotation's frame; None when `every` leaves it out, or when the decoder
             refuses it (counted as "decoder" damage, the stream starts again from the next
-            packet). For the `last` rotation of the stream the decoder's RuntimeError
-            propagates, as velodyne-decoder's `StreamDecoder.finish` raises it."""
+            packet)."""
             nonlocal decoder
             try:
                 if stats.frames % self.every and decoder.skip(rotation[0]):
@@ -301,8 +299,6 @@ class VelodynePcapReader:
                     return None
                 (host, device), arr = decoder.decode(*rotation)
             except RuntimeError:
-                if last:
-                    raise
                 stats.damage("decoder")
                 decoder = VelodyneScanDecoder(self.model)
                 cutter.reset()
@@ -336,9 +332,9 @@ class VelodynePcapReader:
             model_id = payload[1205]
             stats.packets += 1
             rotation = cutter.push(payload, stamp)
-            if rotation is not None and (frame := decode(rotation, False)) is not None:
+            if rotation is not None and (frame := decode(rotation)) is not None:
                 yield frame
         rotation = cutter.finish()
-        if rotation is not None and (frame := decode(rotation, True)) is not None:
+        if rotation is not None and (frame := decode(rotation)) is not None:
             yield frame
         finish_read(stats, source)
