@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from usvfast._validate import as_float_array, integer
 from usvfast.frames import rotation_matrix
 from usvfast.lidar.frame import POINT_DTYPE
 from usvfast.lidar.simulator import Scene, VLP16Simulator, Wall
@@ -319,9 +320,13 @@ def _micros_past_hour(t: np.ndarray) -> np.ndarray:
 def udp_frame(payload: bytes, port: int, ip_id: int) -> bytes:
     """One Ethernet / IPv4 / UDP broadcast frame as a laptop captures a Velodyne's packets:
     from the sensor (192.168.1.201) to `port`, IPv4 identification `ip_id` (taken mod 2^16).
-    Needs dpkt (the `sim` extra)."""
+    Needs dpkt (the `sim` extra). Raises TypeError / ValueError naming a bad argument."""
     import dpkt
 
+    if not isinstance(payload, bytes | bytearray):
+        raise TypeError(f"payload: expected bytes, got {type(payload).__name__}")
+    port = integer("port", port, low=0, high=65535)
+    ip_id = integer("ip_id", ip_id)
     udp = dpkt.udp.UDP(sport=port, dport=port, data=payload)
     udp.ulen = len(udp)  # pyright: ignore[reportAttributeAccessIssue]
     ip = dpkt.ip.IP(
@@ -350,8 +355,14 @@ def write_velodyne_pcap(
     """
     import dpkt
 
-    packets = np.asarray(packets, dtype=np.uint8)
-    times = np.asarray(packet_times, dtype=np.float64)
+    packets = np.asarray(packets)
+    if packets.dtype.kind not in "iu" or (
+        packets.size and not 0 <= packets.min() <= packets.max() <= 255
+    ):
+        raise ValueError("packets: expected bytes (integers in [0, 255])")
+    packets = packets.astype(np.uint8)
+    times = as_float_array("packet_times", packet_times)
+    port = integer("port", port, low=0, high=65535)
     if packets.ndim != 2 or packets.shape[1] != PACKET_SIZE or times.shape != packets.shape[:1]:
         raise ValueError(
             f"packets, packet_times: expected (p, {PACKET_SIZE}) and (p,), got "
