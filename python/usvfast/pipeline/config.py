@@ -114,13 +114,13 @@ _CAMERA = {
     # standard deviation of that centre (m, added to the covariance), e.g. vessels: half the
     # beam, since a long hull's seen width is no measure of its depth.
     "depth_classes": ("floats:0", None),
+    "class_depth_m": ("floats:0", None),
+    "class_depth_std_m": ("floats:0", None),
     # The error of a floating object's centre placed from its box (its unknown shape and yaw,
     # the box's fit about it), m along / across the line of sight: the same at every range,
     # added to each of its detections' covariance (the pixel terms grow with the range).
     "centre_along_std": ("float", 0.0),
     "centre_across_std": ("float", 0.0),
-    "class_depth_m": ("floats:0", None),
-    "class_depth_std_m": ("floats:0", None),
     # Boat classes (usvfast.camera.vessels): their boxes are fused per hull and kept only
     # while the boat moves (median speed over vessel_history_s s >= vessel_min_speed m/s);
     # the hull's centre lies half its depth along the line of sight beyond the box bottom
