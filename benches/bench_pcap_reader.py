@@ -6,11 +6,11 @@ quays: about 10,000 points per rotation), written as a pcap (Ethernet / IPv4 / U
 laptop records it) to a temporary folder, or `--pcap FILE`. Timed over the whole capture (best
 pass of `--repeat`), per rotation:
 
-- reader: `list(VelodynePcapReader(path))` against the reader as it was, with dpkt taking out
-  the UDP payloads, numpy checking the packets and every packet going through one
-  velodyne-decoder `StreamDecoder` (`tests/pcap_peer.py`);
+- reader: `list(VelodynePcapReader(path))` against the reader as it was, with numpy checking
+  the packets and every packet going through one velodyne-decoder `StreamDecoder`
+  (`tests/pcap_peer.py`); both take the UDP payloads out with dpkt;
 - records: the first part of each, reading the pcap records, their UDP payloads and checking
-  each packet (`_iter_pcap_records` with each reader's own `udp_payload` and packet check);
+  each packet (`_iter_pcap_records`, dpkt, and each reader's own packet check);
 - rotations: the rest (cutting, decoding, points as `POINT_DTYPE`, frames);
 - reader with `every=2`: every other rotation (the peer decodes all of them, the reader
   only the ones it yields).
@@ -36,7 +36,7 @@ from usvfast.lidar.packets import ReadStats, velodyne_packet_problem
 from usvfast.lidar.pcap import VelodynePcapReader, _iter_pcap_records, _udp_payload
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-from pcap_peer import PeerPcapReader, packet_problem, udp_payload
+from pcap_peer import PeerPcapReader, packet_problem
 
 
 def simulate_pcap(folder: Path, seconds: float) -> Path:
@@ -102,7 +102,7 @@ def main() -> None:
         t_every = best(lambda: list(VelodynePcapReader(path, every=2)), r)
         t_peer_every = best(lambda: list(PeerPcapReader(path, every=2)), r)
         t_records = best(lambda: read_records(path, _udp_payload, velodyne_packet_problem), r)
-        t_peer_records = best(lambda: read_records(path, udp_payload, packet_problem), r)
+        t_peer_records = best(lambda: read_records(path, _udp_payload, packet_problem), r)
         packets = read_records(path, _udp_payload, velodyne_packet_problem)
     n = len(ours)
     points = sum(len(f) for f in ours) / n

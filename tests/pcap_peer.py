@@ -6,10 +6,8 @@ and `benches/bench_pcap_reader.py`."""
 
 from __future__ import annotations
 
-import struct
 from collections.abc import Iterator
 
-import dpkt
 import numpy as np
 import velodyne_decoder as vd
 
@@ -24,37 +22,7 @@ from usvfast.lidar.packets import (
     finish_read,
 )
 from usvfast.lidar.pcap import VelodynePcapReader, _iter_pcap_records
-
-
-def udp_payload(linktype: int, frame: bytes) -> tuple[int, bytes] | None:
-    """(destination port, payload) of a UDP/IPv4 frame, None for anything else.
-
-    Raises ValueError when the frame claims to be IPv4/UDP but its headers are broken
-    (IP header checksum, lengths).
-    """
-    try:
-        if linktype == 1:
-            eth = dpkt.ethernet.Ethernet(frame)
-            ip = eth.data
-        elif linktype in (101, 12):
-            ip = dpkt.ip.IP(frame)
-        elif linktype == 113:
-            ip = dpkt.sll.SLL(frame).data
-        else:
-            return None
-    except (dpkt.dpkt.UnpackError, struct.error) as exc:
-        raise ValueError("link/IP header") from exc
-    if not isinstance(ip, dpkt.ip.IP):
-        return None
-    # the header as stored (pack_hdr keeps the received checksum): sums to 0 when intact
-    if dpkt.in_cksum(ip.pack_hdr() + bytes(ip.opts)) != 0:
-        raise ValueError("IP checksum")
-    udp = ip.data
-    if not isinstance(udp, dpkt.udp.UDP):
-        return None
-    if udp.ulen != 8 + len(udp.data):
-        raise ValueError("UDP length")
-    return int(udp.dport), bytes(udp.data)
+from usvfast.lidar.pcap import _udp_payload as udp_payload  # unchanged: dpkt reads the frames
 
 
 def packet_problem(payload: bytes, model_id: int | None = None) -> str | None:
