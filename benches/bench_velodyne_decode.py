@@ -13,7 +13,7 @@ of `--repeat`):
   builds a `VelodynePacket` per packet (host time from the packet stamp, payload bytes) and
   calls `ScanDecoder.decode` on a `PacketVector`, as `BagReader` did before.
 - reader step: `BagReader._decode_scan` (packet checks, decode, points as `POINT_DTYPE`)
-  against the same step with velodyne-decoder in place of the decoder.
+  against the same step with velodyne-decoder in place of the decoder (`tests/velodyne_peer.py`).
 
 Both give the same bits (checked here on every rotation). Prints the time per rotation and
 the ratio.
@@ -24,6 +24,7 @@ the ratio.
 from __future__ import annotations
 
 import argparse
+import sys
 import tempfile
 import time
 from importlib import resources
@@ -38,10 +39,12 @@ from usvfast.lidar.packets import (
     NATIVE_MODELS,
     ReadStats,
     VelodyneScanDecoder,
-    decoded_to_points,
-    packet_problems,
 )
 from usvfast.lidar.readers import BagReader, lidar_typestore
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+
+from velodyne_peer import PeerBagReader
 
 
 def simulate_bag(folder: Path, seconds: float = 30.0) -> Path:
@@ -102,25 +105,6 @@ def peer(msg, decoder):
     return (pair.host, pair.device), arr
 
 
-def peer_reader_step(msg, decoder, stats: ReadStats):
-    """`BagReader._decode_scan` with velodyne-decoder as its decoder."""
-    packets = []
-    model_id = None
-    payloads = [bytes(np.asarray(pkt.data, dtype=np.uint8)) for pkt in msg.packets]
-    problems = packet_problems(payloads)
-    for pkt, payload, problem in zip(msg.packets, payloads, problems, strict=True):
-        if problem is None and model_id is not None and payload[1205] != model_id:
-            problem = "model id"
-        if problem is not None:
-            stats.damage(problem)
-            continue
-        model_id = payload[1205]
-        packets.append(vd.VelodynePacket(ros_stamp_seconds(pkt.stamp), payload))
-    stats.packets += len(packets)
-    pair, arr = decoder.decode(vd.PacketVector(packets))
-    return float(pair.host), decoded_to_points(arr)
-
-
 def per_rotation(fn, messages: list, repeat: int) -> float:
     """Best time of `repeat` passes over `messages`, per message (s). Each result is dropped
     before the next message, as a reader's consumer does."""
@@ -166,11 +150,11 @@ def main() -> None:
     t_peer = per_rotation(decode_peer, messages, r)
     points = sum(decode_ours(m)[1].shape[0] for m in messages)
 
-    reader = BagReader("unused")
+    reader, peer_reader = BagReader("unused"), PeerBagReader("unused")
     scan_decoder = VelodyneScanDecoder()
     stats = ReadStats()
     step_ours = lambda m: reader._decode_scan(m, scan_decoder, stats)  # noqa: E731
-    step_peer = lambda m: peer_reader_step(m, decoder, stats)  # noqa: E731
+    step_peer = lambda m: peer_reader._decode_scan(m, None, stats)  # noqa: E731
     assert_same(step_ours, step_peer, messages)
     assert stats.damaged == 0
     t_step_ours = per_rotation(step_ours, messages, r)
