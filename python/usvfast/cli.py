@@ -11,6 +11,7 @@ from usvfast.lidar.command import lidar_command
 from usvfast.nav.inspect import inspect_command
 from usvfast.pipeline.command import demo_command as pipeline_demo_command
 from usvfast.pipeline.command import run_command
+from usvfast.pipeline.draft import init_command
 from usvfast.report.command import report_command
 from usvfast.shore.command import shore_command, shore_train_command
 from usvfast.sim.command import simulate_command
@@ -50,6 +51,7 @@ app.command("bearing")(bearing_command)
 app.command("bearing-demo")(demo_command)
 app.command("demo")(pipeline_demo_command)
 app.command("run")(run_command)
+app.command("init")(init_command)
 app.command("lidar")(lidar_command)
 app.command("inspect")(inspect_command)
 app.command("track")(track_command)
