@@ -200,7 +200,7 @@ def test_unknown_model_uncalibrated_camera_and_no_heading_are_notes(tmp_path):
     assert draft.calibration is None
     assert not (tmp_path / "camera_info.yaml").exists()
     assert any("/velodyne_packets: unknown Velodyne model" in n for n in draft.notes)
-    assert any("no usable CameraInfo" in n for n in draft.notes)
+    assert any("no camera calibration found" in n for n in draft.notes)
     assert any(n.startswith("navigation:") and "heading" in n for n in draft.notes)
     cfg = load_config(tmp_path / "run.toml")  # loads: the camera is off until calibrated
     assert cfg.camera["enabled"] is False
@@ -263,3 +263,49 @@ def test_cli_init_error_is_one_line(monkeypatch, capsys, tmp_path):
     err = capsys.readouterr().err
     assert info.value.code == 2
     assert err.startswith("usvfast: error: bag") and err.count("\n") == 1
+
+
+@pytest.fixture(scope="module")
+def d1(tmp_path_factory):
+    """A 2 s simulated recording with the thesis's D1 files (pcap, mp4 + times, NMEA)."""
+    from usvfast.sim.recording import SimulationOptions, simulate
+
+    out = tmp_path_factory.mktemp("d1") / "rec"
+    simulate(out, SimulationOptions(seed=11, duration=2.0, d1=True))
+    return out
+
+
+def test_d1_folder_matches_the_simulators_config(d1, tmp_path):
+    folder = tmp_path / "d1"
+    shutil.copytree(d1 / "d1", folder)
+    shutil.copy(d1 / "camera_info.yaml", folder / "cam.yaml")
+    (folder / "notes.txt").write_text("not an NMEA log\n")
+    draft = write_draft(folder, tmp_path / "run.toml")
+    assert draft.streams == [
+        ("gnss", "gnss.nmea", "nmea"),
+        ("lidar", "lidar.pcap", "pcap"),
+        ("camera", "camera.mp4", "video_times"),
+    ]
+    ours = load_config(tmp_path / "run.toml")
+    sim = load_config(d1 / "recording-d1.toml")
+    for sid in ("gnss", "lidar", "camera"):
+        a, b = ours.recording.stream(sid), sim.recording.stream(sid)
+        assert a.path is not None and b.path is not None
+        assert (a.type, a.path.name) == (b.type, b.path.name)
+    assert ours.recording.stream("camera").options == sim.recording.stream("camera").options
+    assert ours.recording.stream("lidar").options == {"model": "VLP-16"}  # the sim's default
+    assert ours.camera["calibration"] == (folder / "cam.yaml").resolve()
+    assert any(n.startswith("navigation: ") and "headings" in n for n in draft.notes)
+    assert draft.calibration is None  # the folder's own file is named, not copied
+
+
+def test_d1_folder_without_times_or_nmea(d1, tmp_path):
+    folder = tmp_path / "d1"
+    shutil.copytree(d1 / "d1", folder)
+    (folder / "camera_times.csv").unlink()
+    draft = draft_config(folder, tmp_path)
+    assert [s[0] for s in draft.streams] == ["gnss", "lidar"]
+    assert any("no frame,time CSV beside camera.mp4" in n for n in draft.notes)
+    (folder / "gnss.nmea").unlink()
+    with pytest.raises(ValueError, match=r"no NMEA log .*lidar.pcap"):
+        draft_config(folder, tmp_path)

@@ -25,6 +25,7 @@ from typing import Annotated, Any
 
 import numpy as np
 import typer
+import yaml
 
 from usvfast.camera.calibration import CameraModel
 
@@ -59,14 +60,21 @@ _WATERLINE = "waterline_height = 0.3  # MEASURE: the body origin's height above 
 
 @dataclass
 class Draft:
-    """A drafted config: `text` (TOML), the camera calibration read from the bag (None
-    without a CameraInfo topic or camera), the streams chosen as (id, topic, message type),
-    and `notes`: what the user still has to do or check."""
+    """A drafted config: `text` (TOML), the camera calibration read from a bag's CameraInfo
+    (None without one; a folder's calibration file is named in the text instead), the streams
+    chosen as (id, topic or file, message type or stream type), and `notes`: what the user
+    still has to do or check."""
 
     text: str
     calibration: CameraModel | None
     streams: list[tuple[str, str, str]]
     notes: list[str] = field(default_factory=list)
+
+
+def _relative(path: Path, config_dir: Path) -> str:
+    """`path` as the config names it: relative to its folder when inside it, else absolute."""
+    rel = Path(os.path.relpath(path.resolve(), config_dir.resolve())).as_posix()
+    return path.resolve().as_posix() if rel.startswith("../") else rel
 
 
 def _common_prefix(a: str, b: str) -> int:
@@ -88,14 +96,36 @@ def _first_message(bag: Path, topic: str) -> Any:
     return None
 
 
-def _velodyne_model(bag: Path, topic: str) -> str | None:
-    """The model name of the first packet's factory byte on a VelodyneScan topic."""
-    msg = _first_message(bag, topic)
-    packets = getattr(msg, "packets", None)
-    if not packets:
+def _model_of(packet: Any) -> str | None:
+    """The model name of a Velodyne data packet's factory byte (None: unknown)."""
+    data = np.frombuffer(bytes(packet), dtype=np.uint8)
+    return VELODYNE_MODELS.get(int(data[1205])) if data.size == 1206 else None
+
+
+def _bag_velodyne_model(bag: Path, topic: str) -> str | None:
+    """The model of the first packet on a VelodyneScan topic."""
+    packets = getattr(_first_message(bag, topic), "packets", None)
+    return _model_of(np.asarray(packets[0].data, np.uint8)) if packets else None
+
+
+def _pcap_velodyne_model(path: Path) -> str | None:
+    """The model of the first 1206-byte UDP payload of a pcap capture (None without dpkt or
+    such a payload)."""
+    import importlib.util
+
+    if importlib.util.find_spec("dpkt") is None:
         return None
-    data = np.asarray(packets[0].data, dtype=np.uint8)
-    return VELODYNE_MODELS.get(int(data[1205])) if data.size > 1205 else None
+    import dpkt
+
+    with path.open("rb") as fh:
+        try:
+            for _, frame in dpkt.pcap.Reader(fh):
+                udp = getattr(getattr(dpkt.ethernet.Ethernet(frame), "data", None), "data", None)
+                if isinstance(udp, dpkt.udp.UDP) and len(udp.data) == 1206:
+                    return _model_of(udp.data)
+        except (ValueError, dpkt.dpkt.UnpackError):
+            return None
+    return None
 
 
 def _camera_model(msg: Any) -> CameraModel | None:
@@ -128,25 +158,101 @@ def _mount_lines(what: str) -> list[str]:
     ]
 
 
-def _stream_lines(sid: str, bag: str, topic: str, count: int, extra: list[str]) -> list[str]:
-    return [
-        "",
-        "[[stream]]",
-        f'id = "{sid}"',
-        'type = "bag"',
-        f'path = "{bag}"',
-        f'topic = "{topic}"  # {count} messages',
-        *extra,
-    ]
+_GNSS_MOUNT = "the antenna the receiver reports"
 
 
-def draft_config(bag: Path | str, config_dir: Path | str) -> Draft:
-    """Draft the config of the bag at `bag` for a config file in `config_dir` (the bag's path
-    is written relative to it). Raises ValueError naming the bag when it is not a readable
-    bag or holds neither a LiDAR nor a camera topic, or no navigation topic."""
+@dataclass
+class _Builder:
+    """The parts of a draft as the sources are read; `text()` assembles the TOML."""
+
+    source: str
+    streams: list[tuple[str, str, str]] = field(default_factory=list)
+    body: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+    navigation: list[str] = field(default_factory=list)
+    attitude: str | None = None
+    lidars: int = 0
+    camera: list[str] = field(default_factory=list)
+    calibration: CameraModel | None = None
+
+    def stream(self, sid: str, where: str, kind: str, lines: list[str]) -> None:
+        self.streams.append((sid, where, kind))
+        self.body += ["", "[[stream]]", f'id = "{sid}"', *lines]
+
+    def lidar(
+        self, sid: str, where: str, kind: str, lines: list[str], model: str | None = None
+    ) -> None:
+        """A LiDAR stream (`kind`: its message or stream type); Velodyne packets get their
+        `model` (None: unknown, a placeholder), a PointCloud2 none."""
+        if kind == _CLOUD:
+            pass
+        elif model is None:
+            self.notes.append(f"{where}: unknown Velodyne model; SET the stream's model")
+            lines.append('model = "VLP-16"  # SET: the sensor model')
+        else:
+            lines.append(f'model = "{model}"  # from the packets\' factory byte')
+        self.lidars += 1
+        self.stream(sid, where, kind, ['sensor = "lidar"', *lines, *_mount_lines("the LiDAR")])
+
+    def camera_table(self, calibration: str | None) -> None:
+        """The [camera] and [detector] tables; `calibration`: the line naming the file, None
+        when there is no calibration (the camera is then off)."""
+        self.camera = ["", "[camera]"]
+        if calibration is not None:
+            self.camera.append(calibration)
+        else:
+            self.notes.append(
+                "no camera calibration found: the camera stays off until you give "
+                "camera.calibration (a camera_info YAML) and set camera.enabled = true"
+            )
+            self.camera += [
+                "enabled = false  # SET: true once calibrated",
+                f'# calibration = "{CALIBRATION_FILE}"',
+            ]
+        self.camera += [
+            _WATERLINE,
+            "",
+            "[detector]",
+            'backend = "none"  # SET: "onnx" (OpenVINO / OpenCV DNN) or "torch" (YOLO weights)',
+            '# weights = "my_detector.onnx"',
+        ]
+        self.notes.append("the camera runs no detector until you set detector.backend and weights")
+
+    def text(self) -> str:
+        nav = self.navigation
+        head = [
+            f"# Drafted by `usvfast init` from {self.source}. Edit every MEASURE and SET, then",
+            "# `usvfast inspect` this file and `usvfast run` it.",
+            'preset = "thesis"  # the thesis\'s camera filters and tracker (Codes 5.5, 5.7)',
+            "",
+            "[recording]",
+            "navigation = " + (f'"{nav[0]}"' if len(nav) == 1 else str(nav).replace("'", '"')),
+        ]
+        if self.attitude is not None:
+            head.append(f'attitude = "{self.attitude}"')
+        lidar = []
+        if self.lidars:
+            head.append(
+                "# heading_calibration_s = 60.0  # the heading's error, from the LiDAR's quays"
+            )
+            lidar = ["", "[lidar]", _WATERLINE]
+        return "\n".join(head + self.body + lidar + self.camera) + "\n"
+
+    def draft(self) -> Draft:
+        self.notes.insert(
+            0, "measure every sensor's mount (lever_arm, ypr_deg) and the waterline heights"
+        )
+        return Draft(self.text(), self.calibration, self.streams, self.notes)
+
+
+def _numbered(count: int, name: str) -> list[str]:
+    """Stream ids `name` (one) or `name1`, `name2`, ... (several)."""
+    return [f"{name}{i + 1}" if count > 1 else name for i in range(count)]
+
+
+def _draft_bag(bag: Path, config_dir: Path) -> Draft:
     from usvfast.nav.bags import bag_topics
 
-    bag = Path(bag)
     topics = {name: info for name, info in bag_topics(bag).items() if info.count > 0}
     listing = ", ".join(f"{n} ({i.msgtype})" for n, i in sorted(topics.items())) or "none"
 
@@ -157,44 +263,34 @@ def draft_config(bag: Path | str, config_dir: Path | str) -> Draft:
     navs, imus = of(*_NAV), of(_IMU)
     if not navs:
         raise ValueError(
-            f"bag: {bag} has no navigation topic (nmea_msgs/Sentence or sensor_msgs/NavSatFix) "
+            f"source: {bag} has no navigation topic (nmea_msgs/Sentence or sensor_msgs/NavSatFix) "
             f"with messages; topics: {listing}"
         )
     if not lidars and not images:
         raise ValueError(
-            f"bag: {bag} has no LiDAR (VelodyneScan, PointCloud2) or camera (CompressedImage, "
+            f"source: {bag} has no LiDAR (VelodyneScan, PointCloud2) or camera (CompressedImage, "
             f"Image) topic with messages; topics: {listing}"
         )
-    # relative to the config when the bag lies in its folder, else absolute
-    rel = Path(os.path.relpath(bag.resolve(), Path(config_dir).resolve())).as_posix()
-    if rel.startswith("../"):
-        rel = bag.resolve().as_posix()
-    notes: list[str] = []
-    streams: list[tuple[str, str, str]] = []
-    body: list[str] = []
+    rel = _relative(bag, config_dir)
+    b = _Builder(rel)
 
-    def add(sid: str, topic: str, extra: list[str]) -> None:
-        streams.append((sid, topic, topics[topic].msgtype))
-        body.extend(_stream_lines(sid, rel, topic, topics[topic].count, extra))
+    def lines(topic: str) -> list[str]:
+        return [
+            'type = "bag"',
+            f'path = "{rel}"',
+            f'topic = "{topic}"  # {topics[topic].count} messages',
+        ]
 
-    nav_ids = [f"gnss{i + 1}" if len(navs) > 1 else "gnss" for i in range(len(navs))]
-    for sid, topic in zip(nav_ids, navs, strict=True):
-        add(sid, topic, _mount_lines("the antenna the receiver reports"))
+    b.navigation = _numbered(len(navs), "gnss")
+    for sid, topic in zip(b.navigation, navs, strict=True):
+        b.stream(sid, topic, topics[topic].msgtype, lines(topic) + _mount_lines(_GNSS_MOUNT))
     if imus:
-        add("imu", imus[0], [])
-    for i, topic in enumerate(lidars):
-        extra = ['sensor = "lidar"']
-        if topics[topic].msgtype == _VELODYNE:
-            model = _velodyne_model(bag, topic)
-            if model is None:
-                notes.append(f"{topic}: unknown Velodyne model; SET the stream's model")
-                extra.append('model = "VLP-16"  # SET: the sensor model')
-            else:
-                extra.append(f'model = "{model}"  # from the packets\' factory byte')
-        sid = f"lidar{i + 1}" if len(lidars) > 1 else "lidar"
-        add(sid, topic, extra + _mount_lines("the LiDAR"))
-    calibration = None
-    camera: list[str] = []
+        b.attitude = "imu"
+        b.stream("imu", imus[0], _IMU, lines(imus[0]))
+    for sid, topic in zip(_numbered(len(lidars), "lidar"), lidars, strict=True):
+        kind = topics[topic].msgtype
+        model = _bag_velodyne_model(bag, topic) if kind == _VELODYNE else None
+        b.lidar(sid, topic, kind, lines(topic), model)
     if images:
 
         def rank(t: str) -> tuple:
@@ -202,54 +298,126 @@ def draft_config(bag: Path | str, config_dir: Path | str) -> Draft:
             return (-near, topics[t].msgtype != _COMPRESSED, -topics[t].count, t)
 
         image = min(images, key=rank)
-        add("camera", image, ['sensor = "camera"', *_mount_lines("the camera's optical centre")])
+        b.stream(
+            "camera",
+            image,
+            topics[image].msgtype,
+            ['sensor = "camera"', *lines(image), *_mount_lines("the camera's optical centre")],
+        )
         if len(images) > 1:
-            body.append(f"# other image topics: {', '.join(t for t in images if t != image)}")
+            b.body.append(f"# other image topics: {', '.join(t for t in images if t != image)}")
         info = max(infos, key=lambda i: _common_prefix(image, i), default=None)
         msg = _first_message(bag, info) if info is not None else None
-        calibration = _camera_model(msg) if msg is not None else None
-        camera = ["", "[camera]"]
-        if calibration is not None:
-            camera.append(f'calibration = "{CALIBRATION_FILE}"  # from {info}')
-        else:
-            notes.append(
-                "no usable CameraInfo in the bag: the camera stays off until you give "
-                "camera.calibration (a camera_info YAML) and set camera.enabled = true"
-            )
-            camera.append("enabled = false  # SET: true once calibrated")
-            camera.append('# calibration = "camera_info.yaml"')
-        camera += [
-            _WATERLINE,
-            "",
-            "[detector]",
-            'backend = "none"  # SET: "onnx" (OpenVINO / OpenCV DNN) or "torch" (YOLO weights)',
-            '# weights = "my_detector.onnx"',
-        ]
-        notes.append("the camera runs no detector until you set detector.backend and weights")
-    nav_value = f'"{nav_ids[0]}"' if len(nav_ids) == 1 else str(nav_ids).replace("'", '"')
-    head = [
-        f"# Drafted by `usvfast init` from {rel}. Edit every MEASURE and SET, then",
-        "# `usvfast inspect` this file and `usvfast run` it.",
-        'preset = "thesis"  # the thesis\'s camera filters and tracker (Codes 5.5, 5.7)',
-        "",
-        "[recording]",
-        f"navigation = {nav_value}",
+        b.calibration = _camera_model(msg) if msg is not None else None
+        found = f'calibration = "{CALIBRATION_FILE}"  # from {info}'
+        b.camera_table(found if b.calibration is not None else None)
+    return b.draft()
+
+
+_VIDEO = (".mp4", ".avi", ".mkv", ".mov", ".m4v")
+_NMEA = (".nmea", ".log", ".txt")
+_CALIBRATION = (".yaml", ".yml", ".json")
+
+
+def _head(path: Path, lines: int = 50) -> list[str]:
+    """The first `lines` lines of a text file, stripped."""
+    with path.open(errors="replace") as fh:
+        return [line.strip() for _, line in zip(range(lines), fh, strict=False)]
+
+
+def _is_nmea(path: Path) -> bool:
+    """Whether a text file holds NMEA sentences in its first lines."""
+    return any(line[:1] in ("$", "!") and "," in line for line in _head(path))
+
+
+def _times_csv(video: Path) -> Path | None:
+    """The frame,time CSV of `video` in its folder (the one whose name starts with the
+    video's, else the only one), None when there is none."""
+    csvs = [
+        p
+        for p in sorted(video.parent.glob("*.csv"))
+        if {"frame", "time"} <= set((_head(p, 1) or [""])[0].split(","))
     ]
-    if imus:
-        head.append('attitude = "imu"')
-    if lidars:
-        head.append("# heading_calibration_s = 60.0  # the heading's error, from the LiDAR's quays")
-    lidar = []
-    if lidars:
-        lidar = ["", "[lidar]", _WATERLINE]
-    notes.insert(0, "measure every sensor's mount (lever_arm, ypr_deg) and the waterline heights")
-    text = "\n".join(head + body + lidar + camera) + "\n"
-    return Draft(text, calibration, streams, notes)
+    mine = [p for p in csvs if p.stem.startswith(video.stem)]
+    if len(mine) == 1:
+        return mine[0]
+    return csvs[0] if len(csvs) == 1 else None
 
 
-def write_draft(bag: Path | str, out: Path | str, *, force: bool = False) -> Draft:
-    """Draft the config of `bag` (:func:`draft_config`) into the file `out` and its camera
-    calibration into `camera_info.yaml` beside it; check that the config loads and read its
+def _draft_folder(folder: Path, config_dir: Path) -> Draft:
+    files = sorted(p for p in folder.iterdir() if p.is_file())
+    pcaps = [p for p in files if p.suffix.lower() in (".pcap", ".cap")]
+    videos = [p for p in files if p.suffix.lower() in _VIDEO]
+    navs = [p for p in files if p.suffix.lower() in _NMEA and _is_nmea(p)]
+    listing = ", ".join(p.name for p in files) or "none"
+    if not navs:
+        raise ValueError(
+            f"source: {folder} is no bag and holds no NMEA log (.nmea, .log, .txt); "
+            f"files: {listing}"
+        )
+    if not pcaps and not videos:
+        raise ValueError(
+            f"source: {folder} is no bag and holds no LiDAR .pcap or camera video; files: {listing}"
+        )
+    b = _Builder(_relative(folder, config_dir))
+    b.navigation = _numbered(len(navs), "gnss")
+    for sid, path in zip(b.navigation, navs, strict=True):
+        rel = _relative(path, config_dir)
+        b.stream(
+            sid, path.name, "nmea", ['type = "nmea"', f'path = "{rel}"', *_mount_lines(_GNSS_MOUNT)]
+        )
+        if b.attitude is None and any("PASHR" in x or "XDR" in x for x in _head(path, 2000)):
+            b.attitude = sid  # attitude sentences in the log
+    for sid, path in zip(_numbered(len(pcaps), "lidar"), pcaps, strict=True):
+        lines = ['type = "pcap"', f'path = "{_relative(path, config_dir)}"']
+        b.lidar(sid, path.name, "pcap", lines, _pcap_velodyne_model(path))
+    timed = [(v, _times_csv(v)) for v in videos]
+    timed = [(v, t) for v, t in timed if t is not None]
+    if videos and not timed:
+        b.notes.append(
+            f"no frame,time CSV beside {', '.join(v.name for v in videos)}: a video stream "
+            "needs one (type video_times, times = CSV); no camera drafted"
+        )
+    if timed:
+        video, times = timed[0]
+        lines = [
+            'sensor = "camera"',
+            'type = "video_times"',
+            f'path = "{_relative(video, config_dir)}"',
+            f'times = "{os.path.relpath(times, video.parent)}"',
+            *_mount_lines("the camera's optical centre"),
+        ]
+        b.stream("camera", video.name, "video_times", lines)
+        calibs = [p for p in files if p.suffix.lower() in _CALIBRATION and _loads_camera(p)]
+        found = f'calibration = "{_relative(calibs[0], config_dir)}"' if calibs else None
+        b.camera_table(found)
+    return b.draft()
+
+
+def _loads_camera(path: Path) -> bool:
+    """Whether `path` is a camera calibration `CameraModel.load` reads."""
+    try:
+        CameraModel.load(path)
+    except (ValueError, OSError, TypeError, AttributeError, yaml.YAMLError):
+        return False
+    return True
+
+
+def draft_config(source: Path | str, config_dir: Path | str) -> Draft:
+    """Draft the config of `source` for a config file in `config_dir` (paths are written
+    relative to it when inside it). `source`: a bag (ROS 1 `.bag` file, ROS 2 folder / `.db3`
+    / `.mcap`) or a folder of recording files in the thesis's D1 layout (Velodyne `.pcap`,
+    a video with its frame,time CSV, an NMEA log, a camera_info YAML/JSON). Raises ValueError
+    naming the source when it is not readable or holds no LiDAR or camera, or no navigation."""
+    source, config_dir = Path(source), Path(config_dir)
+    if source.is_dir() and not (source / "metadata.yaml").exists():
+        return _draft_folder(source, config_dir)
+    return _draft_bag(source, config_dir)
+
+
+def write_draft(source: Path | str, out: Path | str, *, force: bool = False) -> Draft:
+    """Draft the config of `source` (:func:`draft_config`) into the file `out` and a bag's
+    camera calibration into `camera_info.yaml` beside it; check that the config loads and read its
     navigation once (a missing position fix or heading becomes a note). Raises ValueError
     naming `out` when it (or the calibration file) exists and `force` is False."""
     from usvfast.pipeline.config import load_config
@@ -257,7 +425,7 @@ def write_draft(bag: Path | str, out: Path | str, *, force: bool = False) -> Dra
 
     out = Path(out)
     calib = out.parent / CALIBRATION_FILE
-    draft = draft_config(bag, out.parent)
+    draft = draft_config(source, out.parent)
     for path in (out, calib) if draft.calibration is not None else (out,):
         if path.exists() and not force:
             raise ValueError(f"out: {path} exists (use --force to overwrite it)")
@@ -278,22 +446,28 @@ def write_draft(bag: Path | str, out: Path | str, *, force: bool = False) -> Dra
 
 
 def init_command(
-    bag: Annotated[Path, typer.Argument(help="ROS 1 .bag file or ROS 2 bag folder/.db3/.mcap.")],
+    source: Annotated[
+        Path,
+        typer.Argument(
+            help="ROS 1 .bag file, ROS 2 bag folder/.db3/.mcap, or a folder of .pcap + video "
+            "+ frame-time CSV + NMEA log (the thesis's D1 layout)."
+        ),
+    ],
     out: Annotated[
         Path, typer.Option(help="The config file to write (camera_info.yaml goes beside it).")
     ] = Path("recording.toml"),
     force: Annotated[bool, typer.Option(help="Overwrite existing files.")] = False,
 ) -> None:
-    """Draft a pipeline config for a bag: its LiDAR, camera, GNSS and IMU topics as streams,
-    the camera calibration from its CameraInfo, placeholders for the mounts to measure."""
+    """Draft a pipeline config for a bag or a D1 folder: its LiDAR, camera, GNSS and IMU as
+    streams, the camera calibration, placeholders for the mounts to measure."""
     from rich.console import Console
     from rich.markup import escape
     from rich.table import Table
 
-    draft = write_draft(bag, out, force=force)
+    draft = write_draft(source, out, force=force)
     console = Console()
-    table = Table(title=f"streams drafted from {escape(str(bag))}")
-    for name in ("id", "topic", "message type"):
+    table = Table(title=f"streams drafted from {escape(str(source))}")
+    for name in ("id", "topic or file", "type"):
         table.add_column(name)
     for sid, topic, msgtype in draft.streams:
         table.add_row(sid, escape(topic), msgtype)
