@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import shutil
+import sys
 from functools import reduce
 from importlib import resources
 from operator import xor
@@ -10,7 +11,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import tomllib
 from rosbags.rosbag1 import Writer as Writer1
 from rosbags.rosbag2 import Writer as Writer2
 from typer.testing import CliRunner
@@ -22,6 +22,11 @@ from usvfast.lidar.readers import lidar_typestore, make_header, points_to_pointc
 from usvfast.nav.bags import bag_typestore
 from usvfast.pipeline import Pipeline, load_config
 from usvfast.pipeline.draft import VELODYNE_MODELS, draft_config, write_draft
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
 
 HARBOUR = Path(str(resources.files("usvfast") / "data" / "harbour"))
 T0 = 1_686_909_600.0
@@ -81,7 +86,8 @@ def test_placeholders_are_marked(harbour_draft):
 
 
 def _ros1_bag(path: Path, *, factory: int, k: np.ndarray, heading: bool) -> None:
-    """A ROS 1 bag: NavSatFix (and NMEA with HDT when `heading`), an IMU, a VelodyneScan
+    """A ROS 1 bag: NavSatFix (and NMEA with HDT and a QuaternionStamped heading when
+    `heading`), an IMU, a VelodyneScan
     with `factory` as its model byte, a PointCloud2, three image topics and two CameraInfo
     topics (uppercase ROS 1 fields)."""
     ts = lidar_typestore(ros1=True)
@@ -119,6 +125,9 @@ def _ros1_bag(path: Path, *, factory: int, k: np.ndarray, heading: bool) -> None
                 for i in range(3)
             ]
             put("/heading/nmea", "nmea_msgs/msg/Sentence", nmea, nav)
+            yaw = T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0)
+            q = T["geometry_msgs/msg/QuaternionStamped"](header=h[0], quaternion=yaw)
+            put("/heading", "geometry_msgs/msg/QuaternionStamped", [q])
         v3 = T["geometry_msgs/msg/Vector3"]
         imu = T["sensor_msgs/msg/Imu"](
             header=h[0],
@@ -175,7 +184,9 @@ def test_ros1_bag_every_kind(tmp_path):
     assert by_id["camera"][0] == "/cam/left/image_raw/compressed"
     assert "# other image topics: /aux/image, /cam/left/image_raw" in draft.text
     cfg = load_config(tmp_path / "cfg" / "run.toml")
-    assert cfg.navigation == ("gnss1", "gnss2")
+    assert cfg.navigation == ("gnss1", "gnss2", "heading")
+    assert by_id["heading"] == ("/heading", "geometry_msgs/msg/QuaternionStamped")
+    assert cfg.recording.stream("heading").options == {"yaw_convention": "enu"}
     assert cfg.recording.stream("lidar2").options["model"] == "HDL-32E"
     assert cfg.recording.stream("lidar2").path == bag.resolve()  # outside the config's folder
     cam = CameraModel.load(tmp_path / "cfg" / "camera_info.yaml")  # /cam/left's, ROS 1 K, D
@@ -253,8 +264,6 @@ def test_cli_init(harbour_draft, tmp_path):
 
 
 def test_cli_init_error_is_one_line(monkeypatch, capsys, tmp_path):
-    import sys
-
     from usvfast import cli
 
     monkeypatch.setattr(sys, "argv", ["usvfast", "init", str(tmp_path / "no_such_bag")])

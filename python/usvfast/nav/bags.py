@@ -4,6 +4,7 @@ installation.
 `BagTopic(path, topic)` iterates one topic lazily as `BagMessage`s whose `data` is converted:
 - `sensor_msgs/NavSatFix` -> `NavSatFixSample`
 - `sensor_msgs/Imu` -> `ImuSample`
+- `geometry_msgs/QuaternionStamped` -> `QuaternionSample`
 - `geometry_msgs/PoseStamped`, `geometry_msgs/PoseWithCovarianceStamped`, `nav_msgs/Odometry`
   -> `PoseSample`
 - `sensor_msgs/Image`, `sensor_msgs/CompressedImage` -> numpy image decoded with OpenCV
@@ -84,6 +85,15 @@ class ImuSample:
     orientation_xyzw: np.ndarray
     angular_velocity: np.ndarray
     linear_acceleration: np.ndarray
+    frame_id: str
+
+
+@dataclass(frozen=True)
+class QuaternionSample:
+    """One `geometry_msgs/QuaternionStamped` (e.g. a GNSS driver's heading): orientation_xyzw
+    (4,) in the message's frame_id."""
+
+    orientation_xyzw: np.ndarray
     frame_id: str
 
 
@@ -277,6 +287,8 @@ def convert_message(msgtype: str, msg: Any, decode_images: bool = True) -> Any:
             _vec3(msg.linear_acceleration),
             str(msg.header.frame_id),
         )
+    if msgtype == "geometry_msgs/msg/QuaternionStamped":
+        return QuaternionSample(_quat(msg.quaternion), str(msg.header.frame_id))
     if msgtype == "geometry_msgs/msg/PoseStamped":
         return _pose(msg.pose, str(msg.header.frame_id), "", None)
     if msgtype == "geometry_msgs/msg/PoseWithCovarianceStamped":
@@ -492,6 +504,18 @@ def read_bag_nmea(
         )
     log = read_nmea((m.data for m in reader), date=date, require_checksum=require_checksum)
     return BagNmeaLog(log, reader.damaged)
+
+
+def read_bag_orientations(
+    path: Path | str, topic: str, *, time_source: TimeSource = "header"
+) -> tuple[np.ndarray, np.ndarray, int]:
+    """(times (n,) UNIX s, orientation_xyzw (n, 4), skipped damaged messages) of a topic of
+    `sensor_msgs/Imu` or `geometry_msgs/QuaternionStamped`. Raises ValueError when the topic
+    is missing, of another type, or has no usable message."""
+    msgtypes = ("sensor_msgs/msg/Imu", "geometry_msgs/msg/QuaternionStamped")
+    items, skipped = _collect(path, topic, msgtypes, time_source)
+    q = np.array([m.data.orientation_xyzw for m in items]).reshape(-1, 4)
+    return np.array([m.time for m in items]), q, skipped
 
 
 def read_bag_imu(path: Path | str, topic: str, *, time_source: TimeSource = "header") -> ImuSamples:

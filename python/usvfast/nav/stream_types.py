@@ -250,7 +250,9 @@ def _open_ais(spec: StreamSpec, decode: bool) -> Iterable[Any]:
 register_stream_type("gpx", _open_gpx)
 register_stream_type("ais", _open_ais)
 register_stream_type("nmea", _open_nmea, options=["records"])
-register_stream_type("bag", _open_bag, needs_topic=True, options=["time_source", "decode_images"])
+register_stream_type(
+    "bag", _open_bag, needs_topic=True, options=["time_source", "decode_images", "yaw_convention"]
+)
 register_stream_type(
     "video", _open_video, options=["start_time", "end_time", "fps", "time_base", "skip_until"]
 )

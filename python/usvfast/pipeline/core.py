@@ -12,7 +12,8 @@ written to the output files as they happen.
 Live use: `pipe.process(message)` for each message (anything with `time` (UNIX s), `stream`
 (a stream id of the config) and `data`: an NMEA sentence / NmeaFix / NmeaHeading for the
 navigation stream, an ImuSample for the attitude stream, a LidarFrame or an image for the
-sensor streams); it returns the track updates that message caused (a list, usually of 0 or 1).
+sensor streams; a QuaternionSample or ImuSample on a navigation stream is a heading);
+it returns the track updates that message caused (a list, usually of 0 or 1).
 """
 
 from __future__ import annotations
@@ -44,7 +45,9 @@ from usvfast.pipeline.pose import (
     VesselPose,
     imu_roll_pitch,
     parse_sentence,
+    quaternion_heading,
     sentence_utc,
+    yaw_convention,
 )
 from usvfast.pipeline.timing import StageTimer
 from usvfast.pipeline.tracker import (
@@ -159,9 +162,14 @@ class Pipeline:
         elif hasattr(data, "lat_deg") and hasattr(data, "status"):  # NavSatFixSample
             if data.status >= 0:
                 self.live.add_fix(t, data.lat_deg, data.lon_deg)
-        elif hasattr(data, "orientation_xyzw"):  # ImuSample
-            roll, pitch = imu_roll_pitch(data.orientation_xyzw)
-            self.live.add_attitude(t, float(roll[0]), float(pitch[0]))
+        elif hasattr(data, "orientation_xyzw"):  # ImuSample, QuaternionSample
+            if stream in self.config.navigation:  # a GNSS heading
+                spec = self.config.recording.stream(stream)
+                heading = quaternion_heading(data.orientation_xyzw, yaw_convention(spec))
+                self.live.add_heading(t, float(heading[0]))
+            if stream == self.config.attitude:
+                roll, pitch = imu_roll_pitch(data.orientation_xyzw)
+                self.live.add_attitude(t, float(roll[0]), float(pitch[0]))
         if self.origin is None and self.live.origin is not None:
             self.origin = self.live.origin
 

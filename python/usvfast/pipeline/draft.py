@@ -12,7 +12,8 @@ Topics by type (ROS 1 or ROS 2 names; topics without messages are left out):
   such topic a `lidar` stream;
 - camera: one ``sensor_msgs/CompressedImage`` / ``Image`` topic (the one nearest in name to a
   ``sensor_msgs/CameraInfo`` topic, compressed first); the others are listed in a comment;
-- navigation: every ``nmea_msgs/Sentence`` and ``sensor_msgs/NavSatFix`` topic;
+- navigation: every ``nmea_msgs/Sentence`` and ``sensor_msgs/NavSatFix`` topic, and every
+  ``geometry_msgs/QuaternionStamped`` topic as a heading (its yaw convention to SET);
 - attitude: the first ``sensor_msgs/Imu`` topic.
 """
 
@@ -52,6 +53,7 @@ _COMPRESSED = "sensor_msgs/msg/CompressedImage"
 _IMAGE = "sensor_msgs/msg/Image"
 _INFO = "sensor_msgs/msg/CameraInfo"
 _NAV = ("nmea_msgs/msg/Sentence", "sensor_msgs/msg/NavSatFix")
+_HEADING = "geometry_msgs/msg/QuaternionStamped"
 _IMU = "sensor_msgs/msg/Imu"
 #: The calibration file written beside the config.
 CALIBRATION_FILE = "camera_info.yaml"
@@ -260,7 +262,7 @@ def _draft_bag(bag: Path, config_dir: Path) -> Draft:
         return sorted(n for n, i in topics.items() if i.msgtype in types)
 
     lidars, images, infos = of(_VELODYNE, _CLOUD), of(_COMPRESSED, _IMAGE), of(_INFO)
-    navs, imus = of(*_NAV), of(_IMU)
+    navs, headings, imus = of(*_NAV), of(_HEADING), of(_IMU)
     if not navs:
         raise ValueError(
             f"source: {bag} has no navigation topic (nmea_msgs/Sentence or sensor_msgs/NavSatFix) "
@@ -284,6 +286,10 @@ def _draft_bag(bag: Path, config_dir: Path) -> Draft:
     b.navigation = _numbered(len(navs), "gnss")
     for sid, topic in zip(b.navigation, navs, strict=True):
         b.stream(sid, topic, topics[topic].msgtype, lines(topic) + _mount_lines(_GNSS_MOUNT))
+    for sid, topic in zip(_numbered(len(headings), "heading"), headings, strict=True):
+        b.navigation.append(sid)
+        yaw = 'yaw_convention = "enu"  # SET: "north_clockwise" for nmea_navsat_driver\'s heading'
+        b.stream(sid, topic, _HEADING, [*lines(topic), yaw])
     if imus:
         b.attitude = "imu"
         b.stream("imu", imus[0], _IMU, lines(imus[0]))

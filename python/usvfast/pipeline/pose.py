@@ -12,7 +12,12 @@ Two sources share one result type, `VesselPose`:
   at most max_gap ahead).
 
 IMU orientation follows ROS REP-103 (body FLU relative to world ENU); it is turned into FRD/NED
-roll and pitch (the yaw is not used: heading comes from the GNSS).
+roll and pitch. The attitude stream's yaw is not used: heading comes from the navigation
+streams, as NMEA HDT/THS sentences or as orientations from a dual-antenna GNSS
+(`geometry_msgs/QuaternionStamped` or `sensor_msgs/Imu` topics; `quaternion_heading`), whose
+yaw follows the stream option `yaw_convention`: "enu" (REP-103, the default: the body's x
+axis from east, counter-clockwise) or "north_clockwise" (the yaw is the heading itself, as
+nmea_navsat_driver publishes HDT on its `heading` topic).
 """
 
 from __future__ import annotations
@@ -36,8 +41,15 @@ __all__ = [
     "VesselPose",
     "imu_roll_pitch",
     "parse_sentence",
+    "quaternion_heading",
     "sentence_utc",
+    "yaw_convention",
 ]
+
+#: Yaw conventions of heading quaternions (the stream option `yaw_convention`).
+YAW_CONVENTIONS = ("enu", "north_clockwise")
+#: Message types whose orientation gives a navigation stream's heading.
+HEADING_MSGTYPES = ("geometry_msgs/msg/QuaternionStamped", "sensor_msgs/msg/Imu")
 
 # ENU -> NED (world) and FLU -> FRD (body) axis swaps.
 _ENU_NED = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
@@ -67,14 +79,13 @@ class VesselPose:
         return np.array([self.north, self.east, self.heading])
 
 
-def imu_roll_pitch(orientation_xyzw: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
-    """Roll and pitch (rad, FRD body in NED) from REP-103 quaternions (n, 4) x, y, z, w of
-    the body FLU in ENU. Returns two (n,) arrays."""
+def _rotations(orientation_xyzw: ArrayLike) -> np.ndarray:
+    """(n, 3, 3) rotation matrices of unit-normalised quaternions (n, 4) x, y, z, w (the
+    tests check them against scipy's Rotation; importing scipy.spatial costs more than the
+    whole navigation read)."""
     q = np.asarray(orientation_xyzw, dtype=np.float64).reshape(-1, 4)
     q = q / np.linalg.norm(q, axis=1, keepdims=True)
     x, y, z, w = q.T
-    # ENU <- FLU rotation of a unit quaternion (the tests check it against scipy's Rotation;
-    # importing scipy.spatial costs more than the whole navigation read).
     r = np.empty((len(q), 3, 3))
     r[:, 0, 0] = 1 - 2 * (y * y + z * z)
     r[:, 0, 1] = 2 * (x * y - z * w)
@@ -85,6 +96,31 @@ def imu_roll_pitch(orientation_xyzw: ArrayLike) -> tuple[np.ndarray, np.ndarray]
     r[:, 2, 0] = 2 * (x * z - y * w)
     r[:, 2, 1] = 2 * (y * z + x * w)
     r[:, 2, 2] = 1 - 2 * (x * x + y * y)
+    return r
+
+
+def quaternion_heading(orientation_xyzw: ArrayLike, yaw_convention: str = "enu") -> np.ndarray:
+    """Headings (n,) rad clockwise from north in [0, 2π) of quaternions (n, 4) x, y, z, w:
+    with "enu" (REP-103) the direction of the body's x axis (FLU in ENU) in the horizontal
+    plane; with "north_clockwise" the quaternion's own yaw, which is then the heading.
+    Raises ValueError for another convention."""
+    if yaw_convention not in YAW_CONVENTIONS:
+        raise ValueError(
+            f"yaw_convention: expected one of {YAW_CONVENTIONS}, got {yaw_convention!r}"
+        )
+    r = _rotations(orientation_xyzw)
+    east, north = r[:, 0, 0], r[:, 1, 0]  # the x axis in the quaternion's frame
+    if yaw_convention == "enu":
+        heading = np.arctan2(east, north)
+    else:
+        heading = np.arctan2(north, east)  # the yaw itself
+    return np.mod(heading, 2 * math.pi)
+
+
+def imu_roll_pitch(orientation_xyzw: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    """Roll and pitch (rad, FRD body in NED) from REP-103 quaternions (n, 4) x, y, z, w of
+    the body FLU in ENU. Returns two (n,) arrays."""
+    r = _rotations(orientation_xyzw)
     r_ned = _ENU_NED @ r @ _FLU_FRD  # NED <- FRD = Rz(yaw) Ry(pitch) Rx(roll), eq. 3.9
     pitch = np.arcsin(np.clip(-r_ned[:, 2, 0], -1.0, 1.0))
     roll = np.arctan2(r_ned[:, 2, 1], r_ned[:, 2, 2])
@@ -153,8 +189,8 @@ class NavTrack:
             )
         if not headings:
             raise NavigationError(
-                f"recording {config.recording.name!r}: no heading (NMEA HDT/THS) in the "
-                f"navigation stream(s) {names}"
+                f"recording {config.recording.name!r}: no heading (NMEA HDT/THS, or a "
+                f"QuaternionStamped / Imu topic) in the navigation stream(s) {names}"
             )
         t_fix, lat, lon = fixes[0]
         lat0, lon0, h0 = config.origin or (float(lat[0]), float(lon[0]), 0.0)
@@ -276,6 +312,18 @@ def _interp(
 _Nav = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]
 
 
+def yaw_convention(spec: Any) -> str:
+    """The stream option `yaw_convention` of a navigation stream (default "enu"); a
+    NavigationError naming the stream and the option for an unknown value."""
+    value = spec.options.get("yaw_convention", "enu")
+    if value not in YAW_CONVENTIONS:
+        raise NavigationError(
+            f"stream {spec.id!r}: option 'yaw_convention': expected one of {YAW_CONVENTIONS}, "
+            f"got {value!r}"
+        )
+    return value
+
+
 def _read_nav(spec: Any) -> _Nav:
     """(fix times, lat, lon, heading times, headings rad, damaged) of one navigation stream."""
     from usvfast.nav.nmea import read_nmea
@@ -289,8 +337,15 @@ def _read_nav(spec: Any) -> _Nav:
             from usvfast.pipeline.streams import check_topic
 
             msgtype = check_topic(
-                spec.path, spec.topic, ["nmea_msgs/msg/Sentence", "sensor_msgs/msg/NavSatFix"]
+                spec.path,
+                spec.topic,
+                ["nmea_msgs/msg/Sentence", "sensor_msgs/msg/NavSatFix", *HEADING_MSGTYPES],
             )
+            if msgtype in HEADING_MSGTYPES:
+                from usvfast.nav.bags import read_bag_orientations
+
+                t, q, bad = read_bag_orientations(spec.path, spec.topic)
+                return empty, empty, empty, t, quaternion_heading(q, yaw_convention(spec)), bad
             if msgtype == "sensor_msgs/msg/NavSatFix":
                 fix = read_bag_navsatfix(spec.path, spec.topic)
                 ok = fix.status >= 0
@@ -303,8 +358,8 @@ def _read_nav(spec: Any) -> _Nav:
             log, bad = res.log, res.skipped_messages
         else:
             raise NavigationError(
-                f"stream {spec.id!r}: type {spec.type!r} cannot be a navigation stream "
-                "(use nmea, or bag with nmea_msgs/Sentence or NavSatFix)"
+                f"stream {spec.id!r}: type {spec.type!r} cannot be a navigation stream (use "
+                "nmea, or bag with nmea_msgs/Sentence, NavSatFix, QuaternionStamped or Imu)"
             )
     except NavigationError:
         raise
