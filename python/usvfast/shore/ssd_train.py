@@ -105,6 +105,49 @@ def match_anchors(anchors: np.ndarray, boxes: np.ndarray, min_iou: float) -> np.
     return m
 
 
+def learning_rate(step: int, cfg: SsdTrainConfig) -> float:
+    """Adam's learning rate at `step`: linear warm-up over `cfg.warmup` steps to `cfg.lr`,
+    then cosine decay to 0 at `cfg.steps`."""
+    if step < cfg.warmup:
+        return cfg.lr * (step + 1) / cfg.warmup
+    t = (step - cfg.warmup) / max(cfg.steps - cfg.warmup, 1)
+    return cfg.lr * 0.5 * (1 + np.cos(np.pi * t))
+
+
+def ssd_loss(codes, logits, matches, boxes, anchors, cfg: SsdTrainConfig):
+    """SSD's loss over a batch (Liu et al., ECCV 2016, eq. 1, with one sigmoid class): per
+    view the sigmoid cross-entropy of the matched anchors and of the `negatives_per_positive`
+    hardest others (at least `min_negatives`), plus smooth L1 on the matched anchors' box
+    codes, summed and divided by the number of matched anchors. `codes` (B, A, 4) and
+    `logits` (B, A, 1) from the network, `matches` (A,) anchor -> box index or -1 and `boxes`
+    (k, 4) normalised corners per view, `anchors` (A, 4) tensor. Returns (loss, summed class
+    loss, summed box loss, matched anchors) (the sums as floats)."""
+    import torch
+    import torch.nn.functional as F
+
+    from usvfast.shore.ssd import encode_boxes
+
+    loss_cls = codes.new_zeros(())
+    loss_box = codes.new_zeros(())
+    npos = 0
+    for k, (match, view_boxes) in enumerate(zip(matches, boxes, strict=True)):
+        m = torch.from_numpy(match)
+        pos = m >= 0
+        n = int(pos.sum())
+        ce = F.binary_cross_entropy_with_logits(logits[k, :, 0], pos.float(), reduction="none")
+        neg_ce = ce.detach().clone()
+        neg_ce[pos] = -1.0
+        nneg = max(cfg.negatives_per_positive * n, cfg.min_negatives)
+        hard = torch.topk(neg_ce, min(nneg, int((~pos).sum()))).indices
+        loss_cls = loss_cls + ce[pos].sum() + ce[hard].sum()
+        if n:
+            tcodes = encode_boxes(torch.from_numpy(view_boxes)[m[pos]], anchors[pos])
+            loss_box = loss_box + F.smooth_l1_loss(codes[k, pos], tcodes, reduction="sum", beta=1.0)
+        npos += n
+    loss = (loss_cls + loss_box) / max(npos, 1)
+    return loss, float(loss_cls.detach()), float(loss_box.detach()), npos
+
+
 def _views(frames, cfg: SsdTrainConfig, rng: np.random.Generator):
     """`cfg.views` augmented views: images (V, 3, H, W) float32 in [−1, 1] and boxes
     (normalised corners) per view."""
@@ -130,11 +173,10 @@ def fine_tune(
     """Fine-tune `net` (default: the COCO network, boat logit) on annotated frames; returns
     it in eval mode. Raises ValueError when the frames hold no boat."""
     import torch
-    import torch.nn.functional as F
 
     from usvfast.shore.cnn_train import load_frames
     from usvfast.shore.pretrained import coco_network
-    from usvfast.shore.ssd import encode_boxes, ssd_anchors
+    from usvfast.shore.ssd import ssd_anchors
 
     cfg = config or SsdTrainConfig()
     data = load_frames(frames)
@@ -170,45 +212,19 @@ def fine_tune(
             p.requires_grad_(True)
         opt = torch.optim.Adam(train, lr=cfg.lr)
 
-        def lr_at(step: int) -> float:
-            if step < cfg.warmup:
-                return cfg.lr * (step + 1) / cfg.warmup
-            t = (step - cfg.warmup) / max(cfg.steps - cfg.warmup, 1)
-            return cfg.lr * 0.5 * (1 + np.cos(np.pi * t))
-
         net.train()
         for step in range(cfg.steps):
             idx = rng.choice(len(stems), size=cfg.batch, replace=False)
             codes, logits = net.heads(net.maps(stems[idx].clone(), start))
-            loss_cls = codes.new_zeros(())
-            loss_box = codes.new_zeros(())
-            npos = 0
-            for k, v in enumerate(idx):
-                m = torch.from_numpy(match[v])
-                pos = m >= 0
-                n = int(pos.sum())
-                target = pos.float()
-                ce = F.binary_cross_entropy_with_logits(logits[k, :, 0], target, reduction="none")
-                neg_ce = ce.detach().clone()
-                neg_ce[pos] = -1.0
-                nneg = max(cfg.negatives_per_positive * n, cfg.min_negatives)
-                hard = torch.topk(neg_ce, min(nneg, int((~pos).sum()))).indices
-                loss_cls = loss_cls + ce[pos].sum() + ce[hard].sum()
-                if n:
-                    tb = torch.from_numpy(boxes[v])[m[pos]]
-                    tcodes = encode_boxes(tb, at[pos])
-                    loss_box = loss_box + F.smooth_l1_loss(
-                        codes[k, pos], tcodes, reduction="sum", beta=1.0
-                    )
-                npos += n
-            loss = (loss_cls + loss_box) / max(npos, 1)
+            loss, lc, lb, npos = ssd_loss(
+                codes, logits, [match[v] for v in idx], [boxes[v] for v in idx], at, cfg
+            )
             for g in opt.param_groups:
-                g["lr"] = lr_at(step)
+                g["lr"] = learning_rate(step, cfg)
             opt.zero_grad()
             loss.backward()
             opt.step()
             if step % 100 == 0 or step == cfg.steps - 1:
-                lc, lb = float(loss_cls.detach()), float(loss_box.detach())
                 log(
                     f"step {step}: loss {(lc + lb) / max(npos, 1):.3f} (cls {lc / max(npos, 1):.3f}"
                     f", box {lb / max(npos, 1):.3f}), {time.perf_counter() - t0:.0f} s"
