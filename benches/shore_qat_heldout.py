@@ -26,7 +26,7 @@ import shutil
 from pathlib import Path
 
 from usvfast.shore.evaluate import default_data
-from usvfast.shore.evaluate_det import evaluate_detectors
+from usvfast.shore.evaluate_det import evaluate
 from usvfast.shore.ssd_qat import QAT_CONFIG, quantization_aware_fine_tune
 
 VIDEOS = ("video3", "regDTV9", "2", "3")
@@ -48,7 +48,7 @@ def main() -> None:
             quantization_aware_fine_tune(a.work / f"{name}.onnx", data, QAT_CONFIG)
     figures: dict[str, dict[str, tuple[float, float]]] = {}
     for runtime in ("openvino", "openvino-int8"):
-        res = evaluate_detectors(data, ["ssd"], a.work, held_out=VIDEOS, ssd_runtime=runtime)
+        res = evaluate(data, ["ssd"], a.work, held_out=VIDEOS, ssd_runtime=runtime)
         figures[runtime] = {
             v: next(
                 (r["tpr"], r["far"])
