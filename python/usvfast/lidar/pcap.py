@@ -1,4 +1,6 @@
-"""Velodyne `.pcap` captures (`VelodynePcapReader`), one frame per rotation. The record
+"""Velodyne `.pcap` captures (`VelodynePcapReader`), one frame per rotation. The records and
+their UDP/IPv4 datagrams are read in one Rust pass (`_core.pcap_udp_datagrams`: the same
+datagrams and damage counts as dpkt, the oracle of tests/test_pcap_records.py); the record
 stream resynchronises on the next plausible record header after a damaged record; damaged
 records are skipped and counted (`usvfast.lidar.packets`). The packets are cut into rotations
 (`RotationCutter`) where velodyne-decoder's `StreamDecoder` cuts them and decoded by
@@ -8,11 +10,12 @@ from __future__ import annotations
 
 import mmap
 import os
-import struct
 from collections.abc import Iterator
 from pathlib import Path
 
-from usvfast._extras import require
+import numpy as np
+
+from usvfast._core import pcap_udp_datagrams
 from usvfast._files import regular_file
 from usvfast._validate import integer
 from usvfast.lidar.frame import LidarFrame
@@ -25,136 +28,23 @@ from usvfast.lidar.packets import (
     velodyne_packet_problem,
 )
 
-_PCAP_MAGICS = {
-    b"\xd4\xc3\xb2\xa1": ("<", 1e-6),
-    b"\xa1\xb2\xc3\xd4": (">", 1e-6),
-    b"\x4d\x3c\xb2\xa1": ("<", 1e-9),
-    b"\xa1\xb2\x3c\x4d": (">", 1e-9),
-}
 
-
-def _close_in_time(ref_sec: int, sec: int) -> bool:
-    """True when `sec` can follow `ref_sec` in one capture stream (1 s of reordering back,
-    up to a minute of silence forward)."""
-    return -1 <= sec - ref_sec <= 60
-
-
-def _iter_pcap_records(
-    data: bytes, stats: ReadStats, source: str
-) -> Iterator[tuple[float, int, bytes]]:
-    """Yield (timestamp s, link type, frame bytes) of every readable pcap record.
-
-    A record whose header is implausible (length beyond the snap length, a timestamp far
-    from its neighbours) is counted as damaged and the stream resynchronises on the next
-    position holding a plausible header followed by another plausible header (or the end
-    of the file). A record cut by the end of the file is counted as damaged.
-
-    A header's timestamp is judged by both neighbours, not by the last accepted record
-    alone: a record whose seconds disagree with the previous record while the next record
-    agrees with the previous one is the single outlier (a damaged `ts_sec`), so it is
-    skipped and counted ("record timestamp") and the reference time stays; a jump that the
-    next record confirms is a real clock step and is adopted (an unconfirmed jump, as in the
-    last record, is damage).
-    """
-    if len(data) < 24 or data[:4] not in _PCAP_MAGICS:
-        raise ValueError(f"{source}: not a libpcap file (pcapng is not supported)")
-    endian, tick = _PCAP_MAGICS[data[:4]]
-    snaplen, linktype = struct.unpack(endian + "II", data[16:24])
-    snaplen = min(snaplen or 262144, 262144)
-    hdr = struct.Struct(endian + "IIII")
-    n = len(data)
-    last_sec: int | None = None
-
-    def plausible(pos: int, ref_sec: int | None) -> bool:
-        if pos + 16 > n:
-            return False
-        sec, frac, incl, orig = hdr.unpack_from(data, pos)
-        if incl == 0 or incl > snaplen or incl > orig or orig > 262144:
-            return False
-        if frac >= (1_000_000 if tick == 1e-6 else 1_000_000_000):
-            return False
-        return ref_sec is None or -3600 <= sec - ref_sec <= 86400
-
-    def header_sec(pos: int) -> int | None:
-        return hdr.unpack_from(data, pos)[0] if plausible(pos, None) else None
-
-    def resync(start: int, ref_sec: int | None) -> int:
-        pos = start
-        while pos + 16 <= n:
-            if plausible(pos, ref_sec):
-                incl = hdr.unpack_from(data, pos)[2]
-                nxt = pos + 16 + incl
-                if nxt == n or plausible(nxt, ref_sec):
-                    return pos
-            pos += 1
-        return n
-
-    pos = 24
-    while pos < n:
-        if pos + 16 > n:
-            stats.records += 1
-            stats.damage("truncated record")
-            return
-        if not plausible(pos, last_sec):
-            stats.records += 1
-            stats.damage("record header")
-            pos = resync(pos + 1, last_sec)
-            continue
-        sec, frac, incl, _ = hdr.unpack_from(data, pos)
-        stats.records += 1
-        if pos + 16 + incl > n:
-            stats.damage("truncated record")
-            return
-        nxt = pos + 16 + incl
-        next_sec = header_sec(nxt)
-        if last_sec is None and next_sec is not None:
-            # the first record: judged by the next two (is it or the next one the outlier?)
-            after = header_sec(nxt + 16 + hdr.unpack_from(data, nxt)[2])
-            judge = next_sec if after is None or _close_in_time(next_sec, after) else None
-        else:
-            judge = last_sec
-        if judge is not None and not _close_in_time(judge, sec):
-            if next_sec is None or _close_in_time(judge, next_sec):
-                # the one outlier between agreeing neighbours (or a jump nothing confirms)
-                stats.damage("record timestamp")
-                pos = nxt
-                continue
-        last_sec = sec
-        yield sec + frac * tick, linktype, data[pos + 16 : pos + 16 + incl]
-        pos += 16 + incl
-
-
-def _udp_payload(linktype: int, frame: bytes) -> tuple[int, bytes] | None:
-    """(destination port, payload) of a UDP/IPv4 frame, None for anything else.
-
-    Raises ValueError when the frame claims to be IPv4/UDP but its headers are broken
-    (IP header checksum, lengths).
-    """
-    dpkt = require("dpkt", "lidar", "pcap files")
-
+def _udp_datagrams(data, stats: ReadStats, source: str) -> tuple[np.ndarray, ...]:
+    """(record times UNIX s, destination ports, payload offsets, payload lengths) of every
+    UDP/IPv4 datagram of the capture `data` (bytes or an mmap), read in one pass by
+    `_core.pcap_udp_datagrams`; the records seen and the damage skipped are added to `stats`.
+    Raises ValueError naming `source` when `data` is not a libpcap file."""
+    view = np.frombuffer(data, dtype=np.uint8)  # no copy: the mmap's pages, read in Rust
     try:
-        if linktype == 1:
-            eth = dpkt.ethernet.Ethernet(frame)
-            ip = eth.data
-        elif linktype in (101, 12):
-            ip = dpkt.ip.IP(frame)
-        elif linktype == 113:
-            ip = dpkt.sll.SLL(frame).data
-        else:
-            return None
-    except (dpkt.dpkt.UnpackError, struct.error) as exc:
-        raise ValueError("link/IP header") from exc
-    if not isinstance(ip, dpkt.ip.IP):
-        return None
-    # the header as stored (pack_hdr keeps the received checksum): sums to 0 when intact
-    if dpkt.in_cksum(ip.pack_hdr() + bytes(ip.opts)) != 0:
-        raise ValueError("IP checksum")
-    udp = ip.data
-    if not isinstance(udp, dpkt.udp.UDP):
-        return None
-    if udp.ulen != 8 + len(udp.data):
-        raise ValueError("UDP length")
-    return int(udp.dport), bytes(udp.data)
+        times, ports, offsets, lengths, records, damage = pcap_udp_datagrams(view)
+    except ValueError as exc:  # the only one for a uint8 array: its header
+        raise ValueError(f"{source}: not a libpcap file (pcapng is not supported)") from exc
+    finally:
+        del view  # an mmap with a live export cannot be closed
+    stats.records += records
+    for label, count in damage.items():
+        stats.damage(label, count)
+    return times, ports, offsets, lengths
 
 
 #: Byte offset of the last block's azimuth in a data packet (block 11, after its flag).
@@ -310,21 +200,17 @@ class VelodynePcapReader:
             stats.frames += 1
             return frame
 
-        for stamp, linktype, frame_bytes in _iter_pcap_records(data, stats, source):
-            try:
-                udp = _udp_payload(linktype, frame_bytes)
-            except ValueError as exc:
-                stats.damage(str(exc))
-                continue
-            if udp is None:
-                continue
-            port, payload = udp
-            if self.data_port is not None and port != self.data_port:
-                continue
-            if len(payload) != VELODYNE_PACKET_SIZE:
-                if self.data_port is not None:
-                    stats.damage("packet length")
-                continue  # position / telemetry packet
+        times, ports, offsets, lengths = _udp_datagrams(data, stats, source)
+        data_packets = lengths == VELODYNE_PACKET_SIZE  # others: position / telemetry packets
+        if self.data_port is not None:
+            on_port = ports == self.data_port
+            if wrong_length := int(np.count_nonzero(on_port & ~data_packets)):
+                stats.damage("packet length", wrong_length)
+            data_packets &= on_port
+        for stamp, start in zip(
+            times[data_packets].tolist(), offsets[data_packets].tolist(), strict=True
+        ):
+            payload = data[start : start + VELODYNE_PACKET_SIZE]
             problem = velodyne_packet_problem(payload, model_id)
             if problem is not None:
                 stats.damage(problem)

@@ -16,7 +16,11 @@ const FRAGMENT_OFFSET: u16 = 0x1fff;
 pub enum Ipv4 {
     /// A UDP datagram: its destination port and its payload (offset from the start of the
     /// IPv4 header, length), bytes.
-    Udp { port: u16, offset: usize, len: usize },
+    Udp {
+        port: u16,
+        offset: usize,
+        len: usize,
+    },
     /// Not a UDP datagram dpkt takes out (another protocol, a later fragment, a UDP header
     /// cut short).
     Other,

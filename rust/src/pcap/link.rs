@@ -9,6 +9,7 @@
 //! header, 802.1Q tags, MPLS labels, a Cisco ISL header, a Novell raw 802.3 IPX header, an
 //! 802.2 LLC header and the IP, IPX or STP header it names. An IPv4 header is any buffer of
 //! 20 bytes or more whose header-length nibble is at least 5; the version nibble is not read.
+//! An Ethernet II payload left as raw bytes is decoded once more, as dpkt's constructor does.
 
 /// Where a frame's link layers lead.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -28,6 +29,10 @@ const ETH_TYPE_8021Q: u16 = 0x8100;
 const ETH_TYPE_QINQ: [u16; 4] = [ETH_TYPE_8021Q, 0x88A8, 0x9100, 0x9200];
 const ETH_TYPE_MPLS: [u16; 2] = [0x8847, 0x8848];
 const ETH_TYPE_TEB: u16 = 0x6558;
+/// The Ethernet types dpkt decodes (`Ethernet._typesw`); other types stay raw bytes.
+const ETH_DECODED: [u16; 11] = [
+    0x00BB, 0x0800, 0x0806, 0x2000, 0x2004, 0x6558, 0x8137, 0x86DD, 0x880B, 0x8864, 0x88A2,
+];
 /// Largest 802.3 length field; a larger type field names an Ethernet II payload.
 const ETH_LEN_MAX: u16 = 1500;
 const VLAN_TAG: usize = 4;
@@ -66,7 +71,7 @@ pub fn ipv4_header_ok(b: &[u8]) -> bool {
 #[must_use]
 pub fn link_layers(linktype: u32, frame: &[u8]) -> Link {
     match linktype {
-        LINKTYPE_ETHERNET => ethernet(frame, 0),
+        LINKTYPE_ETHERNET => ethernet(frame),
         t if LINKTYPE_RAW.contains(&t) => {
             if ipv4_header_ok(frame) {
                 Link::Ipv4(0)
@@ -89,18 +94,23 @@ pub fn link_layers(linktype: u32, frame: &[u8]) -> Link {
     }
 }
 
-/// An Ethernet frame starting at `at`: Ethernet II with 802.1Q / QinQ tags or MPLS labels,
-/// Cisco ISL encapsulation (the Ethernet frame after its 26-byte header), Novell raw 802.3,
-/// 802.3 with an 802.2 LLC header.
-fn ethernet(frame: &[u8], mut at: usize) -> Link {
-    loop {
+/// An Ethernet frame: Ethernet II with 802.1Q / QinQ tags or MPLS labels, Cisco ISL
+/// encapsulation (an Ethernet frame after a 26-byte header), Novell raw 802.3, 802.3 with an
+/// 802.2 LLC header.
+///
+/// dpkt's `Ethernet(frame)` decodes an Ethernet II payload, and when that leaves raw bytes it
+/// decodes those once more from where the first pass stopped, with the type the first pass
+/// ended on: tags naming another tag type, or MPLS, read a second group of tags or labels.
+fn ethernet(frame: &[u8]) -> Link {
+    let mut at = 0;
+    let ty = loop {
         let buf = &frame[at..];
         if buf.len() < ETH_HEADER {
             return Link::Broken;
         }
         let ty = be16(buf, 12);
         if ty > ETH_LEN_MAX {
-            return ethernet_ii(frame, at + ETH_HEADER, ty);
+            break ty;
         }
         if buf.starts_with(&[0x01, 0x00, 0x0c, 0x00, 0x00])
             || buf.starts_with(&[0x03, 0x00, 0x0c, 0x00, 0x00])
@@ -125,17 +135,39 @@ fn ethernet(frame: &[u8], mut at: usize) -> Link {
             return Link::Other; // "unknown type": dpkt looks type 0 up and keeps the bytes
         }
         return llc(&body[..body.len().min(usize::from(ty))]);
+    };
+    let (next, data) = ethernet_payload(frame, at + ETH_HEADER, ty, ty);
+    let data = match data {
+        Payload::Bytes(rest) if rest < frame.len() => ethernet_payload(frame, rest, next, ty).1,
+        data => data,
+    };
+    match data {
+        Payload::Ipv4(at) => Link::Ipv4(at),
+        Payload::Bytes(_) | Payload::Other => Link::Other,
+        Payload::Broken => Link::Broken,
     }
 }
 
-/// The payload of an Ethernet II header of type `ty`, from `at`.
-fn ethernet_ii(frame: &[u8], mut at: usize, ty: u16) -> Link {
-    let mut next = ty;
-    if ETH_TYPE_QINQ.contains(&ty) {
+/// What one decoding pass over an Ethernet II payload leaves.
+enum Payload {
+    /// An IPv4 header at this offset.
+    Ipv4(usize),
+    /// Raw bytes from this offset (no decoder for the type, or its decoder failed).
+    Bytes(usize),
+    /// Another protocol, decoded.
+    Other,
+    /// A tag or label cut short.
+    Broken,
+}
+
+/// One pass of dpkt's Ethernet payload decoding from `at`, starting from type `next` (the
+/// frame's type field is `ty`): the type it ends on and what it leaves.
+fn ethernet_payload(frame: &[u8], mut at: usize, mut next: u16, ty: u16) -> (u16, Payload) {
+    if ETH_TYPE_QINQ.contains(&next) {
         // up to two 802.1Q tags; a second one only after a tag naming 0x8100
         for _ in 0..2 {
             if frame.len() - at < VLAN_TAG {
-                return Link::Broken;
+                return (next, Payload::Broken);
             }
             next = be16(frame, at + 2);
             at += VLAN_TAG;
@@ -143,11 +175,11 @@ fn ethernet_ii(frame: &[u8], mut at: usize, ty: u16) -> Link {
                 break;
             }
         }
-    } else if ETH_TYPE_MPLS.contains(&ty) {
+    } else if ETH_TYPE_MPLS.contains(&next) {
         // labels up to the bottom of the stack (its S bit), at most 24
         for _ in 0..MPLS_MAX_LABELS {
             if frame.len() - at < MPLS_LABEL {
-                return Link::Broken;
+                return (next, Payload::Broken);
             }
             let bottom = frame[at + 2] & 1 == 1;
             at += MPLS_LABEL;
@@ -158,23 +190,28 @@ fn ethernet_ii(frame: &[u8], mut at: usize, ty: u16) -> Link {
         // dpkt guesses what follows the stack from its first byte (and fails with IndexError
         // when nothing follows: read here as a broken header)
         let Some(&first) = frame.get(at) else {
-            return Link::Broken;
+            return (next, Payload::Broken);
         };
         if first == 0x45 {
             next = ETH_TYPE_IP;
         } else if first & 0xf0 == 0x60 {
             next = ETH_TYPE_IP6;
         } else if frame.len() - at >= ETH_HEADER {
-            next = ETH_TYPE_TEB; // pseudowire Ethernet: never an IPv4 header at this level
+            next = ETH_TYPE_TEB; // pseudowire Ethernet: decoded, never IPv4 at this level
         }
     }
-    // a tag naming type 0 leaves dpkt on the outer type
-    let ty = if next == 0 { ty } else { next };
-    if ty == ETH_TYPE_IP && ipv4_header_ok(&frame[at..]) {
-        Link::Ipv4(at)
+    // a tag naming type 0 leaves dpkt on the frame's type
+    let payload = if next == 0 { ty } else { next };
+    let data = if payload == ETH_TYPE_IP && ipv4_header_ok(&frame[at..]) {
+        Payload::Ipv4(at)
+    } else if payload == ETH_TYPE_IP || !ETH_DECODED.contains(&payload) {
+        Payload::Bytes(at)
     } else {
-        Link::Other
-    }
+        // decoded as another protocol, or kept as bytes when its decoder fails: a second pass
+        // from the same type reads the same, so which one it is does not matter
+        Payload::Other
+    };
+    (next, data)
 }
 
 /// An 802.2 LLC header (and SNAP) of an 802.3 frame: never IPv4 at the Ethernet level, but

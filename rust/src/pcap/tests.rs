@@ -35,9 +35,17 @@ fn u32s(format: Format, values: &[u32]) -> Vec<u8> {
 }
 
 fn file_header(format: Format, snaplen: u32, linktype: u32) -> Vec<u8> {
-    let magic = if format.nanos { 0xa1b2_3c4d } else { 0xa1b2_c3d4 };
+    let magic = if format.nanos {
+        0xa1b2_3c4d
+    } else {
+        0xa1b2_c3d4
+    };
     let mut h = u32s(format, &[magic]);
-    let version = if format.big { [0, 2, 0, 4] } else { [2, 0, 4, 0] };
+    let version = if format.big {
+        [0, 2, 0, 4]
+    } else {
+        [2, 0, 4, 0]
+    };
     h.extend(version);
     h.extend(u32s(format, &[0, 0, snaplen, linktype]));
     h
@@ -135,7 +143,11 @@ fn the_checksum_is_dpkts() {
     assert_ne!(internet_checksum(&bad), 0);
     // the little-endian sum is the standard one with its bytes swapped, odd lengths included
     for n in [0, 1, 7, 19, 20] {
-        assert_eq!(internet_checksum(&bad[..n]), rfc1071(&bad[..n]).swap_bytes(), "{n}");
+        assert_eq!(
+            internet_checksum(&bad[..n]),
+            rfc1071(&bad[..n]).swap_bytes(),
+            "{n}"
+        );
     }
 }
 
@@ -289,10 +301,23 @@ fn ethernet_vlan_mpls_isl_and_sll_lead_to_the_datagram() {
     two.extend_from_slice(&tagged);
     let qinq = ether(0x88a8, &two);
     assert_eq!(link(1, &qinq), at(&qinq));
-    // a third tag is not read: 0x8100 after two tags is an unknown type
+    // after two tags naming 0x8100, dpkt's second pass reads two more: a fifth is not read
     let mut three = vec![0x00, 0x07, 0x81, 0x00];
     three.extend_from_slice(&two);
-    assert_eq!(link(1, &ether(0x8100, &three)), Ok(None));
+    let three = ether(0x8100, &three);
+    assert_eq!(link(1, &three), at(&three));
+    let mut five = [0x00, 0x08, 0x81, 0x00].repeat(3);
+    five.extend_from_slice(&two);
+    assert_eq!(link(1, &ether(0x8100, &five)), Ok(None));
+    // a tag naming MPLS: labels read by the second pass
+    let mut to_mpls = vec![0x00, 0x05, 0x88, 0x47, 0x00, 0x01, 0x01, 0x40];
+    to_mpls.extend_from_slice(&ip);
+    let to_mpls = ether(0x8100, &to_mpls);
+    assert_eq!(link(1, &to_mpls), at(&to_mpls));
+    assert_eq!(
+        link(1, &ether(0x8100, &[0x00, 0x05, 0x88, 0x47, 0x00])),
+        Err(Damage::LinkIpHeader)
+    );
     let mut mpls = vec![0x00, 0x01, 0x01, 0x40]; // bottom of stack
     mpls.extend_from_slice(&ip);
     let labelled = ether(0x8847, &mpls);
@@ -317,9 +342,15 @@ fn other_protocols_are_skipped_and_cut_headers_are_damage() {
     for ty in [0x0806, 0x86dd, 0x6558, 0x9999, 0x05dd] {
         assert_eq!(link(1, &ether(ty, &ip)), Ok(None), "{ty:#x}");
     }
-    assert_eq!(link(1, &ether(0x0800, &ipv4(6, 0, 5, 80, b"tcp"))), Ok(None));
+    assert_eq!(
+        link(1, &ether(0x0800, &ipv4(6, 0, 5, 80, b"tcp"))),
+        Ok(None)
+    );
     // a later fragment is kept as bytes; a first fragment is read as a whole datagram
-    assert_eq!(link(1, &ether(0x0800, &ipv4(17, 0x0010, 5, 9, b"x"))), Ok(None));
+    assert_eq!(
+        link(1, &ether(0x0800, &ipv4(17, 0x0010, 5, 9, b"x"))),
+        Ok(None)
+    );
     let first = ether(0x0800, &ipv4(17, 0x2000, 5, 9, b"x"));
     assert_eq!(link(1, &first), Ok(Some((9, first.len() - 1, 1))));
     // a cut IPv4 header: kept as bytes behind Ethernet and SLL, damage as a raw packet
@@ -328,12 +359,24 @@ fn other_protocols_are_skipped_and_cut_headers_are_damage() {
     let mut v6 = ip.clone();
     v6[0] = 0x60; // the header length nibble is 0
     assert_eq!(link(101, &v6), Err(Damage::LinkIpHeader));
-    assert_eq!(link(1, &ether(0x0800, &ip)[..13]), Err(Damage::LinkIpHeader));
+    assert_eq!(
+        link(1, &ether(0x0800, &ip)[..13]),
+        Err(Damage::LinkIpHeader)
+    );
     assert_eq!(link(113, &[0; 15]), Err(Damage::LinkIpHeader));
-    assert_eq!(link(1, &ether(0x8100, &[0, 1, 8])), Err(Damage::LinkIpHeader));
-    assert_eq!(link(1, &ether(0x8847, &[0, 1, 0])), Err(Damage::LinkIpHeader));
+    assert_eq!(
+        link(1, &ether(0x8100, &[0, 1, 8])),
+        Err(Damage::LinkIpHeader)
+    );
+    assert_eq!(
+        link(1, &ether(0x8847, &[0, 1, 0])),
+        Err(Damage::LinkIpHeader)
+    );
     // a label stack with nothing after it (dpkt: IndexError)
-    assert_eq!(link(1, &ether(0x8847, &[0, 1, 1, 64])), Err(Damage::LinkIpHeader));
+    assert_eq!(
+        link(1, &ether(0x8847, &[0, 1, 1, 64])),
+        Err(Damage::LinkIpHeader)
+    );
     let mut isl = vec![0x03, 0x00, 0x0c, 0x00, 0x00];
     isl.extend([0; 20]);
     assert_eq!(link(1, &isl), Err(Damage::LinkIpHeader));
@@ -397,7 +440,11 @@ fn frame_damage_is_counted_per_record() {
     let data = capture(
         MICROS_LE,
         101,
-        &[(T0, 0, udp4(5, b"a")), (T0, 1, bad), (T0, 2, vec![0x45; 10])],
+        &[
+            (T0, 0, udp4(5, b"a")),
+            (T0, 1, bad),
+            (T0, 2, vec![0x45; 10]),
+        ],
     );
     let d = udp_datagrams(&data).unwrap();
     assert_eq!((d.records, d.len()), (3, 1));

@@ -11,6 +11,7 @@ mod geodesy;
 mod kalman;
 mod lidar;
 mod particle;
+mod pcap;
 mod stonesoup;
 mod stonesoup_scan;
 mod tracker;
@@ -49,5 +50,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     stonesoup::register(m)?;
     stonesoup_scan::register(m)?;
     velodyne::register(m)?;
+    pcap::register(m)?;
     Ok(())
 }

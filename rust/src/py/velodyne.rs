@@ -12,7 +12,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
 /// What `obj` is, for an error message: "uint16 array of shape (3, 1206)" or its type name.
-fn describe(obj: &Bound<'_, PyAny>) -> String {
+pub(crate) fn describe(obj: &Bound<'_, PyAny>) -> String {
     match obj.cast::<PyUntypedArray>() {
         Ok(a) => format!("{} array of shape {:?}", a.dtype(), a.shape()),
         Err(_) => obj
