@@ -4,7 +4,9 @@ payloads taken out by dpkt (`_udp_payload`), packets checked by numpy, every pac
 velodyne-decoder `StreamDecoder`; a refusal of the last rotation is counted as damage, as every
 other refusal (it raised RuntimeError before). `_iter_pcap_records` and `_udp_payload` are the
 reader's code as it was, unchanged: the oracle of `_core.pcap_udp_datagrams`
-(`test_pcap_records.py`). The peer of `test_pcap_reader.py` and `benches/bench_pcap_reader.py`."""
+(`test_pcap_records.py`), and `DpktPcapReader` is the reader with them (as it was before its
+record pass moved to Rust). The peers of `test_pcap_reader.py`, `test_pcap_records.py` and
+`benches/bench_pcap_reader.py`."""
 
 from __future__ import annotations
 
@@ -24,6 +26,7 @@ from usvfast.lidar.packets import (
     ReadStats,
     decoded_to_points,
     finish_read,
+    velodyne_packet_problem,
 )
 from usvfast.lidar.pcap import VelodynePcapReader
 
@@ -161,7 +164,40 @@ def _udp_payload(linktype: int, frame: bytes) -> tuple[int, bytes] | None:
     return int(udp.dport), bytes(udp.data)
 
 
-# --- the reader as it was ------------------------------------------------------------------
+# --- the readers as they were --------------------------------------------------------------
+
+
+class DpktPcapReader(VelodynePcapReader):
+    """The reader as it was before its record pass and packet checks moved to Rust: records
+    walked by `_iter_pcap_records`, payloads taken out by dpkt (`_udp_payload`), each packet
+    checked by `check` (`velodyne_packet_problem`), its loop unchanged; the cutter and decoder
+    are the reader's."""
+
+    check = staticmethod(velodyne_packet_problem)
+
+    def _data_packets(self, data, stats: ReadStats, source: str) -> Iterator[tuple[float, bytes]]:
+        model_id: int | None = None
+        for stamp, linktype, frame_bytes in _iter_pcap_records(data, stats, source):
+            try:
+                udp = _udp_payload(linktype, frame_bytes)
+            except ValueError as exc:
+                stats.damage(str(exc))
+                continue
+            if udp is None:
+                continue
+            port, payload = udp
+            if self.data_port is not None and port != self.data_port:
+                continue
+            if len(payload) != VELODYNE_PACKET_SIZE:
+                if self.data_port is not None:
+                    stats.damage("packet length")
+                continue  # position / telemetry packet
+            problem = self.check(payload, model_id)
+            if problem is not None:
+                stats.damage(problem)
+                continue
+            model_id = payload[1205]
+            yield stamp, payload
 
 
 def packet_problem(payload: bytes, model_id: int | None = None) -> str | None:

@@ -89,6 +89,44 @@ def decode_velodyne_scan(
     packet_times: npt.NDArray[np.float64],
     model: str,
 ) -> tuple[tuple[float, float], npt.NDArray[np.float32]]: ...
+def velodyne_packet_check(
+    data: bytes | npt.NDArray[np.uint8],
+    offsets: npt.NDArray[np.int64],
+) -> tuple[npt.NDArray[np.bool_], dict[str, int]]:
+    """Checks a stream of Velodyne data packets, `data[o:o + 1206]` for each offset (bytes).
+
+    data : bytes or a C-contiguous 1-D uint8 array; offsets : (k,) int64, non-negative.
+    Returns (passed, damage): per packet whether it passed
+    `usvfast.lidar.packets.velodyne_packet_problem` against the model id of the last packet
+    that passed (none before the first), and the refused ones {label: count} ("packet
+    length" for a packet running past the end of `data`, "block flag", "azimuth", "factory
+    bytes", "model id"). Raises TypeError for another type of `data`, ValueError for bad
+    `offsets` or a non-contiguous array.
+    """
+
+# --- pcap (rust/src/py/pcap.rs) ---
+def pcap_udp_datagrams(
+    data: bytes | npt.NDArray[np.uint8],
+) -> tuple[
+    npt.NDArray[np.float64],
+    npt.NDArray[np.uint16],
+    npt.NDArray[np.int64],
+    npt.NDArray[np.int64],
+    int,
+    dict[str, int],
+]:
+    """Every UDP/IPv4 datagram of a libpcap capture, in one pass.
+
+    data : the whole file, `bytes` or a C-contiguous 1-D uint8 array (`np.frombuffer` of an
+    mmap). Returns (times, ports, offsets, lengths, records, damage): per datagram its record's
+    capture time (UNIX s, float64), destination port, payload offset and length in `data`
+    (bytes); the number of records seen; the records and frames skipped as damaged,
+    {label: count} with labels "record header", "truncated record", "record timestamp",
+    "link/IP header", "IP checksum", "UDP length". Reads what dpkt reads (Ethernet with
+    802.1Q/QinQ, MPLS, ISL; raw IP, link types 101 and 12; Linux SLL, 113); other frames are
+    left out. Raises TypeError for another type of `data`, ValueError when it is not a libpcap
+    file (pcapng is not supported) or not C-contiguous.
+    """
 
 # --- geodesy (rust/src/py/geodesy.rs) ---
 _F = npt.NDArray[np.float64]

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from usvfast._core import pcap_udp_datagrams
+from usvfast._core import pcap_udp_datagrams, velodyne_packet_check
 from usvfast._files import regular_file
 from usvfast._validate import integer
 from usvfast.lidar.frame import LidarFrame
@@ -25,8 +25,13 @@ from usvfast.lidar.packets import (
     VelodyneScanDecoder,
     decoded_to_points,
     finish_read,
-    velodyne_packet_problem,
 )
+
+
+def _bytes_view(data) -> np.ndarray:
+    """`data` (bytes or an mmap) as a uint8 array without a copy. The caller drops the view
+    before the mmap is closed (a map with a live export cannot be closed)."""
+    return np.frombuffer(data, dtype=np.uint8)
 
 
 def _udp_datagrams(data, stats: ReadStats, source: str) -> tuple[np.ndarray, ...]:
@@ -34,13 +39,10 @@ def _udp_datagrams(data, stats: ReadStats, source: str) -> tuple[np.ndarray, ...
     UDP/IPv4 datagram of the capture `data` (bytes or an mmap), read in one pass by
     `_core.pcap_udp_datagrams`; the records seen and the damage skipped are added to `stats`.
     Raises ValueError naming `source` when `data` is not a libpcap file."""
-    view = np.frombuffer(data, dtype=np.uint8)  # no copy: the mmap's pages, read in Rust
     try:
-        times, ports, offsets, lengths, records, damage = pcap_udp_datagrams(view)
+        times, ports, offsets, lengths, records, damage = pcap_udp_datagrams(_bytes_view(data))
     except ValueError as exc:  # the only one for a uint8 array: its header
         raise ValueError(f"{source}: not a libpcap file (pcapng is not supported)") from exc
-    finally:
-        del view  # an mmap with a live export cannot be closed
     stats.records += records
     for label, count in damage.items():
         stats.damage(label, count)
@@ -66,7 +68,8 @@ class RotationCutter:
     after the rotation's first packet ends the rotation before it, and starts the next one.
     `finish` gives what is left.
 
-    Packets must have passed `velodyne_packet_problem` (azimuths below 36000). The cutter
+    Packets must have passed `usvfast.lidar.packets.velodyne_packet_problem` (azimuths below
+    36000). The cutter
     keeps plain lists; `push` is a few integer operations per packet.
     """
 
@@ -171,12 +174,33 @@ class VelodynePcapReader:
                 if isinstance(data, mmap.mmap):
                     data.close()
 
+    def _data_packets(self, data, stats: ReadStats, source: str) -> Iterator[tuple[float, bytes]]:
+        """(host time UNIX s, payload) of each well-formed data packet of the capture `data`,
+        in capture order: the UDP datagrams of the packet size (on `data_port` when it is set,
+        where one of another size is "packet length" damage; others are position / telemetry
+        packets) that pass `velodyne_packet_problem` against the model id of the last packet
+        that passed (the others are counted by their problem). The records are read and the
+        packets checked in Rust (`_core.pcap_udp_datagrams`, `_core.velodyne_packet_check`)
+        before the first is yielded; `stats` counts them."""
+        times, ports, offsets, lengths = _udp_datagrams(data, stats, source)
+        data_packets = lengths == VELODYNE_PACKET_SIZE
+        if self.data_port is not None:
+            on_port = ports == self.data_port
+            if wrong_length := int(np.count_nonzero(on_port & ~data_packets)):
+                stats.damage("packet length", wrong_length)
+            data_packets &= on_port
+        times, offsets = times[data_packets], offsets[data_packets]
+        passed, damage = velodyne_packet_check(_bytes_view(data), offsets)
+        for label, count in damage.items():
+            stats.damage(label, count)
+        for stamp, start in zip(times[passed].tolist(), offsets[passed].tolist(), strict=True):
+            yield stamp, data[start : start + VELODYNE_PACKET_SIZE]
+
     def _frames(self, data) -> Iterator[LidarFrame]:
         self.stats = stats = ReadStats()
         source = str(self.path)
         decoder = VelodyneScanDecoder(self.model)
         cutter = RotationCutter()
-        model_id: int | None = None
 
         def decode(rotation: tuple[list[bytes], list[float]]) -> LidarFrame | None:
             """The rotation's frame; None when `every` leaves it out, or when the decoder
@@ -200,22 +224,7 @@ class VelodynePcapReader:
             stats.frames += 1
             return frame
 
-        times, ports, offsets, lengths = _udp_datagrams(data, stats, source)
-        data_packets = lengths == VELODYNE_PACKET_SIZE  # others: position / telemetry packets
-        if self.data_port is not None:
-            on_port = ports == self.data_port
-            if wrong_length := int(np.count_nonzero(on_port & ~data_packets)):
-                stats.damage("packet length", wrong_length)
-            data_packets &= on_port
-        for stamp, start in zip(
-            times[data_packets].tolist(), offsets[data_packets].tolist(), strict=True
-        ):
-            payload = data[start : start + VELODYNE_PACKET_SIZE]
-            problem = velodyne_packet_problem(payload, model_id)
-            if problem is not None:
-                stats.damage(problem)
-                continue
-            model_id = payload[1205]
+        for stamp, payload in self._data_packets(data, stats, source):
             stats.packets += 1
             rotation = cutter.push(payload, stamp)
             if rotation is not None and (frame := decode(rotation)) is not None:

@@ -1,13 +1,11 @@
 //! Binding of the libpcap reader (`crate::pcap`): a whole capture to its UDP/IPv4 datagrams
 //! in one call, payloads located by offset so Python slices them out of its own buffer.
 
-use super::velodyne::describe;
-use super::{slice, to_py_err};
+use super::{to_py_err, ByteArg};
 use crate::pcap::{self, Damage};
-use numpy::{PyArray1, PyReadonlyArray1};
-use pyo3::exceptions::PyTypeError;
+use numpy::PyArray1;
 use pyo3::prelude::*;
-use pyo3::types::{PyBytes, PyDict};
+use pyo3::types::PyDict;
 
 /// Arrays of the datagrams (times, ports, payload offsets, payload lengths), records seen and
 /// damage counts by label.
@@ -27,18 +25,8 @@ type Datagrams<'py> = (
 #[pyfunction]
 #[pyo3(signature = (data))]
 fn pcap_udp_datagrams<'py>(py: Python<'py>, data: &Bound<'py, PyAny>) -> PyResult<Datagrams<'py>> {
-    let array: PyReadonlyArray1<'py, u8>;
-    let bytes: &[u8] = if let Ok(b) = data.cast::<PyBytes>() {
-        b.as_bytes()
-    } else {
-        array = data.extract().map_err(|_| {
-            PyTypeError::new_err(format!(
-                "data: expected bytes or a 1-D uint8 array, got {}",
-                describe(data)
-            ))
-        })?;
-        slice("data", &array)?
-    };
+    let data = ByteArg::extract("data", data)?;
+    let bytes = data.bytes("data")?;
     let found = py
         .detach(|| pcap::udp_datagrams(bytes))
         .map_err(to_py_err)?;
