@@ -74,7 +74,10 @@ def read_records(reader: VelodynePcapReader) -> int:
     """The first part of a reader: every record, its UDP payload and the packet checks (the
     reader's `_data_packets`); the number of data packets."""
     with reader.path.open("rb") as fh, mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) as data:
-        return sum(1 for _ in reader._data_packets(data, ReadStats(), str(reader.path)))
+        packets, count_to = reader._data_packets(data, ReadStats(), str(reader.path))
+        n = sum(1 for _ in packets)
+        count_to(None)
+        return n
 
 
 def best(fn, repeat: int) -> float:

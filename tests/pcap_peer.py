@@ -175,7 +175,13 @@ class DpktPcapReader(VelodynePcapReader):
 
     check = staticmethod(velodyne_packet_problem)
 
-    def _data_packets(self, data, stats: ReadStats, source: str) -> Iterator[tuple[float, bytes]]:
+    def _data_packets(self, data, stats: ReadStats, source: str):
+        # the counts are kept as the records are read: nothing to catch up with
+        return self._checked_packets(data, stats, source), lambda packets: None
+
+    def _checked_packets(
+        self, data, stats: ReadStats, source: str
+    ) -> Iterator[tuple[float, bytes]]:
         model_id: int | None = None
         for stamp, linktype, frame_bytes in _iter_pcap_records(data, stats, source):
             try:

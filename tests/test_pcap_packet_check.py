@@ -3,12 +3,12 @@ old per-packet check (`velodyne_packet_problem`, chained on the model id of the 
 that passed), and the whole reader against itself as it was (`pcap_peer.DpktPcapReader`:
 records walked in Python, payloads taken out by dpkt, packets checked one by one) on the real
 HDL-32E capture, damaged copies of it and simulated captures, frame for frame and count for
-count."""
+count, the counts compared after every frame too (what a caller that stops there sees)."""
 
 from __future__ import annotations
 
+import copy
 import warnings
-from collections import Counter
 
 import numpy as np
 import pytest
@@ -31,27 +31,28 @@ HEADS = [*range(0, 1200, 100), *range(1, 1200, 100), *range(2, 1200, 100), *rang
 FACTORY = [1204, 1205]
 
 
-def chained(data: bytes, offsets: list[int]) -> tuple[list[bool], Counter]:
+def chained(data: bytes, offsets: list[int]) -> tuple[list[bool], list[tuple[int, str]]]:
     """The reader's old loop: each packet through `velodyne_packet_problem` against the model
-    id of the last one that passed."""
-    model_id, passed, damage = None, [], Counter()
-    for o in offsets:
+    id of the last one that passed; (passed, (index, problem) of the others)."""
+    model_id, passed, problems = None, [], []
+    for k, o in enumerate(offsets):
         payload = data[o : o + VELODYNE_PACKET_SIZE]
         problem = velodyne_packet_problem(payload, model_id)
         passed.append(problem is None)
         if problem is None:
             model_id = payload[1205]
         else:
-            damage[problem] += 1
-    return passed, damage
+            problems.append((k, problem))
+    return passed, problems
 
 
 @pytest.fixture(scope="module")
 def real_packets() -> bytes:
     """The 84 data packets of the real capture, back to back."""
     data = PCAP.read_bytes()
-    _, _, offsets, lengths, _, _ = pcap_udp_datagrams(data)
-    return b"".join(data[o : o + n] for o, n in zip(offsets, lengths, strict=True) if n == 1206)
+    found = pcap_udp_datagrams(data)
+    rows = zip(found["offsets"].tolist(), found["lengths"].tolist(), strict=True)
+    return b"".join(data[o : o + n] for o, n in rows if n == 1206)
 
 
 @settings(max_examples=300)
@@ -81,10 +82,10 @@ def test_check_against_the_old_loop(real_packets, picks, edits, shifts):
     for j, shift in enumerate(shifts):
         if offsets:
             offsets[j % len(offsets)] = max(0, offsets[j % len(offsets)] + shift)
-    passed, damage = velodyne_packet_check(data, np.array(offsets, dtype=np.int64))
-    ref_passed, ref_damage = chained(data, offsets)
+    passed, problems = velodyne_packet_check(data, np.array(offsets, dtype=np.int64))
+    ref_passed, ref_problems = chained(data, offsets)
     assert passed.dtype == np.bool_ and passed.tolist() == ref_passed
-    assert Counter(damage) == ref_damage
+    assert problems == ref_problems
 
 
 def test_check_arguments_are_named(real_packets):
@@ -99,31 +100,36 @@ def test_check_arguments_are_named(real_packets):
         velodyne_packet_check(real_packets, np.array([0, -1]))
     with pytest.raises(ValueError, match=r"^offsets: must be a C-contiguous array"):
         velodyne_packet_check(real_packets, np.zeros(4, np.int64)[::2])
-    passed, damage = velodyne_packet_check(real_packets, np.array([], dtype=np.int64))
-    assert passed.shape == (0,) and damage == {}
+    passed, problems = velodyne_packet_check(real_packets, np.array([], dtype=np.int64))
+    assert passed.shape == (0,) and problems == []
 
 
 # --- the whole reader against itself as it was ---------------------------------------------
 
 
 def read_both(path, **options) -> list:
-    """(frames or (exception type, message), stats) of the reader and of its dpkt version."""
+    """(frames or (exception type, message), stats after each frame, final stats) of the
+    reader and of its dpkt version."""
     out = []
     for cls in (VelodynePcapReader, DpktPcapReader):
-        reader = cls(path, **options)
+        reader, frames, seen = cls(path, **options), [], []
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", LidarDataWarning)
             try:
-                frames = list(reader)
+                for frame in reader:
+                    frames.append(frame)
+                    seen.append(copy.deepcopy(reader.stats))  # what a caller stopping here sees
             except ValueError as exc:
                 frames = (type(exc), str(exc))
-        out.append((frames, reader.stats))
+        out.append((frames, seen, reader.stats))
     return out
 
 
 def assert_same_reads(path, **options) -> list:
-    (ours, our_stats), (ref, ref_stats) = read_both(path, **options)
+    """The same frames, and the same counts after every frame and at the end."""
+    (ours, our_seen, our_stats), (ref, ref_seen, ref_stats) = read_both(path, **options)
     assert our_stats == ref_stats
+    assert our_seen == ref_seen
     if isinstance(ref, tuple):
         assert ours == ref
         return []
@@ -189,6 +195,6 @@ def test_simulated_capture_with_a_model_switch(tmp_path):
     path = tmp_path / "switch.pcap"
     write_velodyne_pcap(path, raw, times)
     frames = assert_same_reads(path)
-    (_, stats), _ = read_both(path)
+    (_, _, stats), _ = read_both(path)
     assert stats.reasons["model id"] == 10 + 100 and stats.packets == 290
     assert len(frames) >= 3

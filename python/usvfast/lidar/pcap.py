@@ -1,17 +1,20 @@
-"""Velodyne `.pcap` captures (`VelodynePcapReader`), one frame per rotation. The records and
-their UDP/IPv4 datagrams are read in one Rust pass (`_core.pcap_udp_datagrams`: the same
-datagrams and damage counts as dpkt, the oracle of tests/test_pcap_records.py); the record
-stream resynchronises on the next plausible record header after a damaged record; damaged
-records are skipped and counted (`usvfast.lidar.packets`). The packets are cut into rotations
-(`RotationCutter`) where velodyne-decoder's `StreamDecoder` cuts them and decoded by
-`VelodyneScanDecoder`: the frames are the ones velodyne-decoder gives, bit for bit."""
+"""Velodyne `.pcap` captures (`VelodynePcapReader`), one frame per rotation. The records, their
+UDP/IPv4 datagrams and the packet checks are read in Rust over the memory-mapped file
+(`_core.pcap_udp_datagrams`, `_core.velodyne_packet_check`: the same datagrams, the same
+damage as the reader's former dpkt path, their oracle in tests/test_pcap_records.py); the
+record stream resynchronises on the next plausible record header after a damaged record;
+damaged records are skipped and counted (`usvfast.lidar.packets`), the counts kept up as a
+record-by-record reader keeps them. The packets are cut into rotations (`RotationCutter`)
+where velodyne-decoder's `StreamDecoder` cuts them and decoded by `VelodyneScanDecoder`: the
+frames are the ones velodyne-decoder gives, bit for bit."""
 
 from __future__ import annotations
 
 import mmap
 import os
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -27,6 +30,9 @@ from usvfast.lidar.packets import (
     finish_read,
 )
 
+if TYPE_CHECKING:
+    from usvfast._core import _PcapDatagrams
+
 
 def _bytes_view(data) -> np.ndarray:
     """`data` (bytes or an mmap) as a uint8 array without a copy. The caller drops the view
@@ -34,19 +40,48 @@ def _bytes_view(data) -> np.ndarray:
     return np.frombuffer(data, dtype=np.uint8)
 
 
-def _udp_datagrams(data, stats: ReadStats, source: str) -> tuple[np.ndarray, ...]:
-    """(record times UNIX s, destination ports, payload offsets, payload lengths) of every
-    UDP/IPv4 datagram of the capture `data` (bytes or an mmap), read in one pass by
-    `_core.pcap_udp_datagrams`; the records seen and the damage skipped are added to `stats`.
-    Raises ValueError naming `source` when `data` is not a libpcap file."""
+def _udp_datagrams(data, source: str) -> _PcapDatagrams:
+    """`_core.pcap_udp_datagrams` of the capture `data` (bytes or an mmap): every UDP/IPv4
+    datagram, the records seen and the damage skipped, read in one Rust pass. Raises
+    ValueError naming `source` when `data` is not a libpcap file."""
     try:
-        times, ports, offsets, lengths, records, damage = pcap_udp_datagrams(_bytes_view(data))
+        return pcap_udp_datagrams(_bytes_view(data))
     except ValueError as exc:  # the only one for a uint8 array: its header
         raise ValueError(f"{source}: not a libpcap file (pcapng is not supported)") from exc
-    stats.records += records
-    for label, count in damage.items():
-        stats.damage(label, count)
-    return times, ports, offsets, lengths
+
+
+class _Counts:
+    """The counts of a capture read in one pass (`_core.pcap_udp_datagrams`), handed to a
+    reader's `stats` as it hands its data packets on: after n packets, the records up to the
+    n-th packet's record and the damage before it (a record's, before a datagram; a packet's,
+    at it), as a record-by-record reader would have counted them."""
+
+    def __init__(
+        self,
+        stats: ReadStats,
+        found: _PcapDatagrams,
+        kept: np.ndarray,
+        damage: list[tuple[int, str]],
+    ) -> None:
+        self.stats = stats
+        self.records = found["records"]
+        self.record_counts = found["record_counts"][kept]
+        # each damage with the number of packets handed on when it is counted
+        at = np.searchsorted(kept, [d for d, _ in damage], side="left") + 1
+        order = np.argsort(at, kind="stable")
+        self.damage = [(int(at[k]), damage[k][1]) for k in order.tolist()]
+        self.next = 0  # the next damage to count
+
+    def count_to(self, packets: int | None) -> None:
+        """Counts up to `packets` (≥ 1) packets handed on; None: the whole capture."""
+        if packets is None:
+            self.stats.records = self.records
+            packets = len(self.record_counts) + 1  # past the last packet: every damage
+        else:
+            self.stats.records = int(self.record_counts[packets - 1])
+        while self.next < len(self.damage) and self.damage[self.next][0] <= packets:
+            self.stats.damage(self.damage[self.next][1])
+            self.next += 1
 
 
 #: Byte offset of the last block's azimuth in a data packet (block 11, after its flag).
@@ -174,27 +209,38 @@ class VelodynePcapReader:
                 if isinstance(data, mmap.mmap):
                     data.close()
 
-    def _data_packets(self, data, stats: ReadStats, source: str) -> Iterator[tuple[float, bytes]]:
-        """(host time UNIX s, payload) of each well-formed data packet of the capture `data`,
-        in capture order: the UDP datagrams of the packet size (on `data_port` when it is set,
-        where one of another size is "packet length" damage; others are position / telemetry
-        packets) that pass `velodyne_packet_problem` against the model id of the last packet
-        that passed (the others are counted by their problem). The records are read and the
-        packets checked in Rust (`_core.pcap_udp_datagrams`, `_core.velodyne_packet_check`)
-        before the first is yielded; `stats` counts them."""
-        times, ports, offsets, lengths = _udp_datagrams(data, stats, source)
-        data_packets = lengths == VELODYNE_PACKET_SIZE
+    def _data_packets(
+        self, data, stats: ReadStats, source: str
+    ) -> tuple[Iterator[tuple[float, bytes]], Callable[[int | None], None]]:
+        """(packets, count_to): the (host time UNIX s, payload) of each well-formed data
+        packet of the capture `data`, in capture order, and what brings `stats` to where a
+        record-by-record reader would have it after the first n of them (`count_to(n)`; None:
+        the end). The packets are the UDP datagrams of the packet size (on `data_port` when
+        it is set, where one of another size is "packet length" damage; others are position /
+        telemetry packets) that pass `velodyne_packet_problem` against the model id of the
+        last packet that passed (the others are counted by their problem). The records are
+        read and the packets checked in Rust (`_core.pcap_udp_datagrams`,
+        `_core.velodyne_packet_check`) before the first packet is handed on."""
+        found = _udp_datagrams(data, source)
+        times, ports, offsets = found["times"], found["ports"], found["offsets"]
+        data_packets = found["lengths"] == VELODYNE_PACKET_SIZE
+        # (datagram, label): a record's damage sits before that datagram, a packet's at it
+        damage = found["damage"]
         if self.data_port is not None:
             on_port = ports == self.data_port
-            if wrong_length := int(np.count_nonzero(on_port & ~data_packets)):
-                stats.damage("packet length", wrong_length)
+            wrong_length = np.flatnonzero(on_port & ~data_packets).tolist()
+            damage += [(k, "packet length") for k in wrong_length]
             data_packets &= on_port
-        times, offsets = times[data_packets], offsets[data_packets]
-        passed, damage = velodyne_packet_check(_bytes_view(data), offsets)
-        for label, count in damage.items():
-            stats.damage(label, count)
-        for stamp, start in zip(times[passed].tolist(), offsets[passed].tolist(), strict=True):
-            yield stamp, data[start : start + VELODYNE_PACKET_SIZE]
+        candidates = np.flatnonzero(data_packets)
+        passed, problems = velodyne_packet_check(_bytes_view(data), offsets[candidates])
+        damage += [(int(candidates[j]), label) for j, label in problems]
+        kept = candidates[passed]
+        starts = offsets[kept].tolist()
+        packets = (
+            (stamp, data[start : start + VELODYNE_PACKET_SIZE])
+            for stamp, start in zip(times[kept].tolist(), starts, strict=True)
+        )
+        return packets, _Counts(stats, found, kept, damage).count_to
 
     def _frames(self, data) -> Iterator[LidarFrame]:
         self.stats = stats = ReadStats()
@@ -224,11 +270,14 @@ class VelodynePcapReader:
             stats.frames += 1
             return frame
 
-        for stamp, payload in self._data_packets(data, stats, source):
+        packets, count_to = self._data_packets(data, stats, source)
+        for stamp, payload in packets:
             stats.packets += 1
             rotation = cutter.push(payload, stamp)
             if rotation is not None and (frame := decode(rotation)) is not None:
+                count_to(stats.packets)  # a caller may stop here: the counts so far
                 yield frame
+        count_to(None)
         rotation = cutter.finish()
         if rotation is not None and (frame := decode(rotation)) is not None:
             yield frame

@@ -18,10 +18,12 @@ pub struct UdpDatagrams {
     pub offsets: Vec<usize>,
     /// Length of each datagram's payload, bytes.
     pub lengths: Vec<usize>,
+    /// Records seen up to each datagram's record (included), damaged ones included.
+    pub record_counts: Vec<usize>,
     /// Records seen, damaged ones included.
     pub records: usize,
-    /// Damaged records and frames, indexed by `Damage as usize`.
-    pub damage: [usize; Damage::ALL.len()],
+    /// Damaged records and frames in file order, each with the number of datagrams before it.
+    pub damaged: Vec<(usize, Damage)>,
     /// The capture's link type (LINKTYPE_* number).
     pub linktype: u32,
 }
@@ -41,8 +43,8 @@ impl UdpDatagrams {
 
     /// Count of one kind of damage.
     #[must_use]
-    pub fn damaged(&self, kind: Damage) -> usize {
-        self.damage[kind as usize]
+    pub fn count(&self, kind: Damage) -> usize {
+        self.damaged.iter().filter(|(_, k)| *k == kind).count()
     }
 }
 
@@ -67,7 +69,9 @@ pub fn frame_udp(
 }
 
 /// Every UDP/IPv4 datagram of the libpcap capture `data` (the whole file), with the records
-/// seen and the damage skipped ([`Records`] for the records, [`frame_udp`] for the frames).
+/// seen and the damage skipped ([`Records`] for the records, [`frame_udp`] for the frames),
+/// both placed among the datagrams (a reader handing the datagrams on one by one can count as
+/// it goes).
 ///
 /// Fails with [`crate::Error::InvalidParameter`] naming `data` when it is not a libpcap file
 /// (pcapng included); damage inside the file is counted, never an error.
@@ -78,8 +82,13 @@ pub fn udp_datagrams(data: &[u8]) -> Result<UdpDatagrams> {
         linktype,
         ..UdpDatagrams::default()
     };
-    let mut frame_damage = [0_usize; Damage::ALL.len()];
-    for record in records.by_ref() {
+    let mut logged = 0;
+    while let Some(record) = records.next() {
+        let before = out.len();
+        for &kind in &records.damaged()[logged..] {
+            out.damaged.push((before, kind));
+        }
+        logged = records.damaged().len();
         let frame = &data[record.start..record.start + record.len];
         match frame_udp(linktype, frame) {
             Ok(Some((port, offset, len))) => {
@@ -87,15 +96,16 @@ pub fn udp_datagrams(data: &[u8]) -> Result<UdpDatagrams> {
                 out.ports.push(port);
                 out.offsets.push(record.start + offset);
                 out.lengths.push(len);
+                out.record_counts.push(records.records());
             }
             Ok(None) => {}
-            Err(kind) => frame_damage[kind as usize] += 1,
+            Err(kind) => out.damaged.push((before, kind)),
         }
     }
-    out.records = records.records();
-    let record_damage = records.damage();
-    for (k, slot) in out.damage.iter_mut().enumerate() {
-        *slot = record_damage[k] + frame_damage[k];
+    let end = out.len();
+    for &kind in &records.damaged()[logged..] {
+        out.damaged.push((end, kind));
     }
+    out.records = records.records();
     Ok(out)
 }

@@ -57,7 +57,7 @@ pub struct Records<'a> {
     last_sec: Option<u32>,
     done: bool,
     records: usize,
-    damage: [usize; Damage::ALL.len()],
+    damaged: Vec<Damage>,
 }
 
 impl<'a> Records<'a> {
@@ -89,7 +89,7 @@ impl<'a> Records<'a> {
             last_sec: None,
             done: false,
             records: 0,
-            damage: [0; Damage::ALL.len()],
+            damaged: Vec::new(),
         };
         let snaplen = out.u32_at(16);
         out.snaplen = if snaplen == 0 {
@@ -113,10 +113,10 @@ impl<'a> Records<'a> {
         self.records
     }
 
-    /// Damaged records counted so far, indexed by `Damage as usize` (record kinds only).
+    /// The damaged records skipped so far, in file order (record kinds only).
     #[must_use]
-    pub fn damage(&self) -> [usize; Damage::ALL.len()] {
-        self.damage
+    pub fn damaged(&self) -> &[Damage] {
+        &self.damaged
     }
 
     fn u32_at(&self, pos: usize) -> u32 {
@@ -177,7 +177,7 @@ impl<'a> Records<'a> {
     }
 
     fn count(&mut self, damage: Damage) {
-        self.damage[damage as usize] += 1;
+        self.damaged.push(damage);
     }
 }
 

@@ -126,7 +126,7 @@ fn payloads<'a>(data: &'a [u8], d: &UdpDatagrams) -> Vec<&'a [u8]> {
 
 fn only(d: &UdpDatagrams, kind: Damage, count: usize) {
     for k in Damage::ALL {
-        assert_eq!(d.damaged(k), if k == kind { count } else { 0 }, "{k:?}");
+        assert_eq!(d.count(k), if k == kind { count } else { 0 }, "{k:?}");
     }
 }
 
@@ -221,6 +221,9 @@ fn garbage_between_records_costs_one_header() {
     assert_eq!(d.records, 4);
     only(&d, Damage::RecordHeader, 1);
     assert_eq!(payloads(&data, &d)[1], &[2; 40][..]);
+    // the damage sits between the first datagram and the second; the garbage is a record
+    assert_eq!(d.damaged, [(1, Damage::RecordHeader)]);
+    assert_eq!(d.record_counts, [1, 3, 4]);
 }
 
 #[test]
@@ -448,7 +451,16 @@ fn frame_damage_is_counted_per_record() {
     );
     let d = udp_datagrams(&data).unwrap();
     assert_eq!((d.records, d.len()), (3, 1));
-    assert_eq!(d.damaged(Damage::IpChecksum), 1);
-    assert_eq!(d.damaged(Damage::LinkIpHeader), 1);
+    assert_eq!(d.count(Damage::IpChecksum), 1);
+    assert_eq!(d.count(Damage::LinkIpHeader), 1);
+    assert_eq!(
+        d.damaged,
+        [(1, Damage::IpChecksum), (1, Damage::LinkIpHeader)]
+    );
+    // a cut last record: counted after every datagram
+    let cut = &data[..data.len() - 3];
+    let d = udp_datagrams(cut).unwrap();
+    assert_eq!(d.damaged.last(), Some(&(1, Damage::TruncatedRecord)));
+    assert_eq!((d.record_counts.as_slice(), d.records), (&[1][..], 3));
     assert_eq!(Damage::ALL.map(Damage::label)[3], "link/IP header");
 }

@@ -3,14 +3,13 @@
 
 use super::{slice, to_py_err, ByteArg};
 use crate::error::Error;
-use crate::velodyne::{self, PacketProblem, VelodyneModel, PACKET_SIZE, POINT_COLUMNS};
+use crate::velodyne::{self, VelodyneModel, PACKET_SIZE, POINT_COLUMNS};
 use numpy::{
     PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArray,
     PyUntypedArrayMethods,
 };
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
 
 /// What `obj` is, for an error message: "uint16 array of shape (3, 1206)" or its type name.
 pub(crate) fn describe(obj: &Bound<'_, PyAny>) -> String {
@@ -73,7 +72,7 @@ fn decode_velodyne_scan<'py>(
 
 /// Checks a stream of data packets, `data[o:o + 1206]` for each of `offsets` (`data`: bytes or
 /// a 1-D uint8 array; `offsets`: int64, bytes), each against the model id of the last one that
-/// passed: `(passed, damage)`, a bool per packet and `{label: count}` of the refused ones
+/// passed: `(passed, problems)`, a bool per packet and `(index, label)` of each refused one
 /// (labels of `usvfast.lidar.packets.velodyne_packet_problem`).
 #[pyfunction]
 #[pyo3(signature = (data, offsets))]
@@ -81,7 +80,7 @@ fn velodyne_packet_check<'py>(
     py: Python<'py>,
     data: &Bound<'py, PyAny>,
     offsets: &Bound<'py, PyAny>,
-) -> PyResult<(Bound<'py, PyArray1<bool>>, Bound<'py, PyDict>)> {
+) -> PyResult<(Bound<'py, PyArray1<bool>>, Vec<(usize, &'static str)>)> {
     let data = ByteArg::extract("data", data)?;
     let bytes = data.bytes("data")?;
     let offsets: PyReadonlyArray1<'py, i64> = offsets.extract().map_err(|_| {
@@ -97,15 +96,13 @@ fn velodyne_packet_check<'py>(
         .collect::<Result<_, _>>()
         .map_err(|_| PyValueError::new_err("offsets: must be non-negative"))?;
     let problems = py.detach(|| velodyne::stream_problems(bytes, &offsets));
-    let damage = PyDict::new(py);
-    for kind in PacketProblem::ALL {
-        let count = problems.iter().filter(|p| **p == Some(kind)).count();
-        if count > 0 {
-            damage.set_item(kind.label(), count)?;
-        }
-    }
+    let refused = problems
+        .iter()
+        .enumerate()
+        .filter_map(|(k, p)| p.map(|p| (k, p.label())))
+        .collect();
     let passed = problems.iter().map(Option::is_none).collect();
-    Ok((PyArray1::from_vec(py, passed), damage))
+    Ok((PyArray1::from_vec(py, passed), refused))
 }
 
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
