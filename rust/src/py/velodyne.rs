@@ -70,6 +70,9 @@ fn decode_velodyne_scan<'py>(
     Ok(((scan.host_stamp, scan.device_stamp), points))
 }
 
+/// Whether each packet passed, and `(index, label)` of each refused one.
+type PacketCheck<'py> = (Bound<'py, PyArray1<bool>>, Vec<(usize, &'static str)>);
+
 /// Checks a stream of data packets, `data[o:o + 1206]` for each of `offsets` (`data`: bytes or
 /// a 1-D uint8 array; `offsets`: int64, bytes), each against the model id of the last one that
 /// passed: `(passed, problems)`, a bool per packet and `(index, label)` of each refused one
@@ -80,7 +83,7 @@ fn velodyne_packet_check<'py>(
     py: Python<'py>,
     data: &Bound<'py, PyAny>,
     offsets: &Bound<'py, PyAny>,
-) -> PyResult<(Bound<'py, PyArray1<bool>>, Vec<(usize, &'static str)>)> {
+) -> PyResult<PacketCheck<'py>> {
     let data = ByteArg::extract("data", data)?;
     let bytes = data.bytes("data")?;
     let offsets: PyReadonlyArray1<'py, i64> = offsets.extract().map_err(|_| {
