@@ -14,7 +14,9 @@
 //!
 //! [`records`] walks the records (resynchronising after damage), [`link`] takes a frame's
 //! link layers off down to its IPv4 header, [`ipv4`] reads the IPv4 and UDP headers, and
-//! [`datagrams`] ties them into [`udp_datagrams`]. pcapng files are refused.
+//! [`datagrams`] ties them into [`udp_datagrams`]. pcapng files are refused. Where dpkt itself
+//! fails with an exception its callers never caught (an MPLS label stack with nothing after
+//! it: IndexError), the frame is read as if dpkt had raised its `UnpackError`.
 
 pub mod datagrams;
 pub mod ipv4;
