@@ -291,7 +291,8 @@ def test_simulated_capture(tmp_path):
 
 
 def test_frames_of_the_simulator_in_every_shape():
-    """`udp_frame` payloads of every length, ports, and the frame edits a sniffer meets."""
+    """The simulator's frames (`udp_frame`) with payloads from empty to a full MTU and ports at
+    the edges."""
     frames = [
         udp_frame(bytes([k]) * n, port, k)
         for k, (n, port) in enumerate(
