@@ -1,22 +1,29 @@
-"""Velodyne pcap reader: usvfast's rotation cutter and decoder vs the velodyne-decoder path,
-same capture, one process.
+"""Velodyne pcap reader: usvfast's record pass in Rust vs the same reader with its records
+and frames read in Python and dpkt as before, and vs the velodyne-decoder path; same capture,
+one process.
 
 The capture is 30 s of a simulated VLP-16 at 10 Hz (`Vlp16Recorder`, buildings behind the
 quays: about 10,000 points per rotation), written as a pcap (Ethernet / IPv4 / UDP, as a
 laptop records it) to a temporary folder, or `--pcap FILE`. Timed over the whole capture (best
-pass of `--repeat`), per rotation:
+pass of `--repeat`), per rotation, for three readers (`tests/pcap_peer.py` holds the two old
+ones):
 
-- reader: `list(VelodynePcapReader(path))` against the reader as it was, with numpy checking
-  the packets and every packet going through one velodyne-decoder `StreamDecoder`
-  (`tests/pcap_peer.py`); both take the UDP payloads out with dpkt;
-- records: the first part of each, reading the pcap records, their UDP payloads and checking
-  each packet (`_iter_pcap_records`, dpkt, and each reader's own packet check);
-- rotations: the rest (cutting, decoding, points as `POINT_DTYPE`, frames);
-- reader with `every=2`: every other rotation (the peer decodes all of them, the reader
-  only the ones it yields).
+- usvfast: `VelodynePcapReader`, the records and UDP payloads read by
+  `_core.pcap_udp_datagrams` and the packets checked by `_core.velodyne_packet_check` (Rust),
+  its own rotation cutter and decoder;
+- dpkt records: `DpktPcapReader`, the same reader with the records walked in Python
+  (`_iter_pcap_records`), the payloads taken out by dpkt and each packet checked by
+  `velodyne_packet_problem`, as it was before;
+- velodyne-decoder: `PeerPcapReader`, dpkt records, numpy packet checks, every packet
+  through one velodyne-decoder `StreamDecoder`.
 
-Both readers give the same frames bit for bit (checked here). Prints the times per rotation
-and the ratios.
+Rows: the whole reader (`list(reader)`); its first part, the records, their UDP payloads and
+the packet checks (each reader's `_data_packets`); the rotations, the rest
+(cutting, decoding, points as `POINT_DTYPE`, frames); the reader with `every=2` (the peer
+decodes all rotations, the readers only the ones they yield).
+
+The three give the same frames bit for bit (checked here). Prints the times per rotation and
+the ratios of the old readers' times to usvfast's.
 
     python benches/bench_pcap_reader.py [--pcap FILE] [--seconds 30] [--repeat 5]
 """
@@ -24,6 +31,7 @@ and the ratios.
 from __future__ import annotations
 
 import argparse
+import mmap
 import sys
 import tempfile
 import time
@@ -32,11 +40,11 @@ from pathlib import Path
 
 import numpy as np
 
-from usvfast.lidar.packets import ReadStats, velodyne_packet_problem
-from usvfast.lidar.pcap import VelodynePcapReader, _iter_pcap_records, _udp_payload
+from usvfast.lidar.packets import ReadStats
+from usvfast.lidar.pcap import VelodynePcapReader
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-from pcap_peer import PeerPcapReader, packet_problem
+from pcap_peer import DpktPcapReader, PeerPcapReader, packet_problem
 
 
 def simulate_pcap(folder: Path, seconds: float) -> Path:
@@ -56,18 +64,20 @@ def simulate_pcap(folder: Path, seconds: float) -> Path:
     return path
 
 
-def read_records(path: Path, udp_payload, packet_problem) -> int:
-    """The first part of a reader: every record, its UDP payload (`udp_payload`) and the
-    packet checks (`packet_problem`); the number of data packets."""
-    data = path.read_bytes()
-    stats, model_id, n = ReadStats(), None, 0
-    for _, linktype, frame in _iter_pcap_records(data, stats, str(path)):
-        udp = udp_payload(linktype, frame)
-        if udp is not None and len(udp[1]) == 1206:
-            if packet_problem(udp[1], model_id) is None:
-                model_id = udp[1][1205]
-                n += 1
-    return n
+class NumpyCheckedReader(DpktPcapReader):
+    """The first part of `PeerPcapReader`: dpkt records, packets checked with numpy."""
+
+    check = staticmethod(packet_problem)
+
+
+def read_records(reader: VelodynePcapReader) -> int:
+    """The first part of a reader: every record, its UDP payload and the packet checks (the
+    reader's `_data_packets`); the number of data packets."""
+    with reader.path.open("rb") as fh, mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) as data:
+        packets, count_to = reader._data_packets(data, ReadStats(), str(reader.path))
+        n = sum(1 for _ in packets)
+        count_to(None)
+        return n
 
 
 def best(fn, repeat: int) -> float:
@@ -89,34 +99,43 @@ def main() -> None:
     warnings.simplefilter("ignore")
     with tempfile.TemporaryDirectory() as tmp:
         path = args.pcap or simulate_pcap(Path(tmp), args.seconds)
+        readers = (VelodynePcapReader, DpktPcapReader, PeerPcapReader)
         for every in (1, 2):
-            ours = list(VelodynePcapReader(path, every=every))
-            ref = list(PeerPcapReader(path, every=every))
-            assert len(ours) == len(ref)
-            for a, b in zip(ours, ref, strict=True):
-                assert a.stamp == b.stamp and a.points.tobytes() == b.points.tobytes()
+            ours, *old = (list(cls(path, every=every)) for cls in readers)
+            for ref in old:
+                assert len(ours) == len(ref)
+                for a, b in zip(ours, ref, strict=True):
+                    assert a.stamp == b.stamp and a.points.tobytes() == b.points.tobytes()
         ours = list(VelodynePcapReader(path))
         r = args.repeat
-        t_ours = best(lambda: list(VelodynePcapReader(path)), r)
-        t_peer = best(lambda: list(PeerPcapReader(path)), r)
-        t_every = best(lambda: list(VelodynePcapReader(path, every=2)), r)
-        t_peer_every = best(lambda: list(PeerPcapReader(path, every=2)), r)
-        t_records = best(lambda: read_records(path, _udp_payload, velodyne_packet_problem), r)
-        t_peer_records = best(lambda: read_records(path, _udp_payload, packet_problem), r)
-        packets = read_records(path, _udp_payload, velodyne_packet_problem)
+        times = {}
+        for cls in readers:
+            times[cls, "reader"] = best(lambda cls=cls: list(cls(path)), r)
+            times[cls, "every"] = best(lambda cls=cls: list(cls(path, every=2)), r)
+            # the peer reads its records as DpktPcapReader does, and checks packets with numpy
+            first = NumpyCheckedReader if cls is PeerPcapReader else cls
+            times[cls, "records"] = best(lambda f=first: read_records(f(path)), r)
+        packets = read_records(VelodynePcapReader(path))
+        assert packets == read_records(DpktPcapReader(path))
     n = len(ours)
     points = sum(len(f) for f in ours) / n
     name = args.pcap or f"simulated {args.seconds:g} s VLP-16 capture"
     print(f"{name}: {n} rotations, {packets / n:.1f} packets, {points:.0f} points per rotation")
-    print("  per rotation                usvfast   velodyne-decoder   ratio")
-    rows = [
-        ("reader (list of frames)", t_ours, t_peer),
-        ("records, payloads, checks", t_records, t_peer_records),
-        ("rotations (the rest)", t_ours - t_records, t_peer - t_peer_records),
-        ("reader, every=2", t_every, t_peer_every),
-    ]
-    for label, a, b in rows:
-        print(f"  {label:<25} {a / n * 1e3:8.3f} ms   {b / n * 1e3:8.3f} ms   {b / a:6.2f}x")
+    print(
+        "  per rotation, ms             usvfast   dpkt records   ratio   velodyne-decoder   ratio"
+    )
+    for label, key in [
+        ("reader (list of frames)", "reader"),
+        ("records, payloads, checks", "records"),
+        ("rotations (the rest)", None),
+        ("reader, every=2", "every"),
+    ]:
+        if key is None:
+            t = [times[c, "reader"] - times[c, "records"] for c in readers]
+        else:
+            t = [times[c, key] for c in readers]
+        a, b, c = (x / n * 1e3 for x in t)
+        print(f"  {label:<25} {a:10.3f} {b:14.3f} {b / a:6.2f}x {c:18.3f} {c / a:6.2f}x")
 
 
 if __name__ == "__main__":

@@ -14,7 +14,7 @@ import pytest
 import velodyne_decoder as vd
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from pcap_peer import PeerPcapReader
+from pcap_peer import PeerPcapReader, _iter_pcap_records
 from pcap_peer import packet_problem as peer_packet_problem
 
 from usvfast.lidar import LidarDataWarning
@@ -24,11 +24,7 @@ from usvfast.lidar.packets import (
     packet_problems,
     velodyne_packet_problem,
 )
-from usvfast.lidar.pcap import (
-    RotationCutter,
-    VelodynePcapReader,
-    _iter_pcap_records,
-)
+from usvfast.lidar.pcap import RotationCutter, VelodynePcapReader
 from usvfast.sim.scene import make_world
 from usvfast.sim.velodyne import Vlp16Recorder, write_velodyne_pcap
 

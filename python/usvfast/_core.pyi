@@ -1,6 +1,6 @@
 # Type stubs of the native module usvfast._core (rust/src/py/). tests/test_stubs.py checks
 # that every runtime name has a stub here with the same parameter names, and vice versa.
-from typing import Any
+from typing import Any, TypedDict
 
 import numpy as np
 import numpy.typing as npt
@@ -89,6 +89,51 @@ def decode_velodyne_scan(
     packet_times: npt.NDArray[np.float64],
     model: str,
 ) -> tuple[tuple[float, float], npt.NDArray[np.float32]]: ...
+def velodyne_packet_check(
+    data: bytes | npt.NDArray[np.uint8],
+    offsets: npt.NDArray[np.int64],
+) -> tuple[npt.NDArray[np.bool_], list[tuple[int, str]]]:
+    """Checks a stream of Velodyne data packets, `data[o:o + 1206]` for each offset (bytes).
+
+    data : bytes or a C-contiguous 1-D uint8 array; offsets : (k,) int64, non-negative.
+    Returns (passed, problems): per packet whether it passed
+    `usvfast.lidar.packets.velodyne_packet_problem` against the model id of the last packet
+    that passed (none before the first), and (index, label) of each refused one ("packet
+    length" for a packet running past the end of `data`, "block flag", "azimuth", "factory
+    bytes", "model id"). Raises TypeError for another type of `data`, ValueError for bad
+    `offsets` or a non-contiguous array.
+    """
+
+# --- pcap (rust/src/py/pcap.rs) ---
+# The dict pcap_udp_datagrams returns (a stub-only name: the functional form keeps it out of
+# tests/test_stubs.py's comparison of classes with the runtime module).
+_PcapDatagrams = TypedDict(  # noqa: UP013
+    "_PcapDatagrams",
+    {
+        "times": npt.NDArray[np.float64],
+        "ports": npt.NDArray[np.uint16],
+        "offsets": npt.NDArray[np.int64],
+        "lengths": npt.NDArray[np.int64],
+        "record_counts": npt.NDArray[np.int64],
+        "records": int,
+        "damage": list[tuple[int, str]],
+    },
+)
+
+def pcap_udp_datagrams(data: bytes | npt.NDArray[np.uint8]) -> _PcapDatagrams:
+    """Every UDP/IPv4 datagram of a libpcap capture, in one pass.
+
+    data : the whole file, `bytes` or a C-contiguous 1-D uint8 array (`np.frombuffer` of an
+    mmap). Returns, per datagram in capture order: `times`, its record's capture time (UNIX s);
+    `ports`, its destination port; `offsets` and `lengths`, its payload's place in `data`
+    (bytes); `record_counts`, the records seen up to its record. `records`: the records seen;
+    `damage`: (datagrams before it, label) of each record or frame skipped as damaged, in
+    capture order, labels "record header", "truncated record", "record timestamp", "link/IP
+    header", "IP checksum", "UDP length". Reads what dpkt reads (Ethernet with 802.1Q/QinQ,
+    MPLS, ISL; raw IP, link types 101 and 12; Linux SLL, 113); other frames are left out.
+    Raises TypeError for another type of `data`, ValueError when it is not a libpcap file
+    (pcapng is not supported) or not C-contiguous.
+    """
 
 # --- geodesy (rust/src/py/geodesy.rs) ---
 _F = npt.NDArray[np.float64]

@@ -17,6 +17,7 @@ pub mod mean_shift;
 pub mod models;
 pub mod nms;
 pub mod particle;
+pub mod pcap;
 pub mod sharpness;
 pub mod tracking;
 pub mod velodyne;

@@ -1,18 +1,24 @@
-"""Velodyne `.pcap` captures (`VelodynePcapReader`), one frame per rotation. The record
-stream resynchronises on the next plausible record header after a damaged record; damaged
-records are skipped and counted (`usvfast.lidar.packets`). The packets are cut into rotations
-(`RotationCutter`) where velodyne-decoder's `StreamDecoder` cuts them and decoded by
-`VelodyneScanDecoder`: the frames are the ones velodyne-decoder gives, bit for bit."""
+"""Velodyne `.pcap` captures (`VelodynePcapReader`), one frame per rotation. The records, their
+UDP/IPv4 datagrams and the packet checks are read in Rust over the memory-mapped file
+(`_core.pcap_udp_datagrams`, `_core.velodyne_packet_check`: the same datagrams, the same
+damage as the reader's former dpkt path, their oracle in tests/test_pcap_records.py); the
+record stream resynchronises on the next plausible record header after a damaged record;
+damaged records are skipped and counted (`usvfast.lidar.packets`), the counts kept up as a
+record-by-record reader keeps them. The packets are cut into rotations (`RotationCutter`)
+where velodyne-decoder's `StreamDecoder` cuts them and decoded by `VelodyneScanDecoder`: the
+frames are the ones velodyne-decoder gives, bit for bit."""
 
 from __future__ import annotations
 
 import mmap
 import os
-import struct
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from usvfast._extras import require
+import numpy as np
+
+from usvfast._core import pcap_udp_datagrams, velodyne_packet_check
 from usvfast._files import regular_file
 from usvfast._validate import integer
 from usvfast.lidar.frame import LidarFrame
@@ -22,139 +28,60 @@ from usvfast.lidar.packets import (
     VelodyneScanDecoder,
     decoded_to_points,
     finish_read,
-    velodyne_packet_problem,
 )
 
-_PCAP_MAGICS = {
-    b"\xd4\xc3\xb2\xa1": ("<", 1e-6),
-    b"\xa1\xb2\xc3\xd4": (">", 1e-6),
-    b"\x4d\x3c\xb2\xa1": ("<", 1e-9),
-    b"\xa1\xb2\x3c\x4d": (">", 1e-9),
-}
+if TYPE_CHECKING:
+    from usvfast._core import _PcapDatagrams
 
 
-def _close_in_time(ref_sec: int, sec: int) -> bool:
-    """True when `sec` can follow `ref_sec` in one capture stream (1 s of reordering back,
-    up to a minute of silence forward)."""
-    return -1 <= sec - ref_sec <= 60
+def _bytes_view(data) -> np.ndarray:
+    """`data` (bytes or an mmap) as a uint8 array without a copy. The caller drops the view
+    before the mmap is closed (a map with a live export cannot be closed)."""
+    return np.frombuffer(data, dtype=np.uint8)
 
 
-def _iter_pcap_records(
-    data: bytes, stats: ReadStats, source: str
-) -> Iterator[tuple[float, int, bytes]]:
-    """Yield (timestamp s, link type, frame bytes) of every readable pcap record.
-
-    A record whose header is implausible (length beyond the snap length, a timestamp far
-    from its neighbours) is counted as damaged and the stream resynchronises on the next
-    position holding a plausible header followed by another plausible header (or the end
-    of the file). A record cut by the end of the file is counted as damaged.
-
-    A header's timestamp is judged by both neighbours, not by the last accepted record
-    alone: a record whose seconds disagree with the previous record while the next record
-    agrees with the previous one is the single outlier (a damaged `ts_sec`), so it is
-    skipped and counted ("record timestamp") and the reference time stays; a jump that the
-    next record confirms is a real clock step and is adopted (an unconfirmed jump, as in the
-    last record, is damage).
-    """
-    if len(data) < 24 or data[:4] not in _PCAP_MAGICS:
-        raise ValueError(f"{source}: not a libpcap file (pcapng is not supported)")
-    endian, tick = _PCAP_MAGICS[data[:4]]
-    snaplen, linktype = struct.unpack(endian + "II", data[16:24])
-    snaplen = min(snaplen or 262144, 262144)
-    hdr = struct.Struct(endian + "IIII")
-    n = len(data)
-    last_sec: int | None = None
-
-    def plausible(pos: int, ref_sec: int | None) -> bool:
-        if pos + 16 > n:
-            return False
-        sec, frac, incl, orig = hdr.unpack_from(data, pos)
-        if incl == 0 or incl > snaplen or incl > orig or orig > 262144:
-            return False
-        if frac >= (1_000_000 if tick == 1e-6 else 1_000_000_000):
-            return False
-        return ref_sec is None or -3600 <= sec - ref_sec <= 86400
-
-    def header_sec(pos: int) -> int | None:
-        return hdr.unpack_from(data, pos)[0] if plausible(pos, None) else None
-
-    def resync(start: int, ref_sec: int | None) -> int:
-        pos = start
-        while pos + 16 <= n:
-            if plausible(pos, ref_sec):
-                incl = hdr.unpack_from(data, pos)[2]
-                nxt = pos + 16 + incl
-                if nxt == n or plausible(nxt, ref_sec):
-                    return pos
-            pos += 1
-        return n
-
-    pos = 24
-    while pos < n:
-        if pos + 16 > n:
-            stats.records += 1
-            stats.damage("truncated record")
-            return
-        if not plausible(pos, last_sec):
-            stats.records += 1
-            stats.damage("record header")
-            pos = resync(pos + 1, last_sec)
-            continue
-        sec, frac, incl, _ = hdr.unpack_from(data, pos)
-        stats.records += 1
-        if pos + 16 + incl > n:
-            stats.damage("truncated record")
-            return
-        nxt = pos + 16 + incl
-        next_sec = header_sec(nxt)
-        if last_sec is None and next_sec is not None:
-            # the first record: judged by the next two (is it or the next one the outlier?)
-            after = header_sec(nxt + 16 + hdr.unpack_from(data, nxt)[2])
-            judge = next_sec if after is None or _close_in_time(next_sec, after) else None
-        else:
-            judge = last_sec
-        if judge is not None and not _close_in_time(judge, sec):
-            if next_sec is None or _close_in_time(judge, next_sec):
-                # the one outlier between agreeing neighbours (or a jump nothing confirms)
-                stats.damage("record timestamp")
-                pos = nxt
-                continue
-        last_sec = sec
-        yield sec + frac * tick, linktype, data[pos + 16 : pos + 16 + incl]
-        pos += 16 + incl
-
-
-def _udp_payload(linktype: int, frame: bytes) -> tuple[int, bytes] | None:
-    """(destination port, payload) of a UDP/IPv4 frame, None for anything else.
-
-    Raises ValueError when the frame claims to be IPv4/UDP but its headers are broken
-    (IP header checksum, lengths).
-    """
-    dpkt = require("dpkt", "lidar", "pcap files")
-
+def _udp_datagrams(data, source: str) -> _PcapDatagrams:
+    """`_core.pcap_udp_datagrams` of the capture `data` (bytes or an mmap): every UDP/IPv4
+    datagram, the records seen and the damage skipped, read in one Rust pass. Raises
+    ValueError naming `source` when `data` is not a libpcap file."""
     try:
-        if linktype == 1:
-            eth = dpkt.ethernet.Ethernet(frame)
-            ip = eth.data
-        elif linktype in (101, 12):
-            ip = dpkt.ip.IP(frame)
-        elif linktype == 113:
-            ip = dpkt.sll.SLL(frame).data
+        return pcap_udp_datagrams(_bytes_view(data))
+    except ValueError as exc:  # the only one for a uint8 array: its header
+        raise ValueError(f"{source}: not a libpcap file (pcapng is not supported)") from exc
+
+
+class _Counts:
+    """The counts of a capture read in one pass (`_core.pcap_udp_datagrams`), handed to a
+    reader's `stats` as it hands its data packets on: after n packets, the records up to the
+    n-th packet's record and the damage before it (a record's, before a datagram; a packet's,
+    at it), as a record-by-record reader would have counted them."""
+
+    def __init__(
+        self,
+        stats: ReadStats,
+        found: _PcapDatagrams,
+        kept: np.ndarray,
+        damage: list[tuple[int, str]],
+    ) -> None:
+        self.stats = stats
+        self.records = found["records"]
+        self.record_counts = found["record_counts"][kept]
+        # each damage with the number of packets handed on when it is counted
+        at = np.searchsorted(kept, [d for d, _ in damage], side="left") + 1
+        order = np.argsort(at, kind="stable")
+        self.damage = [(int(at[k]), damage[k][1]) for k in order.tolist()]
+        self.next = 0  # the next damage to count
+
+    def count_to(self, packets: int | None) -> None:
+        """Counts up to `packets` (≥ 1) packets handed on; None: the whole capture."""
+        if packets is None:
+            self.stats.records = self.records
+            packets = len(self.record_counts) + 1  # past the last packet: every damage
         else:
-            return None
-    except (dpkt.dpkt.UnpackError, struct.error) as exc:
-        raise ValueError("link/IP header") from exc
-    if not isinstance(ip, dpkt.ip.IP):
-        return None
-    # the header as stored (pack_hdr keeps the received checksum): sums to 0 when intact
-    if dpkt.in_cksum(ip.pack_hdr() + bytes(ip.opts)) != 0:
-        raise ValueError("IP checksum")
-    udp = ip.data
-    if not isinstance(udp, dpkt.udp.UDP):
-        return None
-    if udp.ulen != 8 + len(udp.data):
-        raise ValueError("UDP length")
-    return int(udp.dport), bytes(udp.data)
+            self.stats.records = int(self.record_counts[packets - 1])
+        while self.next < len(self.damage) and self.damage[self.next][0] <= packets:
+            self.stats.damage(self.damage[self.next][1])
+            self.next += 1
 
 
 #: Byte offset of the last block's azimuth in a data packet (block 11, after its flag).
@@ -176,7 +103,8 @@ class RotationCutter:
     after the rotation's first packet ends the rotation before it, and starts the next one.
     `finish` gives what is left.
 
-    Packets must have passed `velodyne_packet_problem` (azimuths below 36000). The cutter
+    Packets must have passed `usvfast.lidar.packets.velodyne_packet_problem` (azimuths below
+    36000). The cutter
     keeps plain lists; `push` is a few integer operations per packet.
     """
 
@@ -281,12 +209,44 @@ class VelodynePcapReader:
                 if isinstance(data, mmap.mmap):
                     data.close()
 
+    def _data_packets(
+        self, data, stats: ReadStats, source: str
+    ) -> tuple[Iterator[tuple[float, bytes]], Callable[[int | None], None]]:
+        """(packets, count_to): the (host time UNIX s, payload) of each well-formed data
+        packet of the capture `data`, in capture order, and what brings `stats` to where a
+        record-by-record reader would have it after the first n of them (`count_to(n)`; None:
+        the end). The packets are the UDP datagrams of the packet size (on `data_port` when
+        it is set, where one of another size is "packet length" damage; others are position /
+        telemetry packets) that pass `velodyne_packet_problem` against the model id of the
+        last packet that passed (the others are counted by their problem). The records are
+        read and the packets checked in Rust (`_core.pcap_udp_datagrams`,
+        `_core.velodyne_packet_check`) before the first packet is handed on."""
+        found = _udp_datagrams(data, source)
+        times, ports, offsets = found["times"], found["ports"], found["offsets"]
+        data_packets = found["lengths"] == VELODYNE_PACKET_SIZE
+        # (datagram, label): a record's damage sits before that datagram, a packet's at it
+        damage = found["damage"]
+        if self.data_port is not None:
+            on_port = ports == self.data_port
+            wrong_length = np.flatnonzero(on_port & ~data_packets).tolist()
+            damage += [(k, "packet length") for k in wrong_length]
+            data_packets &= on_port
+        candidates = np.flatnonzero(data_packets)
+        passed, problems = velodyne_packet_check(_bytes_view(data), offsets[candidates])
+        damage += [(int(candidates[j]), label) for j, label in problems]
+        kept = candidates[passed]
+        starts = offsets[kept].tolist()
+        packets = (
+            (stamp, data[start : start + VELODYNE_PACKET_SIZE])
+            for stamp, start in zip(times[kept].tolist(), starts, strict=True)
+        )
+        return packets, _Counts(stats, found, kept, damage).count_to
+
     def _frames(self, data) -> Iterator[LidarFrame]:
         self.stats = stats = ReadStats()
         source = str(self.path)
         decoder = VelodyneScanDecoder(self.model)
         cutter = RotationCutter()
-        model_id: int | None = None
 
         def decode(rotation: tuple[list[bytes], list[float]]) -> LidarFrame | None:
             """The rotation's frame; None when `every` leaves it out, or when the decoder
@@ -310,30 +270,14 @@ class VelodynePcapReader:
             stats.frames += 1
             return frame
 
-        for stamp, linktype, frame_bytes in _iter_pcap_records(data, stats, source):
-            try:
-                udp = _udp_payload(linktype, frame_bytes)
-            except ValueError as exc:
-                stats.damage(str(exc))
-                continue
-            if udp is None:
-                continue
-            port, payload = udp
-            if self.data_port is not None and port != self.data_port:
-                continue
-            if len(payload) != VELODYNE_PACKET_SIZE:
-                if self.data_port is not None:
-                    stats.damage("packet length")
-                continue  # position / telemetry packet
-            problem = velodyne_packet_problem(payload, model_id)
-            if problem is not None:
-                stats.damage(problem)
-                continue
-            model_id = payload[1205]
+        packets, count_to = self._data_packets(data, stats, source)
+        for stamp, payload in packets:
             stats.packets += 1
             rotation = cutter.push(payload, stamp)
             if rotation is not None and (frame := decode(rotation)) is not None:
+                count_to(stats.packets)  # a caller may stop here: the counts so far
                 yield frame
+        count_to(None)
         rotation = cutter.finish()
         if rotation is not None and (frame := decode(rotation)) is not None:
             yield frame

@@ -11,6 +11,7 @@ mod geodesy;
 mod kalman;
 mod lidar;
 mod particle;
+mod pcap;
 mod stonesoup;
 mod stonesoup_scan;
 mod tracker;
@@ -33,6 +34,36 @@ pub(crate) fn slice<'a, T: numpy::Element, D: numpy::ndarray::Dimension>(
     })
 }
 
+/// A bytes-like argument: a `bytes` object or a C-contiguous 1-D uint8 array (e.g. the
+/// `np.frombuffer` view of an mmap), held for the duration of a call.
+pub(crate) enum ByteArg<'py> {
+    Bytes(Bound<'py, pyo3::types::PyBytes>),
+    Array(numpy::PyReadonlyArray1<'py, u8>),
+}
+
+impl<'py> ByteArg<'py> {
+    /// `obj` as bytes, or a `TypeError` naming the argument `name`.
+    pub(crate) fn extract(name: &str, obj: &Bound<'py, PyAny>) -> PyResult<Self> {
+        if let Ok(b) = obj.cast::<pyo3::types::PyBytes>() {
+            return Ok(Self::Bytes(b.clone()));
+        }
+        obj.extract().map(Self::Array).map_err(|_| {
+            pyo3::exceptions::PyTypeError::new_err(format!(
+                "{name}: expected bytes or a 1-D uint8 array, got {}",
+                velodyne::describe(obj)
+            ))
+        })
+    }
+
+    /// The bytes, or a `ValueError` naming `name` for an array that is not C-contiguous.
+    pub(crate) fn bytes(&self, name: &str) -> PyResult<&[u8]> {
+        match self {
+            Self::Bytes(b) => Ok(b.as_bytes()),
+            Self::Array(a) => slice(name, a),
+        }
+    }
+}
+
 /// The native module `usvfast._core`; import the public API from `usvfast` instead.
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -49,5 +80,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     stonesoup::register(m)?;
     stonesoup_scan::register(m)?;
     velodyne::register(m)?;
+    pcap::register(m)?;
     Ok(())
 }

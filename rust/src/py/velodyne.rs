@@ -1,7 +1,7 @@
 //! Binding of the Velodyne packet decoder (`crate::velodyne`): one call per rotation, the
 //! packets as one contiguous array.
 
-use super::{slice, to_py_err};
+use super::{slice, to_py_err, ByteArg};
 use crate::error::Error;
 use crate::velodyne::{self, VelodyneModel, PACKET_SIZE, POINT_COLUMNS};
 use numpy::{
@@ -12,7 +12,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
 /// What `obj` is, for an error message: "uint16 array of shape (3, 1206)" or its type name.
-fn describe(obj: &Bound<'_, PyAny>) -> String {
+pub(crate) fn describe(obj: &Bound<'_, PyAny>) -> String {
     match obj.cast::<PyUntypedArray>() {
         Ok(a) => format!("{} array of shape {:?}", a.dtype(), a.shape()),
         Err(_) => obj
@@ -70,7 +70,46 @@ fn decode_velodyne_scan<'py>(
     Ok(((scan.host_stamp, scan.device_stamp), points))
 }
 
+/// Whether each packet passed, and `(index, label)` of each refused one.
+type PacketCheck<'py> = (Bound<'py, PyArray1<bool>>, Vec<(usize, &'static str)>);
+
+/// Checks a stream of data packets, `data[o:o + 1206]` for each of `offsets` (`data`: bytes or
+/// a 1-D uint8 array; `offsets`: int64, bytes), each against the model id of the last one that
+/// passed: `(passed, problems)`, a bool per packet and `(index, label)` of each refused one
+/// (labels of `usvfast.lidar.packets.velodyne_packet_problem`).
+#[pyfunction]
+#[pyo3(signature = (data, offsets))]
+fn velodyne_packet_check<'py>(
+    py: Python<'py>,
+    data: &Bound<'py, PyAny>,
+    offsets: &Bound<'py, PyAny>,
+) -> PyResult<PacketCheck<'py>> {
+    let data = ByteArg::extract("data", data)?;
+    let bytes = data.bytes("data")?;
+    let offsets: PyReadonlyArray1<'py, i64> = offsets.extract().map_err(|_| {
+        PyValueError::new_err(format!(
+            "offsets: expected an int64 array of shape (k,), got {}",
+            describe(offsets)
+        ))
+    })?;
+    let offsets = slice("offsets", &offsets)?;
+    let offsets: Vec<usize> = offsets
+        .iter()
+        .map(|&o| usize::try_from(o))
+        .collect::<Result<_, _>>()
+        .map_err(|_| PyValueError::new_err("offsets: must be non-negative"))?;
+    let problems = py.detach(|| velodyne::stream_problems(bytes, &offsets));
+    let refused = problems
+        .iter()
+        .enumerate()
+        .filter_map(|(k, p)| p.map(|p| (k, p.label())))
+        .collect();
+    let passed = problems.iter().map(Option::is_none).collect();
+    Ok((PyArray1::from_vec(py, passed), refused))
+}
+
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(decode_velodyne_scan, m)?)?;
+    m.add_function(wrap_pyfunction!(velodyne_packet_check, m)?)?;
     Ok(())
 }

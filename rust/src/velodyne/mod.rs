@@ -21,12 +21,14 @@
 //! same double-precision tables rounded once to single, and the sine, cosine and tangent
 //! tables from the platform's C library (`sinf`/`cosf`/`tanf`, as the decoder calls them).
 //!
-//! [`decode`] reads the packets; `tables` holds each model's calibration (vertical angles
+//! [`check`] refuses malformed packets; [`decode`] reads the packets; `tables` holds each model's calibration (vertical angles
 //! and offsets, firing times) and the azimuth sine/cosine table.
 
+pub mod check;
 pub mod decode;
 mod tables;
 
+pub use check::{packet_problem, stream_problems, PacketProblem};
 pub use decode::{
     decode_scan, device_time, DecodedScan, VelodyneModel, MAX_RANGE_M, MIN_RANGE_M, PACKET_SIZE,
     POINT_COLUMNS, RETURN_BOTH, RETURN_LAST, RETURN_STRONGEST,

@@ -183,3 +183,67 @@ fn azimuth_rounding_is_lroundf() {
         assert_eq!(wrap_azimuth(a), expected as usize, "{a}");
     }
 }
+
+#[test]
+fn packet_checks_find_the_first_problem() {
+    let good = packet(VelodyneModel::Hdl32e, 0x37, [35_999; 12], 0);
+    assert_eq!(packet_problem(&good, None), None);
+    assert_eq!(packet_problem(&good, Some(0x21)), None);
+    assert_eq!(
+        packet_problem(&good, Some(0x22)),
+        Some(PacketProblem::ModelId)
+    );
+    assert_eq!(
+        packet_problem(&good[..1205], None),
+        Some(PacketProblem::Length)
+    );
+    let mut lower = good.clone();
+    lower[500..502].copy_from_slice(&0xDDFF_u16.to_le_bytes()); // HDL-64E lower block
+    assert_eq!(packet_problem(&lower, None), None);
+    let mut p = good.clone();
+    p[1100] = 0; // block 11's flag, and an azimuth past a turn: the flag is found first
+    p[2..4].copy_from_slice(&36_000_u16.to_le_bytes());
+    assert_eq!(packet_problem(&p, None), Some(PacketProblem::BlockFlag));
+    p[1100] = 0xFF;
+    assert_eq!(packet_problem(&p, None), Some(PacketProblem::Azimuth));
+    for (at, value) in [(1204, 0x36), (1205, 0x23)] {
+        let mut p = good.clone();
+        p[at] = value;
+        assert_eq!(packet_problem(&p, None), Some(PacketProblem::FactoryBytes));
+    }
+    let mut vls = good.clone();
+    vls[1205] = 0xA1; // known to velodyne-decoder (HDL-64E), not decoded here
+    assert_eq!(packet_problem(&vls, None), None);
+}
+
+#[test]
+fn a_stream_is_checked_against_the_last_model_that_passed() {
+    let hdl = packet(VelodyneModel::Hdl32e, 0x37, [0; 12], 0);
+    let vlp = packet(VelodyneModel::Vlp16, 0x39, [0; 12], 0);
+    let mut broken_vlp = vlp.clone();
+    broken_vlp[0] = 0;
+    let data = [&hdl[..], &broken_vlp, &vlp, &hdl, &vlp[..100]].concat();
+    let offsets: Vec<usize> = (0..5).map(|k| k * PACKET_SIZE).collect();
+    let problems = stream_problems(&data, &offsets);
+    assert_eq!(
+        problems,
+        [
+            None,
+            Some(PacketProblem::BlockFlag), // refused: the stream stays on the HDL-32E
+            Some(PacketProblem::ModelId),
+            None,
+            Some(PacketProblem::Length), // runs past the end of the data
+        ]
+    );
+    // a stream bound to the first packet's model: here the VLP-16
+    assert_eq!(
+        stream_problems(&data, &[2 * PACKET_SIZE, 0, usize::MAX]),
+        [
+            None,
+            Some(PacketProblem::ModelId),
+            Some(PacketProblem::Length)
+        ]
+    );
+    let labels = PacketProblem::ALL.map(PacketProblem::label);
+    assert_eq!(labels[1..4], ["block flag", "azimuth", "factory bytes"]);
+}
