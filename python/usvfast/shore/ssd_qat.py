@@ -99,6 +99,10 @@ def quantization_aware_fine_tune(
     threads = (torch.get_num_threads(), cv2.getNumThreads())
     torch.set_num_threads(cfg.threads)
     cv2.setNumThreads(1)
+    # NNCF's fake quantisers are torch.compile'd per tensor shape; every convolution has
+    # another, so compiling only costs time (and a compile-worker pool) here: run eagerly.
+    no_compile = torch._dynamo.config.patch(disable=True)
+    no_compile.__enter__()
     try:
         torch.manual_seed(cfg.seed)
         rng = np.random.default_rng(cfg.seed)
@@ -134,13 +138,15 @@ def quantization_aware_fine_tune(
             loss.backward()
             opt.step()
             if step % 50 == 0 or step == cfg.steps - 1:
-                log(f"step {step}: loss {float(loss):.3f}, {time.perf_counter() - t0:.0f} s")
+                seconds = time.perf_counter() - t0
+                log(f"step {step}: loss {float(loss.detach()):.3f}, {seconds:.0f} s")
         for p in train:
             p.requires_grad_(False)
         seconds = time.perf_counter() - t0
         path = Path(out) if out is not None else int8_path(model)
         export_onnx(qnet.eval(), path, size)
     finally:
+        no_compile.__exit__(None, None, None)
         torch.set_num_threads(threads[0])
         cv2.setNumThreads(threads[1])
     int8 = {
