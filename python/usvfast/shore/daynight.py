@@ -15,6 +15,7 @@ copies of the same frames (no IR frames are available here), so the IR class is 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Literal
@@ -22,7 +23,7 @@ from typing import Literal
 import cv2
 import numpy as np
 
-from usvfast._validate import as_float_array
+from usvfast._validate import as_float_array, finite_result
 from usvfast._validate import image as check_image
 
 FrameClass = Literal["eo", "ir"]
@@ -66,7 +67,12 @@ def gaussian_density(x: np.ndarray, mu: np.ndarray, sigma: np.ndarray) -> np.nda
     sigma = as_float_array("sigma", sigma)
     if np.any(sigma <= 0):
         raise ValueError("sigma: must be > 0")
-    return np.exp(-((x - mu) ** 2) / (2 * sigma**2)) / np.sqrt(2 * np.pi * sigma**2)
+    # in z = (x − μ)/σ: a tiny σ squared no longer underflows to 0 (0/0); a density beyond
+    # float64 (σ below ~1e-309) is an error naming sigma, never inf or NaN
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+        z = (x - mu) / sigma
+        f = np.exp(-0.5 * z * z) / (math.sqrt(2 * math.pi) * sigma)
+    return finite_result("density", f, "x, mu, sigma")
 
 
 @dataclass(frozen=True)
