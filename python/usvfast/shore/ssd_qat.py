@@ -32,7 +32,13 @@ import numpy as np
 from usvfast._extras import require
 from usvfast.shore.mardct import load_mardct
 from usvfast.shore.ssd_quant import calibration_images, int8_path
-from usvfast.shore.ssd_train import SsdTrainConfig, learning_rate, match_anchors, ssd_loss
+from usvfast.shore.ssd_train import (
+    SsdTrainConfig,
+    augmented_views,
+    learning_rate,
+    match_anchors,
+    ssd_loss,
+)
 
 __all__ = ["QAT_CONFIG", "float_network", "quantization_aware_fine_tune"]
 
@@ -83,7 +89,6 @@ def quantization_aware_fine_tune(
     from usvfast.shore.cnn_train import load_frames
     from usvfast.shore.pretrained import export_onnx, preprocess
     from usvfast.shore.ssd import ssd_anchors
-    from usvfast.shore.ssd_train import _views
 
     model = Path(model)
     card_path = model.with_suffix(".json")
@@ -101,52 +106,55 @@ def quantization_aware_fine_tune(
     cv2.setNumThreads(1)
     # NNCF's fake quantisers are torch.compile'd per tensor shape; every convolution has
     # another, so compiling only costs time (and a compile-worker pool) here: run eagerly.
-    no_compile = torch._dynamo.config.patch(disable=True)
-    no_compile.__enter__()
     try:
-        torch.manual_seed(cfg.seed)
-        rng = np.random.default_rng(cfg.seed)
-        t0 = time.perf_counter()
-        net = float_network(model, size)
-        letterbox = bool(card.get("letterbox", True))
-        blobs = [torch.from_numpy(preprocess(im, size, letterbox)[0]) for im in images]
-        qnet = nncf.quantize(
-            net, nncf.Dataset(blobs), preset=nncf.QuantizationPreset.MIXED, subset_size=len(blobs)
-        )
-        log(f"calibrated on {len(blobs)} frames of {videos} in {time.perf_counter() - t0:.0f} s")
-        xs, boxes = _views(load_frames(frames), cfg, rng)
-        anchors = ssd_anchors(net.feature_sizes(size[1], size[0]))
-        at = torch.from_numpy(anchors)
-        match = [match_anchors(anchors, b, cfg.match_iou) for b in boxes]
-        frozen = {id(p) for i in range(net.tap) for p in net.blocks[i].parameters()}
-        train = [p for p in qnet.parameters() if p.is_floating_point() and id(p) not in frozen]
-        for p in qnet.parameters():
-            p.requires_grad_(False)
-        for p in train:
-            p.requires_grad_(True)
-        opt = torch.optim.Adam(train, lr=cfg.lr)
-        qnet.train()
-        for step in range(cfg.steps):
-            idx = rng.choice(len(xs), size=cfg.batch, replace=False)
-            codes, logits = qnet(torch.from_numpy(xs[idx]))
-            loss = ssd_loss(
-                codes, logits, [match[v] for v in idx], [boxes[v] for v in idx], at, cfg
-            )[0]
-            for g in opt.param_groups:
-                g["lr"] = learning_rate(step, cfg)
-            opt.zero_grad()
-            loss.backward()
-            opt.step()
-            if step % 50 == 0 or step == cfg.steps - 1:
-                seconds = time.perf_counter() - t0
-                log(f"step {step}: loss {float(loss.detach()):.3f}, {seconds:.0f} s")
-        for p in train:
-            p.requires_grad_(False)
-        seconds = time.perf_counter() - t0
-        path = Path(out) if out is not None else int8_path(model)
-        export_onnx(qnet.eval(), path, size)
+        with torch._dynamo.config.patch(disable=True):
+            torch.manual_seed(cfg.seed)
+            rng = np.random.default_rng(cfg.seed)
+            t0 = time.perf_counter()
+            net = float_network(model, size)
+            letterbox = bool(card.get("letterbox", True))
+            blobs = [torch.from_numpy(preprocess(im, size, letterbox)[0]) for im in images]
+            qnet = nncf.quantize(
+                net,
+                nncf.Dataset(blobs),
+                preset=nncf.QuantizationPreset.MIXED,
+                subset_size=len(blobs),
+            )
+            log(
+                f"calibrated on {len(blobs)} frames of {videos} in {time.perf_counter() - t0:.0f} s"
+            )
+            xs, boxes = augmented_views(load_frames(frames), cfg, rng)
+            anchors = ssd_anchors(net.feature_sizes(size[1], size[0]))
+            at = torch.from_numpy(anchors)
+            match = [match_anchors(anchors, b, cfg.match_iou) for b in boxes]
+            frozen = {id(p) for i in range(net.tap) for p in net.blocks[i].parameters()}
+            train = [p for p in qnet.parameters() if p.is_floating_point() and id(p) not in frozen]
+            for p in qnet.parameters():
+                p.requires_grad_(False)
+            for p in train:
+                p.requires_grad_(True)
+            opt = torch.optim.Adam(train, lr=cfg.lr)
+            qnet.train()
+            for step in range(cfg.steps):
+                idx = rng.choice(len(xs), size=cfg.batch, replace=False)
+                codes, logits = qnet(torch.from_numpy(xs[idx]))
+                loss = ssd_loss(
+                    codes, logits, [match[v] for v in idx], [boxes[v] for v in idx], at, cfg
+                )[0]
+                for g in opt.param_groups:
+                    g["lr"] = learning_rate(step, cfg)
+                opt.zero_grad()
+                loss.backward()
+                opt.step()
+                if step % 50 == 0 or step == cfg.steps - 1:
+                    seconds = time.perf_counter() - t0
+                    log(f"step {step}: loss {float(loss.detach()):.3f}, {seconds:.0f} s")
+            for p in train:
+                p.requires_grad_(False)
+            seconds = time.perf_counter() - t0
+            path = Path(out) if out is not None else int8_path(model)
+            export_onnx(qnet.eval(), path, size)
     finally:
-        no_compile.__exit__(None, None, None)
         torch.set_num_threads(threads[0])
         cv2.setNumThreads(threads[1])
     int8 = {

@@ -148,7 +148,7 @@ def ssd_loss(codes, logits, matches, boxes, anchors, cfg: SsdTrainConfig):
     return loss, float(loss_cls.detach()), float(loss_box.detach()), npos
 
 
-def _views(frames, cfg: SsdTrainConfig, rng: np.random.Generator):
+def augmented_views(frames, cfg: SsdTrainConfig, rng: np.random.Generator):
     """`cfg.views` augmented views: images (V, 3, H, W) float32 in [−1, 1] and boxes
     (normalised corners) per view."""
     from usvfast.shore.cnn_train import CnnTrainConfig, augment
@@ -193,7 +193,7 @@ def fine_tune(
         anchors = ssd_anchors(net.feature_sizes(h, w))
         at = torch.from_numpy(anchors)
         t0 = time.perf_counter()
-        xs, boxes = _views(data, cfg, rng)
+        xs, boxes = augmented_views(data, cfg, rng)
         start = net.tap - cfg.unfrozen_before_tap
         net.eval()
         with torch.inference_mode():
