@@ -315,6 +315,10 @@ def test_d1_folder_without_times_or_nmea(d1, tmp_path):
     draft = draft_config(folder, tmp_path)
     assert [s[0] for s in draft.streams] == ["gnss", "lidar"]
     assert any("no frame,time CSV beside camera.mp4" in n for n in draft.notes)
+    (folder / "lidar.pcap").write_bytes(b"")  # an empty capture: its model to SET
+    assert any(
+        "lidar.pcap: unknown Velodyne model" in n for n in draft_config(folder, tmp_path).notes
+    )
     (folder / "gnss.nmea").unlink()
     with pytest.raises(ValueError, match=r"no NMEA log .*lidar.pcap"):
         draft_config(folder, tmp_path)

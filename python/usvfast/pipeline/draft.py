@@ -111,23 +111,22 @@ def _bag_velodyne_model(bag: Path, topic: str) -> str | None:
 
 
 def _pcap_velodyne_model(path: Path) -> str | None:
-    """The model of the first 1206-byte UDP payload of a pcap capture (None without dpkt or
-    such a payload)."""
-    import importlib.util
+    """The model of the first 1206-byte UDP payload of a pcap capture (None without one, or
+    when the file is not a libpcap capture); the capture is read by the core's record pass."""
+    from usvfast._core import pcap_udp_datagrams
 
-    if importlib.util.find_spec("dpkt") is None:
+    if path.stat().st_size < 24:  # not even a libpcap header (numpy cannot map 0 bytes)
         return None
-    import dpkt
-
-    with path.open("rb") as fh:
-        try:
-            for _, frame in dpkt.pcap.Reader(fh):
-                udp = getattr(getattr(dpkt.ethernet.Ethernet(frame), "data", None), "data", None)
-                if isinstance(udp, dpkt.udp.UDP) and len(udp.data) == 1206:
-                    return _model_of(udp.data)
-        except (ValueError, dpkt.dpkt.UnpackError):
-            return None
-    return None
+    data = np.memmap(path, dtype=np.uint8, mode="r")
+    try:
+        found = pcap_udp_datagrams(data)
+    except ValueError:
+        return None
+    first = np.flatnonzero(found["lengths"] == 1206)
+    if not first.size:
+        return None
+    start = int(found["offsets"][first[0]])
+    return _model_of(data[start : start + 1206])
 
 
 def _camera_model(msg: Any) -> CameraModel | None:
