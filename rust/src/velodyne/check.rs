@@ -2,19 +2,19 @@
 //! readers count as a damaged packet (`usvfast.lidar.packets.velodyne_packet_problem`, the
 //! oracle of `tests/test_pcap_records.py`).
 
-use super::decode::{BLOCKS, PACKET_SIZE};
+use super::decode::{
+    BLOCKS, BLOCK_FLAG, BLOCK_SIZE, MODEL_AT, MODE_AT, MODE_DUAL, MODE_LAST, MODE_STRONGEST,
+    PACKET_SIZE,
+};
 
-const BLOCK_SIZE: usize = 100;
 /// Upper and lower block flags (the HDL-64E uses both), as u16 little-endian.
-const BLOCK_FLAGS: [u16; 2] = [0xEEFF, 0xDDFF];
+const BLOCK_FLAGS: [u16; 2] = [BLOCK_FLAG, 0xDDFF];
 /// One turn in azimuth units (0.01°); a block azimuth must be below it.
 const FULL_TURN: u16 = 36_000;
-const RETURN_MODES: [u8; 3] = [0x37, 0x38, 0x39];
+const RETURN_MODES: [u8; 3] = [MODE_STRONGEST, MODE_LAST, MODE_DUAL];
 /// Model ids of velodyne-decoder's packet format: HDL-32E, VLP-16, VLP-16 Hi-Res, VLP-32C,
 /// VLS-128, HDL-64E.
 const KNOWN_MODEL_IDS: [u8; 6] = [0x21, 0x22, 0x24, 0x28, 0x31, 0xA1];
-const MODE_AT: usize = 1204;
-const MODEL_AT: usize = 1205;
 
 /// Why a data packet is refused, in the order the checks run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

@@ -24,15 +24,15 @@ pub const RETURN_LAST: f32 = 2.0;
 pub const RETURN_BOTH: f32 = 3.0;
 
 pub(crate) const BLOCKS: usize = 12;
-const BLOCK_SIZE: usize = 100;
+pub(crate) const BLOCK_SIZE: usize = 100;
 pub(crate) const CHANNELS: usize = 32;
-const BLOCK_FLAG: u16 = 0xEEFF;
-const MODE_STRONGEST: u8 = 0x37;
-const MODE_LAST: u8 = 0x38;
-const MODE_DUAL: u8 = 0x39;
+pub(crate) const BLOCK_FLAG: u16 = 0xEEFF;
+pub(crate) const MODE_STRONGEST: u8 = 0x37;
+pub(crate) const MODE_LAST: u8 = 0x38;
+pub(crate) const MODE_DUAL: u8 = 0x39;
 const STAMP_AT: usize = 1200;
-const MODE_AT: usize = 1204;
-const MODEL_AT: usize = 1205;
+pub(crate) const MODE_AT: usize = 1204;
+pub(crate) const MODEL_AT: usize = 1205;
 
 /// The sensor models this decoder covers, named by their packet model id.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
