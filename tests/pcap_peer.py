@@ -228,15 +228,17 @@ def packet_problem(payload: bytes, model_id: int | None = None) -> str | None:
     return None
 
 
-class PeerPcapReader(VelodynePcapReader):
-    """The pcap reader as it was before it had its own rotation cutter and decoder: every
-    packet goes to one velodyne-decoder `StreamDecoder`, which cuts and decodes rotations."""
+class PeerPcapReader(DpktPcapReader):
+    """The pcap reader as it was before it had its own rotation cutter and decoder: the
+    packets of `DpktPcapReader`'s record loop, checked with numpy (`packet_problem`), every one
+    to one velodyne-decoder `StreamDecoder`, which cuts and decodes rotations."""
+
+    check = staticmethod(packet_problem)
 
     def _frames(self, data) -> Iterator[LidarFrame]:
         self.stats = stats = ReadStats()
         source = str(self.path)
         decoder = vd.StreamDecoder(vd.Config(model=self.model))
-        model_id: int | None = None
 
         def emit(result: tuple) -> LidarFrame:
             stamp_pair, arr = result
@@ -247,26 +249,7 @@ class PeerPcapReader(VelodynePcapReader):
             stats.frames += 1
             return frame
 
-        for stamp, linktype, frame_bytes in _iter_pcap_records(data, stats, source):
-            try:
-                udp = _udp_payload(linktype, frame_bytes)
-            except ValueError as exc:
-                stats.damage(str(exc))
-                continue
-            if udp is None:
-                continue
-            port, payload = udp
-            if self.data_port is not None and port != self.data_port:
-                continue
-            if len(payload) != VELODYNE_PACKET_SIZE:
-                if self.data_port is not None:
-                    stats.damage("packet length")
-                continue
-            problem = packet_problem(payload, model_id)
-            if problem is not None:
-                stats.damage(problem)
-                continue
-            model_id = payload[1205]
+        for stamp, payload in self._checked_packets(data, stats, source):
             stats.packets += 1
             try:
                 result = decoder.decode(stamp, payload)
