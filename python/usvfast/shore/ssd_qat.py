@@ -30,14 +30,12 @@ from pathlib import Path
 import numpy as np
 
 from usvfast._extras import require
-from usvfast.shore.mardct import load_mardct
-from usvfast.shore.ssd_quant import calibration_images, int8_path
+from usvfast.shore.ssd_quant import int8_path, video_frames
 from usvfast.shore.ssd_train import (
     SsdTrainConfig,
     augmented_views,
-    learning_rate,
     match_anchors,
-    ssd_loss,
+    train_steps,
 )
 
 __all__ = ["QAT_CONFIG", "float_network", "quantization_aware_fine_tune"]
@@ -98,9 +96,7 @@ def quantization_aware_fine_tune(
     videos = list(card.get("videos") or [])
     size = (int(card["input_size"][0]), int(card["input_size"][1]))
     cfg = replace(config, input_size=size)
-    images = calibration_images(data, videos)
-    found = load_mardct(data)
-    frames = [f for v in videos for f in found[v]]
+    annotated = video_frames(data, videos)
     threads = (torch.get_num_threads(), cv2.getNumThreads())
     torch.set_num_threads(cfg.threads)
     cv2.setNumThreads(1)
@@ -113,7 +109,8 @@ def quantization_aware_fine_tune(
             t0 = time.perf_counter()
             net = float_network(model, size)
             letterbox = bool(card.get("letterbox", True))
-            blobs = [torch.from_numpy(preprocess(im, size, letterbox)[0]) for im in images]
+            frames = load_frames(annotated)
+            blobs = [torch.from_numpy(preprocess(f.image, size, letterbox)[0]) for f in frames]
             qnet = nncf.quantize(
                 net,
                 nncf.Dataset(blobs),
@@ -123,7 +120,7 @@ def quantization_aware_fine_tune(
             log(
                 f"calibrated on {len(blobs)} frames of {videos} in {time.perf_counter() - t0:.0f} s"
             )
-            xs, boxes = augmented_views(load_frames(frames), cfg, rng)
+            xs, boxes = augmented_views(frames, cfg, rng)
             anchors = ssd_anchors(net.feature_sizes(size[1], size[0]))
             at = torch.from_numpy(anchors)
             match = [match_anchors(anchors, b, cfg.match_iou) for b in boxes]
@@ -131,26 +128,11 @@ def quantization_aware_fine_tune(
             train = [p for p in qnet.parameters() if p.is_floating_point() and id(p) not in frozen]
             for p in qnet.parameters():
                 p.requires_grad_(False)
-            for p in train:
-                p.requires_grad_(True)
-            opt = torch.optim.Adam(train, lr=cfg.lr)
             qnet.train()
-            for step in range(cfg.steps):
-                idx = rng.choice(len(xs), size=cfg.batch, replace=False)
-                codes, logits = qnet(torch.from_numpy(xs[idx]))
-                loss = ssd_loss(
-                    codes, logits, [match[v] for v in idx], [boxes[v] for v in idx], at, cfg
-                )[0]
-                for g in opt.param_groups:
-                    g["lr"] = learning_rate(step, cfg)
-                opt.zero_grad()
-                loss.backward()
-                opt.step()
-                if step % 50 == 0 or step == cfg.steps - 1:
-                    seconds = time.perf_counter() - t0
-                    log(f"step {step}: loss {float(loss.detach()):.3f}, {seconds:.0f} s")
-            for p in train:
-                p.requires_grad_(False)
+            train_steps(
+                lambda idx: qnet(torch.from_numpy(xs[idx])),
+                train, len(xs), match, boxes, at, cfg, rng, log, t0,
+            )  # fmt: skip
             seconds = time.perf_counter() - t0
             path = Path(out) if out is not None else int8_path(model)
             export_onnx(qnet.eval(), path, size)

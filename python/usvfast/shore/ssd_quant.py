@@ -30,7 +30,7 @@ import cv2
 import numpy as np
 
 from usvfast._extras import require
-from usvfast.shore.mardct import load_mardct
+from usvfast.shore.mardct import AnnotatedFrame, load_mardct
 from usvfast.shore.pretrained import preprocess
 
 #: Suffix of the int8 model's name (`NAME-int8.onnx`).
@@ -43,20 +43,25 @@ def int8_path(model: Path | str) -> Path:
     return model.with_name(model.stem + INT8_SUFFIX + ".onnx")
 
 
-def calibration_images(data: Path | str, videos: Sequence[str]) -> list[np.ndarray]:
-    """Every annotated frame (BGR uint8) of `videos` in the MarDCT folder `data`. Raises
-    ValueError when a video is not there or a frame cannot be read."""
+def video_frames(data: Path | str, videos: Sequence[str]) -> list[AnnotatedFrame]:
+    """The annotated frames of `videos` (at least one) in the MarDCT folder `data`, video by
+    video. Raises ValueError when a video is not there."""
     found = load_mardct(data)
     missing = sorted(set(videos) - set(found))
     if missing or not videos:
         raise ValueError(f"videos: {missing or 'none'} not in {data} (has {sorted(found)})")
+    return [f for v in videos for f in found[v]]
+
+
+def calibration_images(data: Path | str, videos: Sequence[str]) -> list[np.ndarray]:
+    """Every annotated frame (BGR uint8) of `videos` in the MarDCT folder `data`. Raises
+    ValueError when a video is not there or a frame cannot be read."""
     out = []
-    for v in videos:
-        for f in found[v]:
-            image = cv2.imread(str(f.path), cv2.IMREAD_COLOR)
-            if image is None:
-                raise ValueError(f"data: cannot read {f.path}")
-            out.append(image)
+    for f in video_frames(data, videos):
+        image = cv2.imread(str(f.path), cv2.IMREAD_COLOR)
+        if image is None:
+            raise ValueError(f"data: cannot read {f.path}")
+        out.append(image)
     return out
 
 

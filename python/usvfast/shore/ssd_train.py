@@ -148,6 +148,37 @@ def ssd_loss(codes, logits, matches, boxes, anchors, cfg: SsdTrainConfig):
     return loss, float(loss_cls.detach()), float(loss_box.detach()), npos
 
 
+def train_steps(forward, params, views, matches, boxes, anchors, cfg, rng, log, t0) -> None:
+    """`cfg.steps` Adam steps on `params` (made trainable here, frozen again at the end) of
+    :func:`ssd_loss` over batches of `cfg.batch` of the `views` views drawn by `rng`:
+    `forward(idx)` -> (codes, logits) of the views `idx`, `matches` and `boxes` per view,
+    learning rate :func:`learning_rate`; logs every 100th step (seconds since `t0`)."""
+    import torch
+
+    for p in params:
+        p.requires_grad_(True)
+    opt = torch.optim.Adam(params, lr=cfg.lr)
+    for step in range(cfg.steps):
+        idx = rng.choice(views, size=cfg.batch, replace=False)
+        codes, logits = forward(idx)
+        loss, lc, lb, npos = ssd_loss(
+            codes, logits, [matches[v] for v in idx], [boxes[v] for v in idx], anchors, cfg
+        )
+        for g in opt.param_groups:
+            g["lr"] = learning_rate(step, cfg)
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+        if step % 100 == 0 or step == cfg.steps - 1:
+            n = max(npos, 1)
+            log(
+                f"step {step}: loss {(lc + lb) / n:.3f} (cls {lc / n:.3f}, box {lb / n:.3f}), "
+                f"{time.perf_counter() - t0:.0f} s"
+            )
+    for p in params:
+        p.requires_grad_(False)
+
+
 def augmented_views(frames, cfg: SsdTrainConfig, rng: np.random.Generator):
     """`cfg.views` augmented views: images (V, 3, H, W) float32 in [−1, 1] and boxes
     (normalised corners) per view."""
@@ -208,27 +239,11 @@ def fine_tune(
         train += [*net.class_heads.parameters()]
         for p in net.parameters():
             p.requires_grad_(False)
-        for p in train:
-            p.requires_grad_(True)
-        opt = torch.optim.Adam(train, lr=cfg.lr)
-
         net.train()
-        for step in range(cfg.steps):
-            idx = rng.choice(len(stems), size=cfg.batch, replace=False)
-            codes, logits = net.heads(net.maps(stems[idx].clone(), start))
-            loss, lc, lb, npos = ssd_loss(
-                codes, logits, [match[v] for v in idx], [boxes[v] for v in idx], at, cfg
-            )
-            for g in opt.param_groups:
-                g["lr"] = learning_rate(step, cfg)
-            opt.zero_grad()
-            loss.backward()
-            opt.step()
-            if step % 100 == 0 or step == cfg.steps - 1:
-                log(
-                    f"step {step}: loss {(lc + lb) / max(npos, 1):.3f} (cls {lc / max(npos, 1):.3f}"
-                    f", box {lb / max(npos, 1):.3f}), {time.perf_counter() - t0:.0f} s"
-                )
+        train_steps(
+            lambda idx: net.heads(net.maps(stems[idx].clone(), start)),
+            train, len(stems), match, boxes, at, cfg, rng, log, t0,
+        )  # fmt: skip
         for p in net.parameters():
             p.requires_grad_(False)
         return net.eval()
