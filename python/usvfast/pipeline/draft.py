@@ -185,12 +185,10 @@ class _Builder:
     ) -> None:
         """A LiDAR stream (`kind`: its message or stream type); Velodyne packets get their
         `model` (None: unknown, a placeholder), a PointCloud2 none."""
-        if kind == _CLOUD:
-            pass
-        elif model is None:
+        if kind != _CLOUD and model is None:
             self.notes.append(f"{where}: unknown Velodyne model; SET the stream's model")
             lines.append('model = "VLP-16"  # SET: the sensor model')
-        else:
+        elif kind != _CLOUD:
             lines.append(f'model = "{model}"  # from the packets\' factory byte')
         self.lidars += 1
         self.stream(sid, where, kind, ['sensor = "lidar"', *lines, *_mount_lines("the LiDAR")])
