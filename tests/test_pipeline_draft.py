@@ -139,6 +139,16 @@ def _ros1_bag(path: Path, *, factory: int, k: np.ndarray, heading: bool) -> None
             linear_acceleration_covariance=np.zeros(9),
         )
         put("/imu/data", "sensor_msgs/msg/Imu", [imu])
+        raw = T["sensor_msgs/msg/Imu"](
+            header=h[0],
+            orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=0.0),
+            orientation_covariance=np.r_[-1.0, np.zeros(8)],  # REP-145: no orientation
+            angular_velocity=v3(x=0.0, y=0.0, z=0.0),
+            angular_velocity_covariance=np.zeros(9),
+            linear_acceleration=v3(x=0.0, y=0.0, z=9.81),
+            linear_acceleration_covariance=np.zeros(9),
+        )
+        put("/imu/acc_gyro", "sensor_msgs/msg/Imu", [raw])  # sorts first: not the attitude
         data = np.zeros(1206, np.uint8)
         data[1204], data[1205] = 0x37, factory
         stamp = T["builtin_interfaces/msg/Time"](sec=int(T0), nanosec=0)
@@ -194,6 +204,8 @@ def test_ros1_bag_every_kind(tmp_path):
     np.testing.assert_array_equal(cam.dist_coeffs, D)
     assert cam.image_size == (640, 480)
     assert "navigation: 3 position fixes and 3 headings" in draft.notes
+    assert cfg.attitude == "imu" and by_id["imu"][0] == "/imu/data"
+    assert "# /imu/acc_gyro: an IMU without an orientation estimate" in draft.text
 
 
 @pytest.mark.parametrize("factory", sorted(VELODYNE_MODELS))

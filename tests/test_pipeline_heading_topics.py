@@ -16,7 +16,13 @@ from scipy.spatial.transform import Rotation
 from usvfast.lidar.readers import make_header
 from usvfast.nav.bags import QuaternionSample, bag_typestore, read_bag_nmea
 from usvfast.pipeline import Pipeline, config_from_dict
-from usvfast.pipeline.pose import NavigationError, NavTrack, quaternion_heading
+from usvfast.pipeline.pose import (
+    NavigationError,
+    NavTrack,
+    imu_roll_pitch,
+    quaternion_heading,
+    usable_orientations,
+)
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -100,6 +106,24 @@ def nav_bag(tmp_path_factory):
                 linear_acceleration_covariance=np.zeros(9),
             )
             w.write(conn, round(t * 1e9), bytes(ts.serialize_cdr(msg, "sensor_msgs/msg/Imu")))
+        # the same Imu with every fourth orientation missing, and one with none at all
+        # (zeros and orientation covariance[0] = -1, REP-145)
+        for topic, missing in (("/gnss_imu_gaps", slice(None, None, 4)), ("/imu_raw", slice(None))):
+            conn = w.add_connection(topic, "sensor_msgs/msg/Imu", typestore=ts)
+            qs = q_tilted.copy()
+            qs[missing] = 0.0
+            for t, q in zip(h.time, qs, strict=True):
+                msg = T["sensor_msgs/msg/Imu"](
+                    header=make_header(ts, float(t), "gnss"),
+                    orientation=quat(q),
+                    orientation_covariance=np.r_[-1.0 if not q.any() else 0.0, np.zeros(8)],
+                    angular_velocity=v3(x=0.0, y=0.0, z=0.0),
+                    angular_velocity_covariance=np.zeros(9),
+                    linear_acceleration=v3(x=0.0, y=0.0, z=9.81),
+                    linear_acceleration_covariance=np.zeros(9),
+                )
+                raw = ts.serialize_cdr(msg, "sensor_msgs/msg/Imu")
+                w.write(conn, round(t * 1e9), bytes(raw))
     return path
 
 
@@ -178,4 +202,54 @@ def test_live_heading_from_a_quaternion_message(nav_bag):
         pipe.process(SimpleNamespace(time=t, stream="gnss", data=fix))
         pipe.process(SimpleNamespace(time=t, stream="heading", data=QuaternionSample(q, "gnss")))
     pose = pipe.live.at(100.05)
+    assert pose is not None and abs(pose.heading - 0.7) < 1e-12
+
+
+def test_usable_orientations_and_errors_on_the_rest():
+    q = np.array([[0, 0, 0, 1], [0, 0, 0, 0], [0, 0, 0, 1.05], [0, 0, 0, 1.2], [np.nan, 0, 0, 1]])
+    np.testing.assert_array_equal(usable_orientations(q), [True, False, True, False, False])
+    np.testing.assert_array_equal(usable_orientations(np.full((1, 4), 1e300)), [False])
+    for f in (quaternion_heading, imu_roll_pitch):
+        with pytest.raises(ValueError, match=r"orientation_xyzw: row 1 .* 3 such rows"):
+            f(q)
+
+
+def test_missing_orientations_are_skipped_and_counted(nav_bag):
+    cfg = config_from_dict(_config(nav_bag, "/gnss_imu_gaps"), HARBOUR)
+    ours = NavTrack.from_config(cfg)
+    nmea = NavTrack.from_config(config_from_dict(_config(None), HARBOUR))
+    n = len(nmea.heading.time)
+    assert ours.damaged["heading"] == len(range(0, n, 4))
+    kept = np.delete(nmea.heading.time, np.s_[::4])
+    np.testing.assert_array_equal(ours.heading.time, kept)
+    for t in kept[::7]:
+        a, b = ours.pose_at(float(t)), nmea.pose_at(float(t))
+        assert a is not None and b is not None
+        assert abs(math.remainder(a.heading - b.heading, 2 * math.pi)) < 1e-9
+
+
+def test_an_imu_without_orientation_is_an_error_naming_it(nav_bag):
+    cfg = config_from_dict(_config(nav_bag, "/imu_raw"), HARBOUR)
+    with pytest.raises(NavigationError, match=r"stream 'heading': topic '/imu_raw' carries no or"):
+        NavTrack.from_config(cfg)
+    data = _config(None)
+    imu = next(s for s in data["stream"] if s["id"] == data["recording"]["attitude"])
+    imu.update(path=str(nav_bag), topic="/imu_raw")
+    with pytest.raises(NavigationError, match=r"stream 'imu': topic '/imu_raw' carries no orie"):
+        NavTrack.from_config(config_from_dict(data, HARBOUR))
+
+
+def test_live_message_without_orientation_is_counted_not_used(nav_bag):
+    from types import SimpleNamespace
+
+    from usvfast.nav.bags import NavSatFixSample
+
+    pipe = Pipeline(config_from_dict(_config(nav_bag, "/heading_enu"), HARBOUR))
+    fix = NavSatFixSample(63.44, 10.40, 40.0, 0, np.zeros((3, 3)), 0)
+    q = Rotation.from_euler("z", math.pi / 2 - 0.7).as_quat()
+    for t, quat in ((100.0, q), (100.1, np.zeros(4)), (100.2, q)):
+        pipe.process(SimpleNamespace(time=t, stream="gnss", data=fix))
+        pipe.process(SimpleNamespace(time=t, stream="heading", data=QuaternionSample(quat, "g")))
+    assert pipe.counts["heading"]["damaged"] == 1
+    pose = pipe.live.at(100.1)
     assert pose is not None and abs(pose.heading - 0.7) < 1e-12

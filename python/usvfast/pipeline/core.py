@@ -47,6 +47,7 @@ from usvfast.pipeline.pose import (
     parse_sentence,
     quaternion_heading,
     sentence_utc,
+    usable_orientations,
     yaw_convention,
 )
 from usvfast.pipeline.timing import StageTimer
@@ -163,6 +164,9 @@ class Pipeline:
             if data.status >= 0:
                 self.live.add_fix(t, data.lat_deg, data.lon_deg)
         elif hasattr(data, "orientation_xyzw"):  # ImuSample, QuaternionSample
+            if not usable_orientations(data.orientation_xyzw)[0]:
+                self.counts[stream]["damaged"] += 1  # no orientation estimate
+                return
             if stream in self.config.navigation:  # a GNSS heading
                 spec = self.config.recording.stream(stream)
                 heading = quaternion_heading(data.orientation_xyzw, yaw_convention(spec))

@@ -14,7 +14,7 @@ Topics by type (ROS 1 or ROS 2 names; topics without messages are left out):
   ``sensor_msgs/CameraInfo`` topic, compressed first); the others are listed in a comment;
 - navigation: every ``nmea_msgs/Sentence`` and ``sensor_msgs/NavSatFix`` topic, and every
   ``geometry_msgs/QuaternionStamped`` topic as a heading (its yaw convention to SET);
-- attitude: the first ``sensor_msgs/Imu`` topic.
+- attitude: the first ``sensor_msgs/Imu`` topic whose messages carry an orientation.
 """
 
 from __future__ import annotations
@@ -96,6 +96,13 @@ def _first_message(bag: Path, topic: str) -> Any:
     for m in BagTopic(bag, topic, decode_images=False):
         return m.data
     return None
+
+
+def _has_orientation(imu: Any) -> bool:
+    """Whether a sensor_msgs/Imu message (ImuSample) carries an orientation estimate."""
+    from usvfast.pipeline.pose import usable_orientations
+
+    return imu is not None and bool(usable_orientations(imu.orientation_xyzw)[0])
 
 
 def _model_of(packet: Any) -> str | None:
@@ -287,9 +294,12 @@ def _draft_bag(bag: Path, config_dir: Path) -> Draft:
         b.navigation.append(sid)
         yaw = 'yaw_convention = "enu"  # SET: "north_clockwise" for nmea_navsat_driver\'s heading'
         b.stream(sid, topic, _HEADING, [*lines(topic), yaw])
-    if imus:
+    oriented = [t for t in imus if _has_orientation(_first_message(bag, t))]
+    if oriented:
         b.attitude = "imu"
-        b.stream("imu", imus[0], _IMU, lines(imus[0]))
+        b.stream("imu", oriented[0], _IMU, lines(oriented[0]))
+    for topic in sorted(set(imus) - set(oriented)):
+        b.body.append(f"# {topic}: an IMU without an orientation estimate (no roll, pitch)")
     for sid, topic in zip(_numbered(len(lidars), "lidar"), lidars, strict=True):
         kind = topics[topic].msgtype
         model = _bag_velodyne_model(bag, topic) if kind == _VELODYNE else None

@@ -43,6 +43,7 @@ __all__ = [
     "parse_sentence",
     "quaternion_heading",
     "sentence_utc",
+    "usable_orientations",
     "yaw_convention",
 ]
 
@@ -79,11 +80,28 @@ class VesselPose:
         return np.array([self.north, self.east, self.heading])
 
 
+def usable_orientations(orientation_xyzw: ArrayLike) -> np.ndarray:
+    """(n,) bool: which quaternions (n, 4) x, y, z, w are orientations — finite, with a norm
+    within 0.1 of one. An IMU without an orientation estimate publishes zeros (REP-145:
+    orientation covariance[0] = -1), which is no rotation."""
+    q = np.asarray(orientation_xyzw, dtype=np.float64).reshape(-1, 4)
+    with np.errstate(over="ignore", invalid="ignore"):
+        norm = np.linalg.norm(q, axis=1)
+    return np.isfinite(q).all(axis=1) & (np.abs(norm - 1.0) <= 0.1)
+
+
 def _rotations(orientation_xyzw: ArrayLike) -> np.ndarray:
     """(n, 3, 3) rotation matrices of unit-normalised quaternions (n, 4) x, y, z, w (the
     tests check them against scipy's Rotation; importing scipy.spatial costs more than the
-    whole navigation read)."""
+    whole navigation read). Raises ValueError naming the first quaternion that is no
+    orientation (`usable_orientations`)."""
     q = np.asarray(orientation_xyzw, dtype=np.float64).reshape(-1, 4)
+    bad = np.flatnonzero(~usable_orientations(q))
+    if bad.size:
+        raise ValueError(
+            f"orientation_xyzw: row {bad[0]} {q[bad[0]].tolist()} is no orientation "
+            f"(a finite quaternion of norm 1 ± 0.1), {bad.size} such rows"
+        )
     q = q / np.linalg.norm(q, axis=1, keepdims=True)
     x, y, z, w = q.T
     r = np.empty((len(q), 3, 3))
@@ -103,7 +121,7 @@ def quaternion_heading(orientation_xyzw: ArrayLike, yaw_convention: str = "enu")
     """Headings (n,) rad clockwise from north in [0, 2π) of quaternions (n, 4) x, y, z, w:
     with "enu" (REP-103) the direction of the body's x axis (FLU in ENU) in the horizontal
     plane; with "north_clockwise" the quaternion's own yaw, which is then the heading.
-    Raises ValueError for another convention."""
+    Raises ValueError for another convention or a quaternion that is no orientation."""
     if yaw_convention not in YAW_CONVENTIONS:
         raise ValueError(
             f"yaw_convention: expected one of {YAW_CONVENTIONS}, got {yaw_convention!r}"
@@ -119,7 +137,8 @@ def quaternion_heading(orientation_xyzw: ArrayLike, yaw_convention: str = "enu")
 
 def imu_roll_pitch(orientation_xyzw: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Roll and pitch (rad, FRD body in NED) from REP-103 quaternions (n, 4) x, y, z, w of
-    the body FLU in ENU. Returns two (n,) arrays."""
+    the body FLU in ENU. Returns two (n,) arrays. Raises ValueError for a quaternion that is
+    no orientation (`usable_orientations`)."""
     r = _rotations(orientation_xyzw)
     r_ned = _ENU_NED @ r @ _FLU_FRD  # NED <- FRD = Rz(yaw) Ry(pitch) Rx(roll), eq. 3.9
     pitch = np.arcsin(np.clip(-r_ned[:, 2, 0], -1.0, 1.0))
@@ -345,7 +364,9 @@ def _read_nav(spec: Any) -> _Nav:
                 from usvfast.nav.bags import read_bag_orientations
 
                 t, q, bad = read_bag_orientations(spec.path, spec.topic)
-                return empty, empty, empty, t, quaternion_heading(q, yaw_convention(spec)), bad
+                t, q, unusable = _oriented(spec, t, q)
+                heading = quaternion_heading(q, yaw_convention(spec))
+                return empty, empty, empty, t, heading, bad + unusable
             if msgtype == "sensor_msgs/msg/NavSatFix":
                 fix = read_bag_navsatfix(spec.path, spec.topic)
                 ok = fix.status >= 0
@@ -409,6 +430,19 @@ def _ok(sentence: str) -> bool:
     return True
 
 
+def _oriented(spec: Any, t: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """The samples of a bag topic whose quaternion is an orientation, and how many were not;
+    NavigationError when none is (an IMU that publishes no orientation estimate)."""
+    ok = usable_orientations(q)
+    if not ok.any():
+        raise NavigationError(
+            f"stream {spec.id!r}: topic {spec.topic!r} carries no orientation in its "
+            f"{len(q)} messages (zero or invalid quaternions: an IMU without an orientation "
+            "estimate); use another topic for heading or attitude"
+        )
+    return t[ok], q[ok], int((~ok).sum())
+
+
 def _read_attitude(spec: Any, reference: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     """(times, roll rad, pitch rad, damaged) of the attitude stream: a bag topic of
     sensor_msgs/Imu or nmea_msgs/Sentence, or an NMEA text log (PASHR / XDR sentences,
@@ -436,13 +470,16 @@ def _read_attitude(spec: Any, reference: float) -> tuple[np.ndarray, np.ndarray,
             )
             if msgtype == "sensor_msgs/msg/Imu":
                 imu = read_bag_imu(spec.path, spec.topic)
-                roll, pitch = imu_roll_pitch(imu.orientation_xyzw)
-                return imu.times, roll, pitch, imu.skipped
+                t, q, unusable = _oriented(spec, imu.times, imu.orientation_xyzw)
+                roll, pitch = imu_roll_pitch(q)
+                return t, roll, pitch, imu.skipped + unusable
             reader = BagTopic(spec.path, spec.topic)
             t, roll, pitch, bad = read_attitude_sentences(
                 ((m.time, m.data) for m in reader), reference
             )
             bad += reader.damaged
+    except NavigationError:
+        raise
     except ValueError as exc:
         raise NavigationError(f"attitude stream {spec.id!r}: {exc}") from exc
     if t.size == 0:
