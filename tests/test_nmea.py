@@ -14,7 +14,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from usvfast.nav.nmea import DamagedRecordsWarning, read_nmea
+from usvfast.nav.nmea import DamagedRecordsWarning, compass_heading, read_nmea
+from usvfast.pipeline.pose import parse_sentence
 
 from conftest import SHARED_DATA
 
@@ -176,6 +177,44 @@ def test_checksum_required_by_default():
     assert log.n_damaged == 1 and len(log.headings.time) == 0
     log = read_nmea([zda, bare], require_checksum=False)
     assert log.n_damaged == 0 and log.headings.heading_deg.tolist() == [12.5]
+
+
+def sentence(body: str) -> str:
+    """`$body*hh` with its checksum."""
+    cs = 0
+    for c in body.encode():
+        cs ^= c
+    return f"${body}*{cs:02X}"
+
+
+def test_gnss_compass_headings_equal_pynmea2():
+    hpr = sentence("PSAT,HPR,120000.50,89.58,3.35,,N")  # Hemisphere
+    ash = sentence("PASHR,HPR,120001.00,359.99,-1.20,,0.004,0.000,0,0,2.888,1.8")  # Ashtech
+    avr = sentence("PTNL,AVR,120001.50,-52.1531,Yaw,-0.0806,Tilt,,,12.575,3,1.4,16")  # Trimble
+    no_fix = sentence("PTNL,AVR,120002.00,+10.0,Yaw,,,,,12.575,0,1.4,16")
+    empty = sentence("PSAT,HPR,120002.50,,,,N")
+    attitude = sentence("PASHR,120003.00,90.0,T,1.0,2.0,,0.1,0.1,0.2,1,0")  # not a heading
+    with pytest.warns(DamagedRecordsWarning, match="2 damaged"):
+        log = read_nmea([rmc("120000.00", "050126"), hpr, ash, avr, no_fix, empty, attitude])
+    noon = dt.datetime(2026, 1, 5, 12, tzinfo=dt.timezone.utc).timestamp()
+    np.testing.assert_allclose(log.headings.time - noon, [0.5, 1.0, 1.5])
+    expected = [
+        float(pynmea2.parse(hpr).data[3]),
+        float(pynmea2.parse(ash).heading),
+        float(pynmea2.parse(avr).yaw_angle) % 360.0,
+    ]
+    np.testing.assert_allclose(log.headings.heading_deg, expected, rtol=0, atol=1e-12)
+    assert log.headings.heading_deg[2] == pytest.approx(307.8469)
+    assert log.headings.sentence.tolist() == ["HPR", "HPR", "AVR"]
+    assert log.headings.talker.tolist() == ["SAT", "ASH", "TNL"]
+    assert log.n_damaged == 2 and log.n_ignored == 1  # no fix and empty; PASHR attitude
+    for line, heading in zip((hpr, ash, avr), expected, strict=True):
+        assert parse_sentence(line) == ("heading", (pytest.approx(heading, abs=1e-9),))
+    assert parse_sentence(avr[:-2] + "00") is None  # bad checksum
+    assert parse_sentence(no_fix) is None
+    assert compass_heading("GPHDT,12.5,T") is None
+    with pytest.raises(ValueError, match="PTNL,AVR without a valid heading"):
+        compass_heading(no_fix[1:-3])
 
 
 def mangle(line: str, how: int, rng: random.Random) -> bytes:

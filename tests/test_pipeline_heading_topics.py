@@ -1,5 +1,6 @@
-"""Headings from a GNSS driver's orientation topics (QuaternionStamped, Imu) beside a NavSatFix:
-the same navigation, and the same tracks, as the NMEA HDT sentences they were made from."""
+"""Headings from a GNSS driver's orientation topics (QuaternionStamped, Imu) beside a NavSatFix,
+and from a GNSS compass's proprietary sentences: the same navigation, and the same tracks, as
+the NMEA HDT sentences they were made from."""
 
 from __future__ import annotations
 
@@ -253,3 +254,39 @@ def test_live_message_without_orientation_is_counted_not_used(nav_bag):
     assert pipe.counts["heading"]["damaged"] == 1
     pose = pipe.live.at(100.1)
     assert pose is not None and abs(pose.heading - 0.7) < 1e-12
+
+
+def test_gnss_compass_sentences_give_the_hdt_navigation(tmp_path):
+    """The bundled NMEA as a text log, each HDT rewritten as $PSAT,HPR carrying the time of
+    day of the epoch it belongs to (the latest GGA/RMC before it, which times the HDT)."""
+    from usvfast.nav.bags import BagTopic
+    from usvfast.nav.nmea import read_nmea
+
+    lines, tod, replaced = [], None, 0
+    for m in BagTopic(HARBOUR / "bag", "/gnss/nmea"):
+        line = m.data.strip()
+        body = line[1 : line.index("*")]
+        fields = body.split(",")
+        if fields[0][2:] in ("GGA", "RMC"):
+            tod = fields[1]
+        if fields[0][2:] == "HDT" and tod is not None:
+            cs = 0
+            for c in (hpr := f"PSAT,HPR,{tod},{fields[1]},,,N").encode():
+                cs ^= c
+            line, replaced = f"${hpr}*{cs:02X}", replaced + 1
+        lines.append(line)
+    (tmp_path / "gnss.nmea").write_text("\n".join(lines) + "\n")
+    assert replaced > 100
+    assert set(read_nmea(tmp_path / "gnss.nmea").headings.sentence) == {"HPR"}
+    data = _config(None)
+    gnss = next(s for s in data["stream"] if s["id"] == "gnss")
+    del gnss["topic"]
+    gnss.update(type="nmea", path=str(tmp_path / "gnss.nmea"))
+    ours = NavTrack.from_config(config_from_dict(data, HARBOUR))
+    nmea = NavTrack.from_config(config_from_dict(_config(None), HARBOUR))
+    np.testing.assert_array_equal(ours.heading.time, nmea.heading.time)
+    t = np.linspace(nmea.heading.time[0], nmea.heading.time[-1], 503)
+    for a, b in zip((ours.pose_at(x) for x in t), (nmea.pose_at(x) for x in t), strict=True):
+        assert a is not None and b is not None
+        assert abs(math.remainder(a.heading - b.heading, 2 * math.pi)) < 1e-12
+        assert a.north == b.north and a.east == b.east

@@ -13,11 +13,16 @@ Example::
     log.positions.time, log.positions.lat_deg, log.positions.lon_deg, log.n_damaged
 
 Sentences read: GGA, RMC, GLL (positions), ZDA (date/time), VTG and RMC (speed over ground,
-course), HDT and THS (true heading), ROT (rate of turn). Proprietary (`$P...`), AIS (`!...`)
-and other sentence types are ignored and counted in `n_ignored`; lines with a bad or missing
-checksum, garbage or unparsable fields are skipped and counted in `n_damaged` (with a
-`DamagedRecordsWarning`). A ValueError is raised only when no usable sentence is left, or when
-no date is found anywhere and none is given.
+course), HDT and THS (true heading), ROT (rate of turn), and the headings of dual-antenna GNSS
+compasses, which carry their own time of day: Hemisphere `$PSAT,HPR` and Ashtech/Spectra
+`$PASHR,HPR` (true heading), Trimble `$PTNL,AVR` (the yaw of the antenna baseline, primary to
+secondary antenna: the heading when the antennas are mounted aft to fore along the keel; else
+correct it with the pipeline's `heading_offset_deg`). Their pitch and roll are not read:
+which of the two a two-antenna baseline measures depends on its mounting. Other proprietary
+(`$P...`), AIS (`!...`) and other sentence types are ignored and counted in `n_ignored`;
+lines with a bad or missing checksum, garbage or unparsable fields are skipped and counted in
+`n_damaged` (with a `DamagedRecordsWarning`). A ValueError is raised only when no usable
+sentence is left, or when no date is found anywhere and none is given.
 """
 
 from __future__ import annotations
@@ -44,6 +49,7 @@ __all__ = [
     "Positions",
     "RatesOfTurn",
     "Velocities",
+    "compass_heading",
     "read_nmea",
 ]
 
@@ -51,6 +57,8 @@ KNOT = 1852.0 / 3600.0  # m/s
 HALF_DAY = 43200.0
 _POSITION_TYPES = {"GGA": 0, "RMC": 1, "GLL": 2}  # priority when several share one time
 _WANTED = {"GGA", "RMC", "GLL", "ZDA", "VTG", "HDT", "THS", "ROT"}
+#: Proprietary GNSS-compass heading sentences (address → the Headings' sentence name).
+COMPASS_SENTENCES = {"PSAT,HPR": "HPR", "PASHR,HPR": "HPR", "PTNL,AVR": "AVR"}
 # FAA mode indicator → GGA-style fix quality.
 _MODE_QUALITY = {"A": 1, "D": 2, "P": 3, "R": 4, "F": 5, "E": 6, "M": 7, "S": 8, "N": 0}
 
@@ -79,8 +87,9 @@ class Positions:
 
 @dataclass(frozen=True)
 class Headings:
-    """True headings (HDT, THS): time (UNIX s), heading_deg (clockwise from true north),
-    talker (e.g. "HE"), sentence ("HDT" | "THS"); shape (n,) each."""
+    """True headings (HDT, THS, HPR, AVR): time (UNIX s), heading_deg (clockwise from true
+    north, [0, 360) for HPR and AVR), talker (e.g. "HE"; the maker "SAT", "ASH" or "TNL" of a
+    proprietary sentence), sentence ("HDT" | "THS" | "HPR" | "AVR"); shape (n,) each."""
 
     time: np.ndarray
     heading_deg: np.ndarray
@@ -126,6 +135,23 @@ class NmeaLog:
     n_damaged: int
     n_untimed: int
     damaged_lines: list[int] = field(default_factory=list)
+
+
+def compass_heading(body: str) -> tuple[str, str, float, float] | None:
+    """(sentence "HPR" | "AVR", maker "SAT" | "ASH" | "TNL", UTC time of day s, heading deg in
+    [0, 360)) of a GNSS compass's proprietary heading sentence (`body`: the text between `$`
+    and `*`, see :data:`COMPASS_SENTENCES`); None for any other sentence. ValueError when it
+    holds no valid heading (an empty or malformed field, AVR's GPS quality 0)."""
+    f = body.split(",")
+    kind = COMPASS_SENTENCES.get(",".join(f[:2]))
+    if kind is None:
+        return None
+    if len(f) < 4 or (kind == "AVR" and (len(f) < 11 or f[10] in ("", "0"))):
+        raise ValueError(f"{f[0]},{f[1]} without a valid heading")
+    heading = float(f[3])
+    if not math.isfinite(heading):
+        raise ValueError(f"{f[0]},{f[1]} heading {f[3]!r}")
+    return kind, f[0][1:4], seconds_of_day(f[2]), heading % 360.0
 
 
 def _checksum_ok(body: str, given: str) -> bool:
@@ -189,7 +215,16 @@ def read_nmea(
             continue
         body = line[1:star] if star >= 0 else line[1:]
         if line[0] == "!" or body[0] == "P":
-            n_ignored += 1
+            try:
+                compass = compass_heading(body) if line[0] == "$" else None
+            except (ValueError, IndexError):
+                damaged(lineno)
+                continue
+            if compass is None:
+                n_ignored += 1
+            else:
+                kind, maker, tod, heading = compass
+                events.append((kind, maker, tod, None, (heading,)))
             continue
         address = body.split(",", 1)[0]
         talker, kind = address[:2], address[2:]
@@ -347,7 +382,7 @@ def _assemble(
                 pos[t] = rec
             if kind == "RMC":
                 vels.append((t, v[3], v[4], kind))
-        elif kind in ("HDT", "THS"):
+        elif kind in ("HDT", "THS", "HPR", "AVR"):
             heads.append((t, v[0], talker, kind))
         elif kind == "VTG":
             vels.append((t, v[0], v[1], kind))

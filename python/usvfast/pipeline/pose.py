@@ -13,7 +13,8 @@ Two sources share one result type, `VesselPose`:
 
 IMU orientation follows ROS REP-103 (body FLU relative to world ENU); it is turned into FRD/NED
 roll and pitch. The attitude stream's yaw is not used: heading comes from the navigation
-streams, as NMEA HDT/THS sentences or as orientations from a dual-antenna GNSS
+streams, as NMEA HDT/THS sentences (or a GNSS compass's PSAT,HPR / PASHR,HPR / PTNL,AVR,
+`usvfast.nav.nmea`) or as orientations from a dual-antenna GNSS
 (`geometry_msgs/QuaternionStamped` or `sensor_msgs/Imu` topics; `quaternion_heading`), whose
 yaw follows the stream option `yaw_convention`: "enu" (REP-103, the default: the body's x
 axis from east, counter-clockwise) or "north_clockwise" (the yaw is the heading itself, as
@@ -32,6 +33,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from usvfast import geodesy
+from usvfast.nav._fields import checksum
 from usvfast.nav.pose import Channel, PoseGapError
 
 __all__ = [
@@ -208,7 +210,7 @@ class NavTrack:
             )
         if not headings:
             raise NavigationError(
-                f"recording {config.recording.name!r}: no heading (NMEA HDT/THS, or a "
+                f"recording {config.recording.name!r}: no heading (NMEA HDT/THS/HPR/AVR, or a "
                 f"QuaternionStamped / Imu topic) in the navigation stream(s) {names}"
             )
         t_fix, lat, lon = fixes[0]
@@ -491,12 +493,24 @@ def _read_attitude(spec: Any, reference: float) -> tuple[np.ndarray, np.ndarray,
 
 def parse_sentence(sentence: str) -> tuple[str, tuple[float, ...]] | None:
     """One NMEA sentence of a live stream -> ("fix", (lat, lon)) for GGA/RMC/GLL with a fix,
-    ("heading", (deg,)) for HDT/THS, ("attitude", (roll rad, pitch rad)) for PASHR and XDR
-    PITCH/ROLL, None otherwise or when it does not parse (checksum
+    ("heading", (deg,)) for HDT/THS and the GNSS-compass sentences PSAT,HPR, PASHR,HPR and
+    PTNL,AVR (`usvfast.nav.nmea.compass_heading`), ("attitude", (roll rad, pitch rad)) for
+    PASHR and XDR PITCH/ROLL, None otherwise or when it does not parse (checksum
     checked). Its time: see `sentence_utc` (the pipeline's live path times a stream's
     sentences by the fixes' own UTC times, less the receive delay)."""
     import pynmea2
 
+    from usvfast.nav.nmea import COMPASS_SENTENCES, compass_heading
+
+    text = sentence.strip()
+    if text.startswith(tuple(f"${a}," for a in COMPASS_SENTENCES)):
+        body, star, given = text[1:].partition("*")
+        try:
+            ok = bool(star) and checksum(body.encode("ascii")) == int(given, 16)
+            compass = compass_heading(body) if ok else None
+        except (ValueError, IndexError, UnicodeEncodeError):
+            return None
+        return None if compass is None else ("heading", (compass[3],))
     try:
         msg: Any = pynmea2.parse(sentence.strip(), check=True)
     except (pynmea2.ParseError, ValueError, AttributeError):
