@@ -16,6 +16,7 @@ from usvfast.lidar import (
     sensor_to_world,
     water_geometry,
 )
+from usvfast.lidar.simulator import BOAT
 
 
 def wall_scene():
@@ -120,3 +121,10 @@ def test_harbour_scene_rules():
     assert all(0.05 <= o.top <= 0.30 for o in floats)
     with pytest.raises(ValueError, match="floats"):
         harbour_scene(seed=0, floats=40)
+    # boats must fit along the wall (north of -10 m, up to `length`): a huge count fails fast
+    with pytest.raises(ValueError, match=r"boats: only \d+ of 1000000000 fit"):
+        harbour_scene(seed=0, boats=10**9)
+    with pytest.raises(ValueError, match="boats: expected >= 0"):
+        harbour_scene(seed=0, boats=-1)
+    boats = [o for o in harbour_scene(seed=0, boats=4, length=60.0).objects if o.kind == BOAT]
+    assert len(boats) == 4 and max(b.center[0] + b.length / 2 for b in boats) <= 60.0

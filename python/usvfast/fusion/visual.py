@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.optimize import linear_sum_assignment
 
-from usvfast._validate import as_float_array, instance
+from usvfast._validate import as_float_array, instance, with_methods
 from usvfast.camera.georef import mount_rotation as _mount_rotation
 from usvfast.camera.georef import rotation_zyx
 
@@ -92,6 +92,11 @@ def project_targets(
     projected is `aim_height` m above the water (use about half the superstructure height
     to aim at a box centre); a target farther than `horizon_distance(height,
     target_height)` is beyond the horizon."""
+    with_methods("camera", camera, "a CameraModel or FovCamera", "project")
+    if getattr(camera, "image_size", None) is None:
+        raise TypeError(
+            f"camera: expected a CameraModel or FovCamera (with image_size), got {camera!r}"
+        )
     pts = as_float_array("targets_ne", targets_ne, ndim=2)
     if pts.shape[1] != 2:
         raise ValueError(f"targets_ne: expected shape (k, 2), got {pts.shape}")
@@ -138,6 +143,7 @@ def project_targets(
 def detection_rays(camera: Any, boxes: ArrayLike) -> np.ndarray:
     """Unit rays (n, 3) in the camera frame through the centres of boxes (n, 4) x1, y1, x2,
     y2 (original image pixels; distortion removed by `camera.normalized`)."""
+    with_methods("camera", camera, "a CameraModel or FovCamera", "normalized")
     b = as_float_array("boxes", boxes, ndim=2)
     if b.shape[1] != 4:
         raise ValueError(f"boxes: expected shape (n, 4), got {b.shape}")

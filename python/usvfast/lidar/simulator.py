@@ -299,8 +299,10 @@ def harbour_scene(
     above the water) between `near` and `far` metres from the origin, at least `separation`
     apart (mean shift with a 2 m bandwidth merges objects closer than about twice that) and
     1.5 m from walls and boats. Deterministic given `seed`; raises ValueError when the
-    objects do not fit.
+    objects or the boats (along the wall, up to north = `length`) do not fit.
     """
+    if boats < 0:
+        raise ValueError(f"boats: expected >= 0, got {boats}")
     rng = np.random.default_rng(seed)
     half = channel_width / 2
     objects: list = [Wall(np.array([[-length, half], [length, half]]), height=2.0)]
@@ -308,8 +310,10 @@ def harbour_scene(
         objects.append(Wall(np.array([[length, -half], [-length, -half]]), height=2.0))
     boat_width = 2.5
     n0 = -10.0 + rng.uniform(0.0, 3.0)
-    for _ in range(boats):
+    for k in range(boats):
         ln = rng.uniform(5.0, 9.0)
+        if n0 + ln > length:
+            raise ValueError(f"boats: only {k} of {boats} fit along the {2 * length:g} m wall")
         centre = (n0 + ln / 2, half - boat_width / 2 - 0.3)
         objects.append(Box(centre, ln, boat_width, 0.0, 0.0, 1.4, BOAT))
         n0 += ln + rng.uniform(3.0, 6.0)
