@@ -161,6 +161,9 @@ _CAMERA = {
     # Pipeline.run: the detector network on a worker thread, overlapping the other stages
     # (the scans reach the tracker in message order: the same tracks either way).
     "worker_thread": ("bool", True),
+    # 16-bit and float frames (a thermal camera's raw counts) reach the detector as 8 bits:
+    # these percentiles (low, high) of each frame become 0 and 255 (usvfast.camera.agc).
+    "agc_percentiles": ("floats:2", (1.0, 99.0)),
 }
 _DETECTOR = {
     "backend": ("str", "none"),
@@ -519,6 +522,12 @@ def _build(data: dict[str, Any], file: Path) -> PipelineConfig:
         raise ConfigError(
             f"{file}: key 'recording.heading_calibration_s': the heading calibration needs a "
             'LiDAR stream (sensor = "lidar", lidar.enabled = true)'
+        )
+    low, high = cam["agc_percentiles"]
+    if not 0.0 <= low < high <= 100.0:
+        raise ConfigError(
+            f"{file}: key 'camera.agc_percentiles': expected 0 <= low < high <= 100, "
+            f"got {[low, high]}"
         )
     start = cam["start_confidence"]
     if start is not None and not 0.0 <= start <= 1.0:

@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from usvfast.camera.agc import to_uint8
 from usvfast.nav.heading_offset import HeadingOffset
 from usvfast.nav.replay import Replay
 from usvfast.pipeline.camera_chain import CameraChain, load_detector
@@ -236,6 +237,9 @@ class Pipeline:
         if not isinstance(image, np.ndarray) or image.ndim not in (2, 3):
             self.counts[stream]["damaged"] += 1
             return None
+        if image.dtype != np.uint8:  # e.g. a thermal camera's mono16 counts
+            with self.timer("camera.agc"):
+                image = to_uint8(image, self.config.camera["agc_percentiles"])
         if image.ndim == 2:
             import cv2
 
