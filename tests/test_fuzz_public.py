@@ -36,6 +36,7 @@ MODULES = [
     "usvfast.bearing.angles",
     "usvfast.bearing.camera",
     "usvfast.bearing.fusion",
+    "usvfast.camera.agc",
     "usvfast.camera.georef",
     "usvfast.camera.calibration",
     "usvfast.camera.nms",
