@@ -106,6 +106,12 @@ def test_rotation_equals_scipy_align_vectors(theta_deg):
     assert abs(math.degrees(theta) - theta_deg) < 2.0 and 0 < spread < math.radians(10)
     with pytest.raises(ValueError, match="v_camera"):
         rotation_from_velocities(v_c[:3], v_r)
+    # scale-free: the same θ and spread from vectors near float64's ends (products overflow
+    # or underflow unscaled), and the inputs are left as they were
+    big, tiny = v_c * 1e250, v_r * 1e-250
+    t2, s2 = rotation_from_velocities(big, tiny, np.full(20, 1e-200))
+    assert t2 == pytest.approx(theta, abs=1e-12) and s2 == pytest.approx(spread, rel=1e-9)
+    np.testing.assert_array_equal(big, v_c * 1e250)
 
 
 def test_calibrator_keeps_candidates_until_unique():

@@ -103,6 +103,9 @@ def test_point_segment_distance_and_extension():
     seg = np.array([[0.0, 0.0, 2.0, 0.0], [1.0, 1.0, 1.0, 1.0]])
     d = point_segment_distance(np.array([[1.0, 0.5], [3.0, 0.0], [-1.0, -1.0]]), seg)
     np.testing.assert_allclose(d, [[0.5, 0.5], [1.0, np.hypot(2, 1)], [np.sqrt(2), np.sqrt(8)]])
+    # beyond 1e154 m the squares overflow: computed in units of the largest coordinate
+    big = point_segment_distance(np.array([[1.0, 0.5], [3.0, 0.0]]) * 1e300, seg * 1e300)
+    np.testing.assert_allclose(big, d[:2] * 1e300, rtol=1e-12)
     ext = extend_segments(seg, 0.5)
     np.testing.assert_allclose(ext, [[-0.5, 0.0, 2.5, 0.0], [1.0, 1.0, 1.0, 1.0]])
 

@@ -47,6 +47,8 @@ def rotation_from_velocities(
     w = np.ones(len(a)) if weights is None else as_float_array("weights", weights, ndim=1)
     if w.shape != (len(a),) or np.any(w < 0):
         raise ValueError(f"weights: expected ({len(a)},) values >= 0, got {w.shape}")
+    # θ and the spread do not change when a, b or w is scaled: keep the products finite
+    a, b, w = (_rescaled(x) for x in (a, b, w))
     cross = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
     dot = a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1]
     sc, sd = float(np.sum(w * cross)), float(np.sum(w * dot))
@@ -57,6 +59,12 @@ def rotation_from_velocities(
     per = _wrap(np.arctan2(cross, dot) - theta)
     spread = float(np.sqrt(np.sum(ww * per**2) / np.sum(ww))) if ww.sum() > 0 else math.nan
     return theta, spread
+
+
+def _rescaled(x: np.ndarray) -> np.ndarray:
+    """`x` divided by its largest |value| when that is beyond 1e±100 (a new array), else x."""
+    top = float(np.abs(x).max())
+    return x / top if top > 1e100 or 0.0 < top < 1e-100 else x
 
 
 class RotationCalibrator:

@@ -104,6 +104,9 @@ def point_segment_distance(points: np.ndarray, segments: np.ndarray) -> np.ndarr
     """(n, m) Euclidean distance from each point (n, 2) to each segment (m, 4), metres."""
     p = _rows("points", points, 2)
     s = _rows("segments", segments, 4)
+    scale = max(np.abs(p).max(initial=0.0), np.abs(s).max(initial=0.0))
+    if scale > 1e150:  # the squares would overflow: the same in units of `scale`
+        return point_segment_distance(p / scale, s / scale) * scale
     px, py = p[:, 0:1], p[:, 1:2]
     ax, ay = s[None, :, 0], s[None, :, 1]
     dx, dy = s[None, :, 2] - ax, s[None, :, 3] - ay

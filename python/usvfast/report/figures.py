@@ -97,8 +97,8 @@ def map_extent(
     """The points a map frames: tracks, detections, the USV path, and the truth within `near`
     m of the USV path (all of it without a path), so that far-away objects that were never
     in view do not shrink the action to a corner."""
+    instance("tracks", tracks, Tracks)
     for name, v, kind in (
-        ("tracks", tracks, Tracks),
         ("detections", detections, Detections),
         ("nav", nav, Nav),
         ("truth", truth, Truth),
