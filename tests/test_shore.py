@@ -30,7 +30,7 @@ from usvfast.shore.cascade import CascadeConfig
 from usvfast.shore.evaluate import derive_truth_ids, evaluate
 from usvfast.shore.horizon import horizon_keep
 from usvfast.shore.mardct import load_mardct
-from usvfast.shore.mot import read_mot
+from usvfast.shore.mot import mot_rows, read_mot
 from usvfast.shore.pixel_kalman import AdaptiveTracker, paper_model
 from usvfast.shore.scores import DetectionCounts, matched_pairs
 
@@ -295,3 +295,17 @@ def test_leave_one_out_runs_on_the_small_videos(mardct_annotations, tmp_path):
     assert c["tp"] + c["fn"] == 8 and r["cascade_stages"] >= 1
     assert set(r["tracking"]["cascade"]) == {"sort", "particle", "adaptive"}
     assert r["tracking"]["truth boxes"]["particle"]["mota"] > 0.5
+
+
+def test_mot_rows_check_their_arguments():
+    rows = mot_rows(3, [7, 8], [[1.0, 2, 3, 4], [5, 6, 7, 8]], [0.5, 0.25])
+    np.testing.assert_array_equal(rows[:, :7], [[3, 7, 1, 2, 3, 4, 0.5], [3, 8, 5, 6, 7, 8, 0.25]])
+    assert (rows[:, 7:] == -1).all()
+    with pytest.raises(ValueError, match="ids: expected 1 values"):
+        mot_rows(1, [1, 2, 3, 4], [0.0, 0, 1, 1], [0.9] * 4)  # one box, not four
+    with pytest.raises(ValueError, match="boxes: expected shape"):
+        mot_rows(1, [1], [0.0, 0, 1], [0.9])
+    with pytest.raises(TypeError, match="frame: expected an integer"):
+        mot_rows(None, [1], [0.0, 0, 1, 1], [0.9])  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="frame: must be in"):
+        mot_rows(0, [1], [0.0, 0, 1, 1], [0.9])

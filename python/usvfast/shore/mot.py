@@ -6,19 +6,31 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import ArrayLike
+
+from usvfast._validate import as_float_array, integer
 
 #: Columns of a MOTChallenge row.
 COLUMNS = ("frame", "id", "x", "y", "w", "h", "conf", "x3d", "y3d", "z3d")
 
 
-def mot_rows(frame: int, ids: np.ndarray, boxes: np.ndarray, scores: np.ndarray) -> np.ndarray:
-    """(k, 10) rows of one frame (ids (k,), boxes (k, 4) x, y, w, h px, scores (k,))."""
-    k = len(boxes)
+def mot_rows(frame: int, ids: ArrayLike, boxes: ArrayLike, scores: ArrayLike) -> np.ndarray:
+    """(k, 10) rows of one frame (>= 1; ids (k,), boxes (k, 4) x, y, w, h px, scores (k,)).
+    Raises TypeError / ValueError naming the argument that is not a number or not of k."""
+    frame = integer("frame", frame, low=1)
+    b = as_float_array("boxes", boxes)
+    if b.size % 4 or b.ndim > 2 or (b.ndim == 2 and b.shape[1] != 4):
+        raise ValueError(f"boxes: expected shape (k, 4), got {b.shape}")
+    b = b.reshape(-1, 4)
+    k = len(b)
     rows = np.full((k, 10), -1.0)
     rows[:, 0] = frame
-    rows[:, 1] = ids
-    rows[:, 2:6] = np.asarray(boxes, dtype=float).reshape(-1, 4)
-    rows[:, 6] = scores
+    for col, name, value in ((1, "ids", ids), (6, "scores", scores)):
+        v = as_float_array(name, value).reshape(-1)
+        if v.shape != (k,):
+            raise ValueError(f"{name}: expected {k} values (one per box), got {v.size}")
+        rows[:, col] = v
+    rows[:, 2:6] = b
     return rows
 
 
