@@ -230,6 +230,14 @@ def test_pareto_front_equals_brute_force(points):
     assert np.all(np.diff(cost[front]) > 0)
 
 
+def test_pareto_front_needs_one_cost_per_accuracy():
+    with pytest.raises(ValueError, match=r"accuracy, cost: expected two \(n,\) arrays"):
+        pareto_front(np.zeros(3), np.zeros(2))
+    with pytest.raises(ValueError, match="accuracy: expected a 1-D array"):
+        pareto_front(np.zeros((2, 4)), np.zeros((2, 4)))
+    np.testing.assert_array_equal(pareto_front([np.nan, 1.0, 0.5], [0.0, 1.0, 2.0]), [1, 2])
+
+
 def test_harbour_sweep_over_eight_simulated_recordings_equals_a_plain_loop(tmp_path):
     # Eight short simulated harbour recordings x two JPDA detection probabilities, through the
     # whole pipeline (LiDAR and camera chains, the thesis tracker) on the local cluster.

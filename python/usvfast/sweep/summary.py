@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from usvfast._validate import instance, integer
+from usvfast._validate import as_float_array, instance, integer
 
 SPEED_COLUMNS = ("metric.ms_per_scan", "wall_s")
 
@@ -37,7 +37,14 @@ def best_rows(table: pd.DataFrame, metric: str, maximize: bool = False, n: int =
 
 def pareto_front(accuracy: np.ndarray, cost: np.ndarray) -> np.ndarray:
     """Indices of the points no other point beats on both (lower accuracy error, lower cost),
-    sorted by cost."""
+    sorted by cost; accuracy and cost are (n,) each (a NaN accuracy is never on the front).
+    Raises ValueError naming them when their shapes differ."""
+    accuracy = as_float_array("accuracy", accuracy, ndim=1, finite=False)
+    cost = as_float_array("cost", cost, ndim=1, finite=False)
+    if accuracy.shape != cost.shape:
+        raise ValueError(
+            f"accuracy, cost: expected two (n,) arrays, got {accuracy.shape} and {cost.shape}"
+        )
     order = np.lexsort((accuracy, cost))
     front, best = [], np.inf
     for i in order:
