@@ -20,7 +20,7 @@ from usvfast.lidar import (
     write_pointcloud2_bag,
 )
 from usvfast.lidar.packets import velodyne_packet_problem
-from usvfast.lidar.readers import lidar_typestore, make_header
+from usvfast.lidar.readers import lidar_typestore, make_header, pointcloud2_to_points
 
 from conftest import SHARED_DATA
 
@@ -272,6 +272,57 @@ def test_pointcloud2_round_trip(tmp_path, ros1):
     for a, b in zip(frames, back, strict=True):
         assert b.stamp == pytest.approx(a.stamp, abs=1e-9)
         np.testing.assert_array_equal(a.points, b.points)
+
+
+def _cloud(stamp: float, columns: dict[str, np.ndarray], kinds: dict[str, int]):
+    """A PointCloud2 (rosbags class) of the given fields, in their order, packed."""
+    ts = lidar_typestore()
+    dtype = np.dtype([(k, v.dtype) for k, v in columns.items()])
+    packed = np.empty(len(next(iter(columns.values()))), dtype)
+    for k, v in columns.items():
+        packed[k] = v
+    pf = ts.types["sensor_msgs/msg/PointField"]
+    fields = [
+        pf(name=k, offset=dtype.fields[k][1], datatype=kinds[k], count=1)  # type: ignore[index]
+        for k in columns
+    ]
+    return ts.types["sensor_msgs/msg/PointCloud2"](
+        header=make_header(ts, stamp, "lidar"), height=1, width=len(packed), fields=fields,
+        is_bigendian=False, point_step=dtype.itemsize, row_step=dtype.itemsize * len(packed),
+        data=packed.view(np.uint8).copy(), is_dense=True,
+    )  # fmt: skip
+
+
+def test_pointcloud2_point_times_of_other_drivers():
+    """Per-point times: Ouster's `t` (uint32 ns after the stamp), Hesai's `timestamp`
+    (float64 absolute s), Livox's `timestamp` (float64 absolute ns) and its `line` as ring."""
+    stamp, n = 1_700_000_000.25, 5
+    rel = np.linspace(0.0, 0.09, n)  # s after the stamp
+    xyz = {k: np.arange(n, dtype=np.float32) + i for i, k in enumerate("xyz")}
+    f32 = {"x": 7, "y": 7, "z": 7, "intensity": 7}
+    ouster = _cloud(
+        stamp,
+        {**xyz, "t": np.round(rel * 1e9).astype(np.uint32), "ring": np.arange(n, dtype=np.uint16)},
+        {**f32, "t": 6, "ring": 4},
+    )
+    hesai = _cloud(stamp, {**xyz, "timestamp": stamp + rel}, {**f32, "timestamp": 8})
+    livox = _cloud(
+        stamp,
+        {
+            **xyz,
+            "tag": np.zeros(n, np.uint8),
+            "line": np.array([0, 1, 2, 3, 0], np.uint8),
+            "timestamp": (stamp + rel) * 1e9,
+        },
+        {**f32, "tag": 2, "line": 2, "timestamp": 8},
+    )
+    for msg, tol in ((ouster, 1e-9), (hesai, 1e-6), (livox, 1e-6)):
+        got_stamp, pts = pointcloud2_to_points(msg)
+        assert got_stamp == pytest.approx(stamp, abs=1e-9)
+        np.testing.assert_allclose(pts["time"], rel, atol=tol)
+        np.testing.assert_array_equal(pts["z"], xyz["z"])
+    np.testing.assert_array_equal(pointcloud2_to_points(livox)[1]["ring"], [0, 1, 2, 3, 0])
+    np.testing.assert_array_equal(pointcloud2_to_points(ouster)[1]["ring"], np.arange(n))
 
 
 def test_bag_without_lidar_topic(tmp_path):

@@ -68,11 +68,12 @@ def pointcloud2_to_points(msg: Any) -> tuple[float, np.ndarray]:
     """Convert a sensor_msgs/PointCloud2 message to (stamp s, (n,) `POINT_DTYPE`).
 
     `msg`: any object with PointCloud2's fields (rosbags, rclpy or rospy messages alike).
-    Needs float fields x, y, z; takes intensity, ring and a per-point time when present
-    (`time`/`t`/`timestamp`/`time_stamp`: float seconds relative to the header stamp, or
-    integer nanoseconds for `t`; absolute float seconds are made relative). Points with a
-    non-finite coordinate (organised clouds) are dropped. Raises ValueError on a message
-    whose layout does not match its data.
+    Needs float fields x, y, z; takes intensity, ring (or Livox's `line`) and a per-point
+    time when present (`time`/`t`/`timestamp`/`time_stamp`: float seconds relative to the
+    header stamp, or integer nanoseconds for `t` (Ouster); absolute float seconds (Hesai) and
+    absolute float nanoseconds (Livox) are made relative). Points with a non-finite
+    coordinate (organised clouds) are dropped. Raises ValueError on a message whose layout
+    does not match its data.
     """
     stamp = ros_stamp_seconds(msg.header.stamp)
     if msg.is_bigendian:
@@ -105,14 +106,18 @@ def pointcloud2_to_points(msg: Any) -> tuple[float, np.ndarray]:
     for name in ("x", "y", "z"):
         out[name] = raw[name]
     out["intensity"] = raw["intensity"] if "intensity" in fields else 0.0
-    out["ring"] = raw["ring"] if "ring" in fields else 0
+    ring = "ring" if "ring" in fields else "line" if "line" in fields else None
+    out["ring"] = raw[ring] if ring is not None else 0
     time = np.zeros(n)
     for name in ("time", "t", "timestamp", "time_stamp"):
         if name in fields:
             t = raw[name].astype(np.float64)
             if name == "t" and raw[name].dtype.kind in "iu":
                 t = t * 1e-9
-            if np.nanmedian(np.abs(t)) > 1e6 if n else False:  # absolute times
+            typical = np.nanmedian(np.abs(t)) if n else 0.0
+            if typical > 1e15:  # absolute nanoseconds (UNIX seconds are ~1.7e9)
+                t = t * 1e-9
+            if typical > 1e6:  # absolute times
                 t = t - stamp
             time = t
             break
