@@ -237,7 +237,12 @@ def mangle(line: str, how: int, rng: random.Random) -> bytes:
 @given(st.integers(0, 2**32 - 1), st.floats(0.01, 0.5))
 def test_mangled_copies_keep_every_valid_record(tmp_path_factory, seed, fraction):
     rng = random.Random(seed)
-    lines = (DATA / "ublox-zed-f9p-nmea.log").read_text().splitlines()
+    lines = []
+    for line in (DATA / "ublox-zed-f9p-nmea.log").read_text().splitlines():
+        lines.append(line)
+        if line[3:6] == "GGA":  # a GNSS compass's heading at each fix, on the fix's time
+            lines.append(sentence(f"PSAT,HPR,{line.split(',')[1]},{rng.uniform(0, 360):.2f},,,N"))
+    assert sum(line.startswith("$PSAT,HPR") for line in lines) > 20  # one per GGA
     out, kept = [], []
     n_bad = 0
     for line in lines:
