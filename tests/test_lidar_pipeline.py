@@ -106,6 +106,13 @@ def test_point_segment_distance_and_extension():
     # beyond 1e154 m the squares overflow: computed in units of the largest coordinate
     big = point_segment_distance(np.array([[1.0, 0.5], [3.0, 0.0]]) * 1e300, seg * 1e300)
     np.testing.assert_allclose(big, d[:2] * 1e300, rtol=1e-12)
+    # the simulator's point-to-polyline distance is the nearest of its segments'
+    from usvfast.sim.motion import point_segment_distance as to_polyline
+
+    line = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 5.0]])
+    assert to_polyline(np.array([3.0, 1.0]), line) == pytest.approx(1.0)
+    assert to_polyline(np.array([1.0, -2.0]), line) == pytest.approx(2.0)
+    assert to_polyline(np.array([3.0, 1.0]) * 1e300, line * 1e300) == pytest.approx(1e300)
     ext = extend_segments(seg, 0.5)
     np.testing.assert_allclose(ext, [[-0.5, 0.0, 2.5, 0.0], [1.0, 1.0, 1.0, 1.0]])
 

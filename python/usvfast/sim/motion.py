@@ -10,7 +10,6 @@ a numpy Generator, when the object is built).
 
 from __future__ import annotations
 
-import itertools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -204,9 +203,6 @@ def point_segment_distance(p: np.ndarray, polyline: np.ndarray) -> float:
         raise ValueError(
             f"p, polyline: expected (2,) and (k >= 2, 2), got {p.shape}, {polyline.shape}"
         )
-    best = np.inf
-    for a, b in itertools.pairwise(np.asarray(polyline, dtype=np.float64)):
-        d = b - a
-        f = np.clip(np.dot(p - a, d) / max(np.dot(d, d), 1e-12), 0.0, 1.0)
-        best = min(best, float(np.hypot(*(p - a - f * d))))
-    return best
+    from usvfast.lidar.lines import point_segment_distance as distances
+
+    return float(distances(p[None], np.hstack([polyline[:-1], polyline[1:]])).min())
