@@ -284,6 +284,8 @@ def test_detector_cycles_and_intermediates():
         ({"buffer_frames": 0}, "buffer_frames"),
         ({"slice_min": 1.0, "slice_max": 0.5}, "slice_min"),
         ({"los_tolerance": -1.0}, "los_tolerance"),
+        ({"min_cluster_points": float("inf")}, "min_cluster_points"),  # not an OverflowError
+        ({"line_memory_frames": float("nan")}, "line_memory_frames"),
     ],
 )
 def test_config_validation(kw, match):

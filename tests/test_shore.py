@@ -309,3 +309,13 @@ def test_mot_rows_check_their_arguments():
         mot_rows(None, [1], [0.0, 0, 1, 1], [0.9])  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="frame: must be in"):
         mot_rows(0, [1], [0.0, 0, 1, 1], [0.9])
+
+
+def test_state_to_box_inverts_box_to_z_and_stays_finite():
+    from usvfast.shore.sort import box_to_z, state_to_box
+
+    boxes = np.array([[10.0, 20.0, 30.0, 15.0], [0.0, 0.0, 1.0, 400.0], [5.0, 5.0, 640.0, 2.0]])
+    z = np.vstack([box_to_z(b) for b in boxes])
+    np.testing.assert_allclose(state_to_box(z), boxes, rtol=1e-12, atol=1e-9)
+    huge = state_to_box(np.array([[0.0, 0.0, 1e300, 1e300]]))  # s r overflows float64
+    np.testing.assert_allclose(huge, [[-5e299, -0.5, 1e300, 1.0]], rtol=1e-12)

@@ -122,7 +122,7 @@ class LidarConfig:
                 raise ValueError(f"{name}: expected a positive number, got {v}")
         for name in ("line_memory_frames", "buffer_frames", "min_cluster_points"):
             v = getattr(self, name)
-            if int(v) != v or v < 1:
+            if not (np.isfinite(v) and int(v) == v and v >= 1):
                 raise ValueError(f"{name}: expected an integer >= 1, got {v}")
         if self.core_radius is not None and not (
             np.isfinite(self.core_radius) and self.core_radius > 0

@@ -113,7 +113,10 @@ def state_to_box(x: np.ndarray) -> np.ndarray:
     x = np.asarray(x, dtype=float).reshape(len(x), -1)
     s = np.maximum(x[:, 2], 1e-9)
     r = np.maximum(x[:, 3], 1e-9)
-    w = np.sqrt(s * r)
+    with np.errstate(over="ignore"):
+        w = np.sqrt(s * r)
+    big = np.isinf(w)  # s r beyond float64: the same root, taken factor by factor
+    w[big] = np.sqrt(s[big]) * np.sqrt(r[big])
     h = s / w
     return np.column_stack([x[:, 0] - w / 2, x[:, 1] - h / 2, w, h])
 
