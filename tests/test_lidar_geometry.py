@@ -46,6 +46,11 @@ def test_dead_zone_for_a_10_cm_object():
     assert r == pytest.approx(0.9 * np.tan(np.deg2rad(75.0)), rel=1e-12)
     assert dead_zone_radius(1.0, 0.0) == pytest.approx(water_geometry(1.0)[0][0])
     assert dead_zone_radius(1.0, 1.5) == 0.0
+    # no beam below the horizon, or a radius beyond float64: errors naming the inputs
+    with pytest.raises(ValueError, match="vfov_deg: expected 2e-9 < vfov_deg < 180"):
+        dead_zone_radius(1.0, 0.0, vfov_deg=5e-324)
+    with pytest.raises(ValueError, match="height, vfov_deg: out of the representable range"):
+        dead_zone_radius(1e300, 0.0, vfov_deg=1e-8)
 
 
 def test_downward_angles():

@@ -319,3 +319,12 @@ def test_state_to_box_inverts_box_to_z_and_stays_finite():
     np.testing.assert_allclose(state_to_box(z), boxes, rtol=1e-12, atol=1e-9)
     huge = state_to_box(np.array([[0.0, 0.0, 1e300, 1e300]]))  # s r overflows float64
     np.testing.assert_allclose(huge, [[-5e299, -0.5, 1e300, 1.0]], rtol=1e-12)
+
+
+def test_box_areas_beyond_float64_and_nan_boxes_are_errors():
+    from usvfast.shore.boxes import intersection_matrix
+
+    with pytest.raises(ValueError, match="a, b: out of the representable range"):
+        intersection_matrix(np.full((1, 4), 1e300), np.full((1, 4), 1e300))
+    with pytest.raises(ValueError, match="b: contains a non-finite value"):
+        intersection_matrix(np.zeros((1, 4)), np.full((1, 4), np.nan))

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from usvfast._validate import real
+from usvfast._validate import finite_result, real
 
 
 def _check(height: float, channels: int, vfov_deg: float) -> None:
@@ -20,8 +20,8 @@ def _check(height: float, channels: int, vfov_deg: float) -> None:
     c = real("channels", channels)
     if not c.is_integer() or not 2 <= c <= 100_000:
         raise ValueError(f"channels: expected an integer in [2, 100000], got {channels}")
-    if not 0 < vfov_deg < 180:
-        raise ValueError(f"vfov_deg: expected 0 < vfov_deg < 180, got {vfov_deg}")
+    if not 2e-9 < vfov_deg < 180:  # the lowest beam below the horizon (downward_angles_deg)
+        raise ValueError(f"vfov_deg: expected 2e-9 < vfov_deg < 180, got {vfov_deg}")
 
 
 def downward_angles_deg(channels: int = 16, vfov_deg: float = 30.0) -> np.ndarray:
@@ -84,4 +84,6 @@ def dead_zone_radius(
     if not np.isfinite(object_height) or object_height < 0:
         raise ValueError(f"object_height: expected a height >= 0 in metres, got {object_height}")
     theta0 = np.deg2rad(downward_angles_deg(channels, vfov_deg)[0])
-    return float(max(0.0, (height - object_height) * np.tan(theta0)))
+    with np.errstate(over="ignore"):
+        radius = np.float64(max(0.0, (height - object_height) * np.tan(theta0)))
+    return float(finite_result("the radius", radius, "height, vfov_deg"))

@@ -7,6 +7,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from usvfast._validate import as_float_array, finite_result
+
 
 @dataclass
 class Detections:
@@ -27,14 +29,17 @@ class Detections:
 
 def intersection_matrix(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Intersection area (px²) of every box of `a` (n, 4) with every box of `b` (m, 4), both
-    x, y, w, h pixels -> (n, m)."""
-    a = np.asarray(a, dtype=float).reshape(-1, 4)
-    b = np.asarray(b, dtype=float).reshape(-1, 4)
-    ax2, ay2 = a[:, 0] + a[:, 2], a[:, 1] + a[:, 3]
-    bx2, by2 = b[:, 0] + b[:, 2], b[:, 1] + b[:, 3]
-    iw = np.minimum(ax2[:, None], bx2[None]) - np.maximum(a[:, None, 0], b[None, :, 0])
-    ih = np.minimum(ay2[:, None], by2[None]) - np.maximum(a[:, None, 1], b[None, :, 1])
-    return np.clip(iw, 0, None) * np.clip(ih, 0, None)
+    x, y, w, h pixels -> (n, m). Raises ValueError (naming them) for non-finite boxes or
+    areas beyond float64."""
+    a = as_float_array("a", a).reshape(-1, 4)
+    b = as_float_array("b", b).reshape(-1, 4)
+    with np.errstate(over="ignore", invalid="ignore"):
+        ax2, ay2 = a[:, 0] + a[:, 2], a[:, 1] + a[:, 3]
+        bx2, by2 = b[:, 0] + b[:, 2], b[:, 1] + b[:, 3]
+        iw = np.minimum(ax2[:, None], bx2[None]) - np.maximum(a[:, None, 0], b[None, :, 0])
+        ih = np.minimum(ay2[:, None], by2[None]) - np.maximum(a[:, None, 1], b[None, :, 1])
+        area = np.clip(iw, 0, None) * np.clip(ih, 0, None)
+    return finite_result("the intersection area", area, "a, b")
 
 
 def iou_matrix(a: np.ndarray, b: np.ndarray) -> np.ndarray:
