@@ -85,5 +85,5 @@ def dead_zone_radius(
         raise ValueError(f"object_height: expected a height >= 0 in metres, got {object_height}")
     theta0 = np.deg2rad(downward_angles_deg(channels, vfov_deg)[0])
     with np.errstate(over="ignore"):
-        radius = np.float64(max(0.0, (height - object_height) * np.tan(theta0)))
+        radius = np.array(max(0.0, (height - object_height) * np.tan(theta0)))
     return float(finite_result("the radius", radius, "height, vfov_deg"))
