@@ -190,11 +190,14 @@ _TRACKER = {
     "per_detection_covariance": ("bool", True),
     "missed_distance": ("float", 0.3),
     "prior_velocity_var": ("float", 0.3),
-    # A per-track offset of the camera's detections in the state ([n, v_n, e, v_e, b_n, b_e]):
-    # its prior std (m, 0: none) and random-walk diffusion (m²/s). The camera and the LiDAR
-    # each place an object with an offset of their own that changes slowly.
+    # Per-track offsets of the LiDAR's and the camera's detections in the state ([n, v_n, e,
+    # v_e, then (b_n, b_e) of each sensor with one]): prior std (m, 0: none) and random-walk
+    # diffusion (m²/s). The camera and the LiDAR each place an object with an offset of their
+    # own that changes slowly.
     "camera_offset_std": ("float", 0.0),
     "camera_offset_q": ("float", 0.001),
+    "lidar_offset_std": ("float", 0.0),
+    "lidar_offset_q": ("float", 0.001),
     "min_points": ("int", 2),
     "init_delete_steps": ("int", 3),
     "delete_steps": ("int", 35),
@@ -542,19 +545,18 @@ def _build(data: dict[str, Any], file: Path) -> PipelineConfig:
                     f"{file}: key 'tracker.{key}': a number of seconds > 0 is needed with "
                     'tracker.deletion = "time"'
                 )
-    for key in ("camera_offset_std", "camera_offset_q", "vessel_camera_offset_std"):
+    offset_keys = ("camera_offset_std", "lidar_offset_std", "vessel_camera_offset_std")
+    for key in (*offset_keys, "camera_offset_q", "lidar_offset_q"):
         if trk[key] < 0:
             raise ConfigError(f"{file}: key 'tracker.{key}': must be >= 0, got {trk[key]}")
     for key in ("centre_along_std", "centre_across_std"):
         if tables["camera"][key] < 0:
             value = tables["camera"][key]
             raise ConfigError(f"{file}: key 'camera.{key}': must be >= 0, got {value}")
-    offset = next(
-        (k for k in ("camera_offset_std", "vessel_camera_offset_std") if trk[k] > 0), None
-    )
+    offset = next((k for k in offset_keys if trk[k] > 0), None)
     if offset is not None and trk["backend"] == "stonesoup":
         raise ConfigError(
-            f"{file}: key 'tracker.{offset}': the camera-offset state needs backend "
+            f"{file}: key 'tracker.{offset}': a sensor-offset state needs backend "
             '"native" (Stone Soup\'s initiator would split a detection between position and offset)'
         )
     det = tables["detector"]

@@ -93,26 +93,35 @@ class NativeTracker(_Base):
         motion: Any = constant_velocity_2d(s["q"])
         lidar = tk.Sensor.position(s["lidar_noise_std"])
         camera = tk.Sensor.position(s["camera_noise_std"])
-        if float(s["camera_offset_std"]) > 0:
-            # State [n, v_n, e, v_e, b_n, b_e]: b the camera's offset for this track (a slow
-            # random walk), seen by the camera only; a camera detection starts a track at its
-            # position with b = 0 and prior std camera_offset_std.
-            motion = (*motion, *(RandomWalk(s["camera_offset_q"]),) * 2)
-            sd = float(s["camera_offset_std"])
-            prior = np.diag(
-                [0.0, s["prior_velocity_var"], 0.0, s["prior_velocity_var"], sd * sd, sd * sd]
-            )
-            lidar = tk.Sensor.position(s["lidar_noise_std"], ndim_state=6)
-            cam = tk.Sensor.position(s["camera_noise_std"], ndim_state=6)
-            h = cam.measurement_matrix.copy()
-            h[0, 4] = h[1, 5] = 1.0
-            # A camera detection starts a track from its position rows with the sensor's R
-            # (camera_noise_std), not the detection's own: the position is the detection less
-            # an unknown offset (with its own R the track is sure of a biased start and the
-            # LiDAR's detections fall outside its gate).
-            camera = tk.Sensor(
-                h, cam.measurement_noise, cam.measurement_matrix, cam.measurement_noise
-            )
+        offsets = [
+            (name, float(s[f"{name}_offset_std"]), float(s[f"{name}_offset_q"]))
+            for name in ("lidar", "camera")
+            if float(s[f"{name}_offset_std"]) > 0
+        ]
+        if offsets:
+            # State [n, v_n, e, v_e, (b_n, b_e) per sensor with an offset]: b that sensor's
+            # offset for this track (a slow random walk), seen by that sensor only; a
+            # detection starts a track at its position with b = 0 and prior std
+            # <sensor>_offset_std, from its position rows with the sensor's R (the position is
+            # the detection less an unknown offset: with the detection's own R the track is
+            # sure of a biased start and the other sensor's detections fall outside its gate).
+            ndim = 4 + 2 * len(offsets)
+            motion = (*motion, *(rw for _, _, q in offsets for rw in (RandomWalk(q),) * 2))
+            var = [sd * sd for _, sd, _ in offsets for _ in (0, 1)]
+            prior = np.diag([0.0, s["prior_velocity_var"], 0.0, s["prior_velocity_var"], *var])
+            built = {}
+            for name in ("lidar", "camera"):
+                base = tk.Sensor.position(s[f"{name}_noise_std"], ndim_state=ndim)
+                col = next((4 + 2 * i for i, o in enumerate(offsets) if o[0] == name), None)
+                if col is None:
+                    built[name] = base
+                    continue
+                h = base.measurement_matrix.copy()
+                h[0, col] = h[1, col + 1] = 1.0
+                built[name] = tk.Sensor(
+                    h, base.measurement_noise, base.measurement_matrix, base.measurement_noise
+                )
+            lidar, camera = built["lidar"], built["camera"]
         deleter: Any = (
             tk.StepsSinceUpdate(s["delete_steps"])
             if s["deletion"] == "steps"
@@ -419,6 +428,7 @@ def make_vessel_tracker(settings: dict[str, Any]) -> NativeTracker | StoneSoupTr
     s["q"] = settings["vessel_q"]
     s["prior_velocity_var"] = settings["vessel_prior_velocity_var"]
     s["camera_offset_std"] = settings["vessel_camera_offset_std"]
+    s["lidar_offset_std"] = 0.0
     s["covariance_trace"] = settings["vessel_covariance_trace"]
     if s["deletion"] == "time":
         s["delete_after_s"] = settings["vessel_delete_after_s"]
