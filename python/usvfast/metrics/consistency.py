@@ -17,15 +17,24 @@ PDAF's truncation factor c_τ (Bar-Shalom, Daum & Huang 2009, eq. 30). With P_G 
 d = 2 a consistent filter's ANIS is 1.907, not 2. With `gate=` the band is that of the mean of
 N such samples: a gamma law with the sum's mean and variance, which is the exact χ²(Σd) band
 when nothing is truncated (truncated: within 0.002 of the sampled quantiles at N = 400 and
-P_G = 0.99, 0.01 at N = 40). Example::
+P_G = 0.99, 0.01 at N = 40).
+
+The band assumes independent samples. The NIS of one track are not when the sensors' errors
+change slowly (an object's seen side, a box's fit): then the mean of N samples varies as that
+of N / f independent ones. With `groups=` (each sample's track, the samples of a track in
+time order) `average_consistency` also gives f, estimated as the Bartlett-weighted long-run
+variance within the tracks over the variance (Newey & West 1987; lags by their 1994 rule), and
+the band of N / f samples beside the plain one. Example::
 
     eps = nees(errors, covariances)            # (N,)
     c = average_consistency(eps, dof=2)        # c.mean, c.lower, c.upper, c.inside
     a = average_consistency(nis, dof=2, gate=0.99)   # a.expected 1.907
+    a = average_consistency(nis, dof=2, gate=0.99, groups=track_ids)  # a.variance_factor
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -52,14 +61,22 @@ def gated_chi2_moments(dof: ArrayLike, gate: ArrayLike = 1.0) -> tuple[np.ndarra
 
 
 def chi2_band(
-    dof: ArrayLike, n: int = 1, confidence: float = 0.95, gate: ArrayLike | None = None
+    dof: ArrayLike,
+    n: int = 1,
+    confidence: float = 0.95,
+    gate: ArrayLike | None = None,
+    variance_factor: float = 1.0,
 ) -> tuple[float, float]:
     """Two-sided `confidence` band of the average of `n` χ² samples whose degrees of freedom
     sum to `dof` × n (dof: an int, or an array of each sample's dof with n = its length).
     gate: the gate probability P_G each sample was truncated at (a number or one per sample;
-    None: not truncated; module doc)."""
+    None: not truncated; module doc). variance_factor (>= 1): the average's variance is that
+    many times the independent samples' (correlated samples; the band is then the gamma law
+    of the inflated variance)."""
     if not 0 < confidence < 1:
         raise ValueError(f"confidence: must lie in (0, 1), got {confidence}")
+    if not (math.isfinite(variance_factor) and variance_factor >= 1):
+        raise ValueError(f"variance_factor: expected a finite number >= 1, got {variance_factor}")
     d = np.asarray(dof)
     if d.ndim:
         n, total = len(d), float(d.sum())
@@ -68,18 +85,47 @@ def chi2_band(
     if n < 1 or not total > 0:
         raise ValueError(f"dof, n: need at least one sample with dof > 0, got {dof}, {n}")
     q = [(1 - confidence) / 2, (1 + confidence) / 2]
-    if gate is None:
+    if gate is None and variance_factor == 1:
         lo, hi = chi2.ppf(q, total) / n
     else:
         per = d if d.ndim else np.full(n, float(d))
-        g = np.asarray(gate, np.float64)
+        g = np.asarray(1.0 if gate is None else gate, np.float64)
         if g.ndim and g.shape != per.shape:
             raise ValueError(f"gate: expected a number or {per.shape[0]} values, got {g.shape}")
         mean, var = (np.broadcast_to(v, per.shape).sum() for v in gated_chi2_moments(per, g))
+        var = var * variance_factor
         lo, hi = gamma.ppf(q, mean * mean / var, scale=var / mean) / n
     if not (np.isfinite(lo) and np.isfinite(hi)):
         raise ValueError(f"dof: χ² quantiles are not finite for {total} degrees of freedom")
     return float(lo), float(hi)
+
+
+def variance_inflation(values: ArrayLike, groups: ArrayLike, max_lag: int | None = None) -> float:
+    """How many times the variance of the mean of `values` (N,) exceeds that of N independent
+    samples when the samples of each group (`groups` (N,) labels, e.g. track ids; a group's
+    samples in time order) are correlated with each other and not across groups: 1 + 2 Σ
+    (1 - l / (L + 1)) γ_l / γ_0 over the lags l = 1..L within the groups (γ_l the pooled
+    autocovariance about the overall mean; Bartlett weights, Newey & West 1987), at least 1.
+    max_lag L: None for floor(4 (N / 100)^(2/9)) (Newey & West 1994)."""
+    v = as_float_array("values", values, ndim=1)
+    g = np.asarray(groups)
+    if g.shape != v.shape:
+        raise DimensionError(f"groups: expected one label per value ({v.shape}), got {g.shape}")
+    if len(v) < 2:
+        return 1.0
+    lags = math.floor(4 * (len(v) / 100) ** (2 / 9)) if max_lag is None else max_lag
+    if isinstance(lags, bool) or not isinstance(lags, int | np.integer) or lags < 0:
+        raise ValueError(f"max_lag: expected an integer >= 0, got {max_lag}")
+    order = np.argsort(g, kind="stable")
+    d, g = v[order] - v.mean(), g[order]
+    g0 = float(d @ d)
+    if g0 == 0:
+        return 1.0
+    total = g0
+    for lag in range(1, min(lags, len(v) - 1) + 1):
+        same = g[lag:] == g[:-lag]
+        total += 2 * (1 - lag / (lags + 1)) * float(d[lag:][same] @ d[:-lag][same])
+    return max(1.0, total / g0)
 
 
 def nees(errors: ArrayLike, covariances: ArrayLike) -> np.ndarray:
@@ -108,7 +154,9 @@ class Consistency:
     inside: lower ≤ mean ≤ upper; dof: each sample's degrees of freedom (the most common one
     when they differ); expected: the average a consistent filter gives (dof, less when the
     samples were gated); gate: the gate probability P_G they were truncated at (the most
-    common one; None: not gated)."""
+    common one; None: not gated). With the samples' groups (module doc): variance_factor f
+    and the band [corrected_lower, corrected_upper] of N / f samples, corrected_inside (None
+    without groups)."""
 
     mean: float
     n: int
@@ -119,6 +167,10 @@ class Consistency:
     confidence: float
     expected: float
     gate: float | None = None
+    variance_factor: float | None = None
+    corrected_lower: float | None = None
+    corrected_upper: float | None = None
+    corrected_inside: bool | None = None
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready dict."""
@@ -126,11 +178,17 @@ class Consistency:
 
 
 def average_consistency(
-    values: ArrayLike, dof: ArrayLike, confidence: float = 0.95, gate: ArrayLike | None = None
+    values: ArrayLike,
+    dof: ArrayLike,
+    confidence: float = 0.95,
+    gate: ArrayLike | None = None,
+    groups: ArrayLike | None = None,
 ) -> Consistency | None:
     """Mean of the NEES or NIS `values` (N,) and its χ² band; dof: an int or (N,) per sample;
     gate: the gate probability P_G each NIS was truncated at (a number or (N,); NaN or 1
-    where a sample was not gated; None: none was). None when there are no values."""
+    where a sample was not gated; None: none was); groups: (N,) each sample's track (its
+    samples in time order) for the band corrected for their correlation (`variance_inflation`;
+    None: none). None when there are no values."""
     v = as_float_array("values", values, ndim=1)
     if len(v) == 0:
         return None
@@ -149,6 +207,16 @@ def average_consistency(
         gvals, gcounts = np.unique(g, return_counts=True)
         gate_mode = float(gvals[np.argmax(gcounts)])
     m = float(v.mean())
+    corrected: dict[str, Any] = {}
+    if groups is not None:
+        f = variance_inflation(v, groups)
+        clo, chi = chi2_band(d, confidence=confidence, gate=g, variance_factor=f)
+        corrected = {
+            "variance_factor": f,
+            "corrected_lower": clo,
+            "corrected_upper": chi,
+            "corrected_inside": bool(clo <= m <= chi),
+        }
     return Consistency(
         mean=m,
         n=len(v),
@@ -159,4 +227,5 @@ def average_consistency(
         confidence=confidence,
         expected=expected,
         gate=gate_mode,
+        **corrected,
     )

@@ -393,11 +393,12 @@ def thesis_metrics(
     anis: Consistency | None = None
     by_sensor: dict[str, Consistency | None] = {}
     if innovations is not None and len(innovations.nis):
-        anis = average_consistency(innovations.nis, innovations.dof, confidence, innovations.gate)
-        for s in np.unique(innovations.sensor):
-            k = innovations.sensor == s
+        inn = innovations
+        anis = average_consistency(inn.nis, inn.dof, confidence, inn.gate, inn.track_id)
+        for s in np.unique(inn.sensor):
+            k = inn.sensor == s
             by_sensor[str(s)] = average_consistency(
-                innovations.nis[k], innovations.dof[k], confidence, innovations.gate_of(k)
+                inn.nis[k], inn.dof[k], confidence, inn.gate_of(k), inn.track_id[k]
             )
     return ThesisMetrics(
         objects=objects,

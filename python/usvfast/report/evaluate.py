@@ -76,8 +76,13 @@ def _dict(c: Consistency | None) -> dict[str, Any] | None:
 
 
 def _anis(inn: Innovations, keep: np.ndarray, confidence: float) -> dict[str, Any] | None:
-    """ANIS and its (gated) band over the rows `keep` of `inn`, as a dict."""
-    return _dict(average_consistency(inn.nis[keep], inn.dof[keep], confidence, inn.gate_of(keep)))
+    """ANIS and its (gated) band over the rows `keep` of `inn`, also corrected for the
+    correlation of each track's NIS, as a dict."""
+    return _dict(
+        average_consistency(
+            inn.nis[keep], inn.dof[keep], confidence, inn.gate_of(keep), inn.track_id[keep]
+        )
+    )
 
 
 def track_groups(

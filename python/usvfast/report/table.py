@@ -25,7 +25,14 @@ def _band(c: dict[str, Any] | None) -> str:
         return "–"
     mark = "inside" if c["inside"] else "[red]OUTSIDE[/red]"
     gated = f", gated P_G {c['gate']:g}: expected {c['expected']:.3f}" if c.get("gate") else ""
-    return f"{c['mean']:.3f}  [{c['lower']:.3f}, {c['upper']:.3f}] {mark} (n={c['n']}{gated})"
+    text = f"{c['mean']:.3f}  [{c['lower']:.3f}, {c['upper']:.3f}] {mark} (n={c['n']}{gated})"
+    if c.get("variance_factor") is not None:
+        mark = "inside" if c["corrected_inside"] else "[red]OUTSIDE[/red]"
+        text += (
+            f"; NIS correlated within tracks (variance × {c['variance_factor']:.2f}): "
+            f"[{c['corrected_lower']:.3f}, {c['corrected_upper']:.3f}] {mark}"
+        )
+    return text
 
 
 def _short(c: dict[str, Any] | None, fmt: str = "{:.2f}") -> str:
