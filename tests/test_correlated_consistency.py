@@ -111,4 +111,8 @@ def test_bad_input_is_named():
         chi2_band(2, 10, variance_factor=0.5)
     with pytest.raises(ValueError, match="variance_factor"):
         chi2_band(2, 10, variance_factor=float("nan"))
+    with pytest.raises(ValueError, match="groups"):
+        variance_inflation(np.ones(3), np.array([0.0, np.nan, 1.0]))
+    with pytest.raises(TypeError, match="groups"):
+        variance_inflation(np.ones(3), np.array([1, "a", 2.0], dtype=object))
     assert variance_inflation(np.full(5, 2.0), np.zeros(5)) == 1.0

@@ -8,12 +8,18 @@
 - `ospa`: GOSPA and OSPA (`gospa_metrics`, equal to Stone Soup);
 - `motchallenge`: MOTChallenge text in and out;
 - `tables`: readers of truth.csv and of a run's tracks/detections/nav/innovations tables;
-- `consistency`: NEES, NIS and their χ² bands;
+- `consistency`: NEES, NIS and their χ² bands (also for samples correlated within tracks);
 - `protocol`: the thesis's matching and RMSE, ANEES, ANIS, TPD, TT, TRF (`thesis_metrics`);
 - `detector`: per-detector TP / FN / consecutive misses (`detector_scores`).
 """
 
-from usvfast.metrics.consistency import Consistency, average_consistency, chi2_band, nees
+from usvfast.metrics.consistency import (
+    Consistency,
+    average_consistency,
+    chi2_band,
+    nees,
+    variance_inflation,
+)
 from usvfast.metrics.detector import DetectorScore, detector_scores, longest_run
 from usvfast.metrics.frames import FrameSequence, box_iou, frames_from_times
 from usvfast.metrics.hota import HotaMetrics, hota_metrics
@@ -85,5 +91,6 @@ __all__ = [
     "thesis_metrics",
     "track_quality",
     "truth_at",
+    "variance_inflation",
     "write_motchallenge",
 ]

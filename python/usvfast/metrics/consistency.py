@@ -116,7 +116,12 @@ def variance_inflation(values: ArrayLike, groups: ArrayLike, max_lag: int | None
     lags = math.floor(4 * (len(v) / 100) ** (2 / 9)) if max_lag is None else max_lag
     if isinstance(lags, bool) or not isinstance(lags, int | np.integer) or lags < 0:
         raise ValueError(f"max_lag: expected an integer >= 0, got {max_lag}")
-    order = np.argsort(g, kind="stable")
+    if g.dtype.kind == "f" and not np.all(np.isfinite(g)):
+        raise ValueError("groups: labels must be finite (NaN is no track)")
+    try:
+        order = np.argsort(g, kind="stable")
+    except TypeError as exc:
+        raise TypeError(f"groups: labels of one type are needed ({exc})") from exc
     d, g = v[order] - v.mean(), g[order]
     g0 = float(d @ d)
     if g0 == 0:
