@@ -183,3 +183,28 @@ def test_groups_split_anis_by_sensor_switch():
     assert (fl["same_sensor"]["n"], fl["same_sensor"]["mean"]) == (2, pytest.approx(1.5))
     assert (fl["sensor_switch"]["n"], fl["sensor_switch"]["mean"]) == (1, pytest.approx(3.0))
     assert ve["same_sensor"]["mean"] == pytest.approx(6.0) and ve["sensor_switch"] is None
+
+
+def test_corrected_bands_follow_each_track_in_time_order():
+    rng = np.random.default_rng(5)
+    n = 200
+    inn = Innovations(
+        np.tile(np.arange(n / 2), 2),
+        np.repeat([10, 20], n // 2),
+        np.array(["lidar", "camera"] * (n // 2)),
+        np.repeat(rng.chisquare(2, n // 4), 4),  # runs of 4 equal NIS: correlated
+        np.full(n, 2),
+    )
+    shuffled = np.random.default_rng(6).permutation(n)
+    mixed = Innovations(
+        *(getattr(inn, k)[shuffled] for k in ("time", "track_id", "sensor", "nis", "dof"))
+    )
+    th, th_mixed = (thesis_metrics(_truth(), _tracks(), innovations=x) for x in (inn, mixed))
+    assert th.anis is not None and th_mixed.anis is not None
+    assert th.anis.variance_factor == pytest.approx(th_mixed.anis.variance_factor, rel=1e-12)
+    assert th.anis.variance_factor > 2  # the runs of equal NIS, seen in time order
+    g, g_mixed = group_metrics(th, inn), group_metrics(th_mixed, mixed)
+    keys = ("mean", "lower", "upper", "variance_factor", "corrected_lower", "corrected_upper")
+    a, b = g["floats"]["anis"], g_mixed["floats"]["anis"]
+    assert [a[k] for k in keys] == pytest.approx([b[k] for k in keys], rel=1e-12)
+    assert g["floats"]["anis"]["corrected_upper"] > g["floats"]["anis"]["upper"]

@@ -394,9 +394,12 @@ def thesis_metrics(
     by_sensor: dict[str, Consistency | None] = {}
     if innovations is not None and len(innovations.nis):
         inn = innovations
-        anis = average_consistency(inn.nis, inn.dof, confidence, inn.gate, inn.track_id)
+        rows = np.argsort(inn.time, kind="stable")  # each track's NIS in time order
+        anis = average_consistency(
+            inn.nis[rows], inn.dof[rows], confidence, inn.gate_of(rows), inn.track_id[rows]
+        )
         for s in np.unique(inn.sensor):
-            k = inn.sensor == s
+            k = rows[inn.sensor[rows] == s]
             by_sensor[str(s)] = average_consistency(
                 inn.nis[k], inn.dof[k], confidence, inn.gate_of(k), inn.track_id[k]
             )

@@ -78,9 +78,11 @@ def _dict(c: Consistency | None) -> dict[str, Any] | None:
 def _anis(inn: Innovations, keep: np.ndarray, confidence: float) -> dict[str, Any] | None:
     """ANIS and its (gated) band over the rows `keep` of `inn`, also corrected for the
     correlation of each track's NIS, as a dict."""
+    rows = np.flatnonzero(keep)
+    rows = rows[np.argsort(inn.time[rows], kind="stable")]  # each track's NIS in time order
     return _dict(
         average_consistency(
-            inn.nis[keep], inn.dof[keep], confidence, inn.gate_of(keep), inn.track_id[keep]
+            inn.nis[rows], inn.dof[rows], confidence, inn.gate_of(rows), inn.track_id[rows]
         )
     )
 

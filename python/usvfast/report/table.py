@@ -29,7 +29,7 @@ def _band(c: dict[str, Any] | None) -> str:
     if c.get("variance_factor") is not None:
         mark = "inside" if c["corrected_inside"] else "[red]OUTSIDE[/red]"
         text += (
-            f"; NIS correlated within tracks (variance × {c['variance_factor']:.2f}): "
+            f"; correlated in tracks (× {c['variance_factor']:.2f}): "
             f"[{c['corrected_lower']:.3f}, {c['corrected_upper']:.3f}] {mark}"
         )
     return text
