@@ -109,19 +109,19 @@ class NativeTracker(_Base):
             motion = (*motion, *(rw for _, _, q in offsets for rw in (RandomWalk(q),) * 2))
             var = [sd * sd for _, sd, _ in offsets for _ in (0, 1)]
             prior = np.diag([0.0, s["prior_velocity_var"], 0.0, s["prior_velocity_var"], *var])
-            built = {}
-            for name in ("lidar", "camera"):
+            cols = {name: 4 + 2 * i for i, (name, _, _) in enumerate(offsets)}
+
+            def sensor(name: str) -> Any:
                 base = tk.Sensor.position(s[f"{name}_noise_std"], ndim_state=ndim)
-                col = next((4 + 2 * i for i, o in enumerate(offsets) if o[0] == name), None)
-                if col is None:
-                    built[name] = base
-                    continue
+                if name not in cols:
+                    return base
                 h = base.measurement_matrix.copy()
-                h[0, col] = h[1, col + 1] = 1.0
-                built[name] = tk.Sensor(
+                h[0, cols[name]] = h[1, cols[name] + 1] = 1.0
+                return tk.Sensor(
                     h, base.measurement_noise, base.measurement_matrix, base.measurement_noise
                 )
-            lidar, camera = built["lidar"], built["camera"]
+
+            lidar, camera = sensor("lidar"), sensor("camera")
         deleter: Any = (
             tk.StepsSinceUpdate(s["delete_steps"])
             if s["deletion"] == "steps"
