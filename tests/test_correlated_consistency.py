@@ -107,6 +107,8 @@ def test_bad_input_is_named():
         variance_inflation(np.ones(4), np.zeros(3))
     with pytest.raises(ValueError, match="max_lag"):
         variance_inflation(np.ones(4), np.zeros(4), -1)
+    with pytest.raises(ValueError, match="max_lag"):
+        variance_inflation(np.ones(1), np.zeros(1), 2.5)
     with pytest.raises(ValueError, match="variance_factor"):
         chi2_band(2, 10, variance_factor=0.5)
     with pytest.raises(ValueError, match="variance_factor"):

@@ -111,11 +111,11 @@ def variance_inflation(values: ArrayLike, groups: ArrayLike, max_lag: int | None
     g = np.asarray(groups)
     if g.shape != v.shape:
         raise DimensionError(f"groups: expected one label per value ({v.shape}), got {g.shape}")
-    if len(v) < 2:
-        return 1.0
     lags = math.floor(4 * (len(v) / 100) ** (2 / 9)) if max_lag is None else max_lag
     if isinstance(lags, bool) or not isinstance(lags, int | np.integer) or lags < 0:
         raise ValueError(f"max_lag: expected an integer >= 0, got {max_lag}")
+    if len(v) < 2:
+        return 1.0
     if g.dtype.kind == "f" and not np.all(np.isfinite(g)):
         raise ValueError("groups: labels must be finite (NaN is no track)")
     try:
