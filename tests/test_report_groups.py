@@ -203,6 +203,9 @@ def test_corrected_bands_follow_each_track_in_time_order():
     assert th.anis is not None and th_mixed.anis is not None
     assert th.anis.variance_factor == pytest.approx(th_mixed.anis.variance_factor, rel=1e-12)
     assert th.anis.variance_factor > 2  # the runs of equal NIS, seen in time order
+    # the ANEES too: each track's NEES in time order (the fixture's tracks err steadily)
+    assert th.anees is not None and th.anees.variance_factor is not None
+    assert th.anees.corrected_upper >= th.anees.upper
     g, g_mixed = group_metrics(th, inn), group_metrics(th_mixed, mixed)
     keys = ("mean", "lower", "upper", "variance_factor", "corrected_lower", "corrected_upper")
     a, b = g["floats"]["anis"], g_mixed["floats"]["anis"]

@@ -316,6 +316,14 @@ def _rmse(err: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.sum(err**2, axis=1)))) if len(err) else float("nan")
 
 
+def matched_anees(matches: Matches, keep: np.ndarray, confidence: float) -> Consistency | None:
+    """ANEES (position, 2 dof) of the matched rows `keep` (a mask) and its χ² band, also the
+    band corrected for the NEES of each track being correlated in time."""
+    rows = np.flatnonzero(keep)
+    rows = rows[np.argsort(matches.time[rows], kind="stable")]
+    return average_consistency(matches.nees[rows], 2, confidence, groups=matches.track_id[rows])
+
+
 def thesis_metrics(
     truth: Truth,
     tracks: Tracks,
@@ -369,7 +377,7 @@ def thesis_metrics(
                 trf=len(segs),
                 rmse=_rmse(m.error[mine]),
                 n_matches=int(mine.sum()),
-                anees=average_consistency(m.nees[good], 2, confidence),
+                anees=matched_anees(m, good, confidence),
                 track_ids=[int(t) for t in np.unique(m.track_id[mine])],
             )
         )
@@ -412,7 +420,7 @@ def thesis_metrics(
         mean_trf=float(np.mean([o.trf for o in tracked_t])) if tracked_t else float("nan"),
         max_trf=max((o.trf for o in tracked_t), default=0),
         rmse=_rmse(m.error[on_target]),
-        anees=average_consistency(m.nees[good], 2, confidence),
+        anees=matched_anees(m, good, confidence),
         anis=anis,
         anis_by_sensor=by_sensor,
         false_tracks=[int(t) for t in np.setdiff1d(all_tracks, m.track_id)],

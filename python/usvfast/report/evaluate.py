@@ -50,6 +50,7 @@ from usvfast.metrics import (
     thesis_metrics,
     truth_at,
 )
+from usvfast.metrics.protocol import matched_anees
 from usvfast.metrics.tables import Detections, Innovations, Nav, Tracks, Truth
 from usvfast.report.detectable import (
     DetectableRule,
@@ -153,7 +154,7 @@ def group_metrics(
             "mean_trf": float(np.mean([o.trf for o in tracked])) if tracked else float("nan"),
             "max_trf": max((o.trf for o in tracked), default=0),
             "rmse": float(np.sqrt(np.mean(np.sum(err**2, axis=1)))) if len(err) else float("nan"),
-            "anees": _dict(average_consistency(m.nees[good], 2, confidence)),
+            "anees": _dict(matched_anees(m, good, confidence)),
             "tracks": sorted(t for t, k in by_track.items() if k == key),
             "anis": None,
             "anis_by_sensor": {},
