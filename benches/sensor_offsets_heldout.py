@@ -9,13 +9,13 @@ setting's runs on the ten held-out seeds and on the scored ones:
 
 - the floats' NIS of one recording are correlated: pooled over the 17 seeds the NIS of one
   track has an autocorrelation of 0.20 / 0.17 / 0.13 / 0.11 at lags 1-4 that sums to about
-  1.4 over 30 lags, and the seeds' float ANIS vary about 3x as much as independent samples
-  would (std 0.139 against 0.080), so a seed's ANIS leaves a band made for independent
+  1.4 over 30 lags, and the variance of the seeds' float ANIS is about 3x that of independent
+  samples (std 0.139 against 0.080), so a seed's ANIS leaves a band made for independent
   samples far more often than 5 % of the time;
 - its cause is the sensors' slow offsets about each object (the camera: the box's fit; the
   LiDAR: the seen side): a track following one sensor carries that sensor's offset, the
-  other's next detection lands off by the difference (NIS after a sensor switch 2.4-4.2,
-  within one sensor 1.4-2.4), and the track's covariance knows nothing of them (float ANEES
+  other's next detection lands off by the difference (mean NIS after a sensor switch 2.3-4.2,
+  within one sensor 1.35-2.4), and the track's covariance knows nothing of them (float ANEES
   5.8-15.5 where a consistent filter gives 2);
 - one run with both offsets in the state (`tracker.lidar_offset_std = 0.1`,
   `camera_offset_std = 0.25`, both q 0.001, R as shipped) took the ANEES to 0.6-1.3 and the
