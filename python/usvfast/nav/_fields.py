@@ -19,6 +19,15 @@ def checksum(body: bytes) -> int:
     return reduce(xor, body, 0)
 
 
+def checksum_ok(body: str, given: str) -> bool:
+    """Whether `given` (hex text) is the checksum of the sentence `body` (text between `$` and
+    `*`); False for non-ASCII text or a malformed checksum."""
+    try:
+        return checksum(body.encode("ascii")) == int(given, 16)
+    except (ValueError, UnicodeEncodeError):
+        return False
+
+
 def degrees(value: str, hemisphere: str) -> float:
     """`ddmm.mmmm` (or `dddmm.mmmm`) + N/S/E/W → signed degrees; NaN when `value` is empty;
     ValueError for another hemisphere letter or a malformed number."""

@@ -40,7 +40,7 @@ import pynmea2
 
 from usvfast._damage import DamagedRecordsWarning
 from usvfast.nav._damage import iter_lines
-from usvfast.nav._fields import DAY, checksum, day_start, degrees, nearest_day, seconds_of_day
+from usvfast.nav._fields import DAY, checksum_ok, day_start, degrees, nearest_day, seconds_of_day
 
 __all__ = [
     "DamagedRecordsWarning",
@@ -154,13 +154,6 @@ def compass_heading(body: str) -> tuple[str, str, float, float] | None:
     return kind, f[0][1:4], seconds_of_day(f[2]), heading % 360.0
 
 
-def _checksum_ok(body: str, given: str) -> bool:
-    try:
-        return checksum(body.encode("ascii")) == int(given, 16)
-    except (ValueError, UnicodeEncodeError):
-        return False
-
-
 def _float(value: str) -> float:
     return float(value) if value else math.nan
 
@@ -207,7 +200,7 @@ def read_nmea(
             continue
         star = line.rfind("*")
         if star >= 0:
-            if not _checksum_ok(line[1:star], line[star + 1 : star + 3]) or len(line) != star + 3:
+            if not checksum_ok(line[1:star], line[star + 1 : star + 3]) or len(line) != star + 3:
                 damaged(lineno)
                 continue
         elif require_checksum:

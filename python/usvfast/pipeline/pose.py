@@ -33,7 +33,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from usvfast import geodesy
-from usvfast.nav._fields import checksum
+from usvfast.nav._fields import checksum_ok
 from usvfast.nav.pose import Channel, PoseGapError
 
 __all__ = [
@@ -506,9 +506,8 @@ def parse_sentence(sentence: str) -> tuple[str, tuple[float, ...]] | None:
     if text.startswith(tuple(f"${a}," for a in COMPASS_SENTENCES)):
         body, star, given = text[1:].partition("*")
         try:
-            ok = bool(star) and checksum(body.encode("ascii")) == int(given, 16)
-            compass = compass_heading(body) if ok else None
-        except (ValueError, IndexError, UnicodeEncodeError):
+            compass = compass_heading(body) if star and checksum_ok(body, given) else None
+        except (ValueError, IndexError):
             return None
         return None if compass is None else ("heading", (compass[3],))
     try:
