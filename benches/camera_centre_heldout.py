@@ -108,9 +108,8 @@ from demo_detector_heldout import (
     SCORED_SEEDS,
     decide,
     figures,
+    grid_runs,
     row,
-    run,
-    simulate,
     totals,
 )
 
@@ -213,16 +212,19 @@ def main(argv: list[str] | None = None) -> None:
     rows: dict[tuple, list[dict[str, Any]]] = {s: [] for s in grid}
     nis: dict[tuple, list[pd.DataFrame]] = {s: [] for s in grid}
     print(HEADER.replace("| weights |", "| centre along / across m, k |"))
-    for seed in args.seeds:
-        rec = args.work / "rec" / f"s{seed}"
-        simulate(seed, rec)
-        for along, across, k in grid:
-            out = args.work / "runs" / str(seed) / f"centre-{along:g}-{across:g}-k{k:g}"
-            run(rec, out, WEIGHTS, sets(rec, along, across, k))
-            f = figures(out)
-            rows[(along, across, k)].append(f)
-            nis[(along, across, k)].append(camera_nis_by_range(out))
-            print(row(seed, f"{along:g} / {across:g}, {k:g}", f), flush=True)
+    runs = grid_runs(
+        args.work,
+        args.seeds,
+        grid,
+        WEIGHTS,
+        lambda s: f"centre-{s[0]:g}-{s[1]:g}-k{s[2]:g}",
+        lambda rec, s: sets(rec, *s),
+    )
+    for seed, (along, across, k), out in runs:
+        f = figures(out)
+        rows[(along, across, k)].append(f)
+        nis[(along, across, k)].append(camera_nis_by_range(out))
+        print(row(seed, f"{along:g} / {across:g}, {k:g}", f), flush=True)
     sums: dict[tuple, dict[str, Any]] = {}
     print(
         "\n| centre along / across m | k | detectable floats | floats | f+w+m | seeds RMSE <= 0.3 "

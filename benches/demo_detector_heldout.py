@@ -162,6 +162,7 @@ import os
 import subprocess
 import sys
 import time
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -227,6 +228,26 @@ def run(rec: Path, out: Path, weights: Path, sets: list[str] | None = None) -> f
         cmd += ["--set", item]
     subprocess.run(_nice(cmd), check=True, stdout=subprocess.DEVNULL)
     return time.perf_counter() - t0
+
+
+def grid_runs(
+    work: Path,
+    seeds: list[int],
+    grid: list[Any],
+    weights: Path,
+    name: Callable[[Any], str],
+    overrides: Callable[[Path, Any], list[str]],
+) -> Iterator[tuple[int, Any, Path]]:
+    """Each seed's recording simulated into work/rec/s<seed>, run with each setting of `grid`
+    into work/runs/<seed>/<name(setting)> with the `--set` items `overrides(rec, setting)`
+    (each step skipped when done): yields (seed, setting, run dir)."""
+    for seed in seeds:
+        rec = work / "rec" / f"s{seed}"
+        simulate(seed, rec)
+        for setting in grid:
+            out = work / "runs" / str(seed) / name(setting)
+            run(rec, out, weights, overrides(rec, setting))
+            yield seed, setting, out
 
 
 def figures(run_dir: Path) -> dict[str, Any]:

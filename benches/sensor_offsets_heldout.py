@@ -82,8 +82,7 @@ from demo_detector_heldout import (
     SCORED_SEEDS,
     decide,
     figures,
-    run,
-    simulate,
+    grid_runs,
     totals,
 )
 
@@ -139,21 +138,24 @@ def main(argv: list[str] | None = None) -> None:
     cons: dict[tuple, list[dict[str, float]]] = {s: [] for s in grid}
     print("| seed | b_lidar m, f, k | floats | RMSE m | ANIS | in band | z | ANEES |")
     print("| --- | --- | --- | --- | --- | --- | --- | --- |")
-    for seed in args.seeds:
-        rec = args.work / "rec" / f"s{seed}"
-        simulate(seed, rec)
-        for b, f, k in grid:
-            out = args.work / "runs" / str(seed) / f"offsets-{b:g}-f{f:g}-k{k:g}"
-            run(rec, out, WEIGHTS, sets(rec, b, f, k))
-            fig, c = figures(out), consistency(out)
-            rows[(b, f, k)].append(fig)
-            cons[(b, f, k)].append(c)
-            print(
-                f"| {seed} | {b:g}, {f:g}, {k:g} | {fig['tracked']} / {fig['targets']} | "
-                f"{fig['rmse']:.3f} | {fig['anis']:.3f} | {fig['anis_inside']} | "
-                f"{c['z']:+.2f} | {c['anees']:.1f} |",
-                flush=True,
-            )
+    runs = grid_runs(
+        args.work,
+        args.seeds,
+        grid,
+        WEIGHTS,
+        lambda s: f"offsets-{s[0]:g}-f{s[1]:g}-k{s[2]:g}",
+        lambda rec, s: sets(rec, *s),
+    )
+    for seed, (b, f, k), out in runs:
+        fig, c = figures(out), consistency(out)
+        rows[(b, f, k)].append(fig)
+        cons[(b, f, k)].append(c)
+        print(
+            f"| {seed} | {b:g}, {f:g}, {k:g} | {fig['tracked']} / {fig['targets']} | "
+            f"{fig['rmse']:.3f} | {fig['anis']:.3f} | {fig['anis_inside']} | "
+            f"{c['z']:+.2f} | {c['anees']:.1f} |",
+            flush=True,
+        )
     print(
         "\n| b_lidar m | f | k | detectable floats | floats | f+w+m | mean float RMSE m | "
         "seeds ANIS in band | rms z | ANEES range |\n"

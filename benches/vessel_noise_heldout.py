@@ -94,7 +94,7 @@ from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from demo_detector_heldout import HELDOUT_SEEDS, SCORED_SEEDS, run, simulate
+from demo_detector_heldout import HELDOUT_SEEDS, SCORED_SEEDS, grid_runs
 
 #: The grid: tracker.vessel_q values and scales of the camera's vessel stds (1.0 / 0.6 m).
 VESSEL_Q = (0.05, 0.02, 0.01)
@@ -217,27 +217,26 @@ def main(argv: list[str] | None = None) -> None:
         f"| seed | {first} | k | vessels | vessel RMSE m | vessel ANIS [band] | all-targets ANIS | "
         "floats | f+w+m |\n| --- | --- | --- | --- | --- | --- | --- | --- | --- |"
     )
-    for seed in args.seeds:
-        rec = args.work / "rec" / f"s{seed}"
-        simulate(seed, rec)
-        for q, k in grid:
-            if args.offset:
-                out = args.work / "runs" / str(seed) / f"vessel-o{q:g}-k{k:g}"
-                run(rec, out, WEIGHTS, sets(SHIPPED[0], k, q))
-            else:
-                out = args.work / "runs" / str(seed) / f"vessel-q{q:g}-k{k:g}"
-                run(rec, out, WEIGHTS, sets(q, k))
-            f = figures(out)
-            rows[(q, k)].append(f)
-            lo, hi = f["vessel_band"]
-            va = _fmt(f["vessel_anis"])
-            print(
-                f"| {seed} | {q:g} | {k:g} | {f['vessels']} / {f['vessel_targets']} | "
-                f"{_fmt(f['vessel_rmse'])} | {va if f['vessel_in'] else f'**{va}**'} "
-                f"[{_fmt(lo)}, {_fmt(hi)}] | {f['all_anis']:.3f} {'in' if f['all_in'] else 'out'} "
-                f"| {f['floats']} | {f['fwm']} |",
-                flush=True,
-            )
+    runs = grid_runs(
+        args.work,
+        args.seeds,
+        grid,
+        WEIGHTS,
+        lambda s: f"vessel-{'o' if args.offset else 'q'}{s[0]:g}-k{s[1]:g}",
+        lambda _, s: sets(SHIPPED[0], s[1], s[0]) if args.offset else sets(*s),
+    )
+    for seed, (q, k), out in runs:
+        f = figures(out)
+        rows[(q, k)].append(f)
+        lo, hi = f["vessel_band"]
+        va = _fmt(f["vessel_anis"])
+        print(
+            f"| {seed} | {q:g} | {k:g} | {f['vessels']} / {f['vessel_targets']} | "
+            f"{_fmt(f['vessel_rmse'])} | {va if f['vessel_in'] else f'**{va}**'} "
+            f"[{_fmt(lo)}, {_fmt(hi)}] | {f['all_anis']:.3f} {'in' if f['all_in'] else 'out'} "
+            f"| {f['floats']} | {f['fwm']} |",
+            flush=True,
+        )
     sums = {s: totals(r) for s, r in rows.items()}
     print(f"\n| {first} | k | vessels | f+w+m | vessel RMSE m | floats | vessel ANIS in | all in |")
     print("| --- | --- | --- | --- | --- | --- | --- | --- |")
