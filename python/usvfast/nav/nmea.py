@@ -43,6 +43,7 @@ from usvfast.nav._damage import iter_lines
 from usvfast.nav._fields import DAY, checksum_ok, day_start, degrees, nearest_day, seconds_of_day
 
 __all__ = [
+    "MODE_QUALITY",
     "DamagedRecordsWarning",
     "Headings",
     "NmeaLog",
@@ -59,8 +60,8 @@ _POSITION_TYPES = {"GGA": 0, "RMC": 1, "GLL": 2}  # priority when several share 
 _WANTED = {"GGA", "RMC", "GLL", "ZDA", "VTG", "HDT", "THS", "ROT"}
 #: Proprietary GNSS-compass heading sentences (address → the Headings' sentence name).
 COMPASS_SENTENCES = {"PSAT,HPR": "HPR", "PASHR,HPR": "HPR", "PTNL,AVR": "AVR"}
-# FAA mode indicator → GGA-style fix quality.
-_MODE_QUALITY = {"A": 1, "D": 2, "P": 3, "R": 4, "F": 5, "E": 6, "M": 7, "S": 8, "N": 0}
+#: FAA mode indicator → GGA-style fix quality.
+MODE_QUALITY = {"A": 1, "D": 2, "P": 3, "R": 4, "F": 5, "E": 6, "M": 7, "S": 8, "N": 0}
 
 
 @dataclass(frozen=True)
@@ -260,7 +261,7 @@ def _event(kind: str, talker: str, line: str, body: str) -> tuple:
         # time, status, lat, N, lon, E, knots, course, ddmmyy, magvar, E/W, mode
         status = d[1]
         mode = d[11] if len(d) > 11 and d[11] else ("A" if status == "A" else "N")
-        quality = _MODE_QUALITY.get(mode, 1) if status == "A" else 0
+        quality = MODE_QUALITY.get(mode, 1) if status == "A" else 0
         ddmmyy = d[8]
         day = None
         if len(ddmmyy) == 6:
@@ -276,7 +277,7 @@ def _event(kind: str, talker: str, line: str, body: str) -> tuple:
     if kind == "GLL":
         status = d[5] if len(d) > 5 else "A"
         mode = d[6] if len(d) > 6 and d[6] else ("A" if status == "A" else "N")
-        quality = _MODE_QUALITY.get(mode, 1) if status == "A" else 0
+        quality = MODE_QUALITY.get(mode, 1) if status == "A" else 0
         return (
             "GLL",
             talker,

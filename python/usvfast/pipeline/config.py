@@ -34,6 +34,7 @@ from usvfast.frames import Mount
 from usvfast.nav.replay import Recording, _stream
 from usvfast.nav.stream_types import STREAM_TYPES, RecordingError, StreamSpec
 from usvfast.pipeline import streams as _streams  # noqa: F401  (registers lidar, video_times)
+from usvfast.pipeline.pose import NavErrors
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -56,7 +57,8 @@ class ConfigError(ValueError):
 
 
 # Value kinds: "float", "int", "bool", "str", "path", "floats:N" (N numbers; N=0 any length),
-# "points" (list of [u, v] pairs), "strs" (str or list of str), "any".
+# "points" (list of at least 3 [u, v] pairs), "pairs" (list of [a, b] number pairs),
+# "strs" (str or list of str), "any".
 _LIDAR = {
     "enabled": ("bool", True),
     "model": ("str", "VLP-16"),
@@ -239,6 +241,12 @@ _RECORDING = {
     # further one (usvfast.nav.heading_offset; None: no estimate).
     "heading_offset_deg": ("float", 0.0),
     "heading_calibration_s": ("float", None),
+    # The navigation's errors, added to every detection's covariance (usvfast.pipeline.pose
+    # .NavErrors): [[GGA fix quality, horizontal std m], ...] beyond the measurement models'
+    # own, and the unmodelled accelerations that interpolation between samples misses.
+    "fix_quality_std": ("pairs", None),
+    "pose_acceleration_std": ("float", 0.0),
+    "heading_acceleration_std": ("float", 0.0),
 }
 SCHEMA: dict[str, dict[str, tuple[str, Any]]] = {
     "recording": _RECORDING,
@@ -273,7 +281,8 @@ class PipelineConfig:
     of SCHEMA (defaults filled in; paths absolute). `path` is the file it came from.
     heading_offset_deg: correction added to the GNSS heading (degrees clockwise);
     heading_calibration_s: seconds of LiDAR from which `Pipeline.run` estimates a further
-    correction (None: none)."""
+    correction (None: none); nav_errors: the navigation's errors that reach every detection
+    (`usvfast.pipeline.pose.NavErrors`; none by default)."""
 
     recording: Recording
     sensors: dict[str, str]
@@ -289,6 +298,7 @@ class PipelineConfig:
     raw: dict[str, Any] = field(default_factory=dict)
     heading_offset_deg: float = 0.0
     heading_calibration_s: float | None = None
+    nav_errors: NavErrors = field(default_factory=NavErrors)
 
     def streams_of(self, sensor: str) -> list[StreamSpec]:
         """The streams consumed by `sensor` ("lidar" or "camera"), in file order."""
@@ -385,9 +395,11 @@ def _value(where: str, key: str, kind: str, v: Any, base: Path) -> Any:
         if not isinstance(v, list) or (n and len(v) != n) or not v:
             raise bad(f"a list of {n or 'some'} numbers")
         return tuple(_value(where, key, "float", x, base) for x in v)
-    if kind == "points":
-        if not isinstance(v, list) or len(v) < 3:
+    if kind in ("points", "pairs"):
+        if kind == "points" and (not isinstance(v, list) or len(v) < 3):
             raise bad("a list of at least 3 [u, v] pixel pairs")
+        if not isinstance(v, list) or not v:
+            raise bad("a list of [a, b] number pairs")
         return tuple(_value(where, key, "floats:2", x, base) for x in v)
     raise AssertionError(kind)  # pragma: no cover - schema typo
 
@@ -502,6 +514,7 @@ def _build(data: dict[str, Any], file: Path) -> PipelineConfig:
             f"{file}: key 'recording.heading_calibration_s': expected seconds > 0, got "
             f"{calibration}"
         )
+    nav_errors = _nav_errors(file, rec)
     recording = Recording(
         rec["name"] or file.stem,
         tuple(streams),
@@ -586,6 +599,30 @@ def _build(data: dict[str, Any], file: Path) -> PipelineConfig:
         raw=raw,
         heading_offset_deg=rec["heading_offset_deg"],
         heading_calibration_s=calibration,
+        nav_errors=nav_errors,
+    )
+
+
+def _nav_errors(file: Path, rec: dict[str, Any]) -> NavErrors:
+    """The [recording] table's navigation errors, validated (ConfigError naming the key)."""
+    fix_std: dict[int, float] = {}
+    for quality, std in rec["fix_quality_std"] or ():
+        if not (0 <= quality <= 9 and quality == int(quality) and 0 <= std < math.inf):
+            raise ConfigError(
+                f"{file}: key 'recording.fix_quality_std': expected [GGA fix quality 0-9, "
+                f"std m >= 0] pairs, got {[quality, std]}"
+            )
+        if int(quality) in fix_std:
+            raise ConfigError(
+                f"{file}: key 'recording.fix_quality_std': fix quality {int(quality)} is given "
+                "twice"
+            )
+        fix_std[int(quality)] = std
+    for key in ("pose_acceleration_std", "heading_acceleration_std"):
+        if not 0 <= rec[key] < math.inf:
+            raise ConfigError(f"{file}: key 'recording.{key}': must be >= 0, got {rec[key]}")
+    return NavErrors(
+        fix_std, rec["pose_acceleration_std"], math.radians(rec["heading_acceleration_std"])
     )
 
 

@@ -112,6 +112,7 @@ class Pipeline:
             nav.mount.lever_arm if nav.mount is not None else (0.0, 0.0, 0.0),
             cfg.recording.max_pose_gap,
             math.radians(cfg.heading_offset_deg),
+            cfg.nav_errors,
         )
         self.origin = cfg.origin
         self.epoch: float | None = None
@@ -158,7 +159,7 @@ class Pipeline:
                 self.live.add_heading(t, math.radians(values[0]))
         elif isinstance(data, NmeaFix):
             if data.fix_quality > 0:
-                self.live.add_fix(t, data.lat_deg, data.lon_deg)
+                self.live.add_fix(t, data.lat_deg, data.lon_deg, data.fix_quality)
         elif isinstance(data, NmeaHeading):
             self.live.add_heading(t, math.radians(data.heading_deg))
         elif hasattr(data, "lat_deg") and hasattr(data, "status"):  # NavSatFixSample
@@ -266,6 +267,9 @@ class Pipeline:
             if self.writer is not None:
                 with self.timer("outputs"):
                     self.writer.write_frame(t, scan.image)
+        nav_cov = pose.covariance_at(z)  # the navigation's errors reach every detection
+        if nav_cov is not None:
+            covs = covs + nav_cov
         sid = SENSORS.index(sensor)
         with self.timer("tracker"):
             snap = self._track(round(t - self.epoch, 6), z, sid, covs, vessel, starts)

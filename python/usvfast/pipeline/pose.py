@@ -26,7 +26,7 @@ from __future__ import annotations
 import bisect
 import math
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -38,6 +38,7 @@ from usvfast.nav.pose import Channel, PoseGapError
 
 __all__ = [
     "LivePose",
+    "NavErrors",
     "NavTrack",
     "NavigationError",
     "VesselPose",
@@ -75,11 +76,61 @@ class VesselPose:
     heading: float
     roll: float = 0.0
     pitch: float = 0.0
+    #: Variance of north and east (each, m²) and of the heading (rad²) from `NavErrors`.
+    position_var: float = 0.0
+    heading_var: float = 0.0
 
     @property
     def planar(self) -> np.ndarray:
         """(north, east, heading) as the LiDAR detector takes it."""
         return np.array([self.north, self.east, self.heading])
+
+    def covariance_at(self, positions: ArrayLike) -> np.ndarray | None:
+        """(k, 2, 2) NED covariance (m²) that this pose's errors add to detections at
+        `positions` (k, 2) north, east m: `position_var` on both axes, and the heading's
+        `heading_var` × range² across each line of sight from the reference point. None when
+        the pose has no error (nothing to add)."""
+        if self.position_var == 0.0 and self.heading_var == 0.0:
+            return None
+        r = np.asarray(positions, dtype=np.float64).reshape(-1, 2) - (self.north, self.east)
+        across = np.stack([-r[:, 1], r[:, 0]], axis=1)  # ⊥ line of sight, length = range
+        cov = self.heading_var * across[:, :, None] * across[:, None, :]
+        cov[:, 0, 0] += self.position_var
+        cov[:, 1, 1] += self.position_var
+        return cov
+
+
+@dataclass(frozen=True)
+class NavErrors:
+    """The navigation's errors that reach every detection (a detection is the vessel's pose
+    plus a rotated offset; `VesselPose.covariance_at`).
+
+    fix_std: {GGA fix quality: horizontal std per axis, m} beyond what the sensors'
+    measurement models already hold (a quality not listed adds nothing): e.g. {5: 0.1} for
+    RTK float when the models were calibrated under RTK fixed (4), from the receiver's data
+    sheet. acceleration_std (m/s²) and heading_acceleration_std (rad/s²): the vessel's
+    unmodelled accelerations; linear interpolation between samples τ and T − τ s away misses
+    a constant acceleration a by a/2 · τ (T − τ), which is small between 10 Hz samples and
+    grows in a gap of the navigation.
+    """
+
+    fix_std: dict[int, float] = field(default_factory=dict)
+    acceleration_std: float = 0.0
+    heading_acceleration_std: float = 0.0
+
+    def std_of(self, quality: ArrayLike) -> np.ndarray:
+        """Horizontal std (m) of fixes of GGA `quality` (n,); 0 for an unlisted quality."""
+        q = np.asarray(quality).reshape(-1)
+        return np.array([self.fix_std.get(int(k), 0.0) for k in q], dtype=np.float64)
+
+    def position_var(self, fix_std: float, spread: float) -> float:
+        """Variance (m²) of a position interpolated from fixes of std `fix_std` (m) with
+        `spread` = |τ (T − τ)| (s²)."""
+        return fix_std**2 + (0.5 * self.acceleration_std * spread) ** 2
+
+    def heading_var(self, spread: float) -> float:
+        """Variance (rad²) of a heading interpolated with `spread` = |τ (T − τ)| (s²)."""
+        return (0.5 * self.heading_acceleration_std * spread) ** 2
 
 
 def usable_orientations(orientation_xyzw: ArrayLike) -> np.ndarray:
@@ -157,7 +208,9 @@ class NavTrack:
     """Interpolated vessel pose from a recording's navigation and attitude streams.
 
     position (NED m of the vessel reference point), heading and optional attitude channels;
-    `origin` (lat, lon, h) of the NED frame; `damaged` {stream id: skipped records}.
+    `origin` (lat, lon, h) of the NED frame; `damaged` {stream id: skipped records};
+    `errors` the navigation's errors given to each pose, with `fix_std` (times UNIX s, horizontal
+    std m) of the fixes by their quality.
     """
 
     def __init__(
@@ -167,8 +220,14 @@ class NavTrack:
         heading: Channel,
         attitude: Channel | None,
         damaged: dict[str, int],
+        errors: NavErrors | None = None,
+        fix_std: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> None:
         self.origin = origin
+        self.errors = NavErrors() if errors is None else errors
+        self._fix_std = None
+        if fix_std is not None:
+            self._fix_std = (np.asarray(fix_std[0]).tolist(), np.asarray(fix_std[1])[:, None])
         self.position = position
         self.heading = heading
         self.attitude = attitude
@@ -188,7 +247,7 @@ class NavTrack:
         nmea_msgs/Sentence or NavSatFix) and attitude stream (bag sensor_msgs/Imu), the
         headings corrected by the config's `heading_offset_deg`. Raises NavigationError
         naming the stream when no position fix or no heading is found."""
-        fixes: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        fixes: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
         headings: list[tuple[np.ndarray, np.ndarray]] = []
         damaged: dict[str, int] = {}
         lever = np.zeros(3)
@@ -196,10 +255,10 @@ class NavTrack:
             spec = config.recording.stream(sid)
             if spec.mount is not None:
                 lever = np.asarray(spec.mount.lever_arm, dtype=np.float64)
-            t_fix, lat, lon, t_head, head, bad = _read_nav(spec)
+            t_fix, lat, lon, quality, t_head, head, bad = _read_nav(spec)
             damaged[sid] = bad
             if t_fix.size:
-                fixes.append((t_fix + spec.clock_offset, lat, lon))
+                fixes.append((t_fix + spec.clock_offset, lat, lon, quality))
             if t_head.size:
                 headings.append((t_head + spec.clock_offset, head))
         names = ", ".join(repr(s) for s in config.navigation)
@@ -213,7 +272,7 @@ class NavTrack:
                 f"recording {config.recording.name!r}: no heading (NMEA HDT/THS/HPR/AVR, or a "
                 f"QuaternionStamped / Imu topic) in the navigation stream(s) {names}"
             )
-        t_fix, lat, lon = fixes[0]
+        t_fix, lat, lon, quality = fixes[0]
         lat0, lon0, h0 = config.origin or (float(lat[0]), float(lon[0]), 0.0)
         n, e, _ = geodesy.geodetic2ned(lat, lon, np.zeros_like(lat), lat0, lon0, h0)
         t_head, head = headings[0]
@@ -241,7 +300,9 @@ class NavTrack:
                 0.0,
                 gap,
             )
-        track = cls((lat0, lon0, h0), position, heading, attitude, damaged)
+        errors = config.nav_errors
+        fix_std = (t_fix, errors.std_of(quality)) if errors.fix_std else None
+        track = cls((lat0, lon0, h0), position, heading, attitude, damaged, errors, fix_std)
         track._source = source
         track.heading_offset_deg = float(config.heading_offset_deg)
         return track
@@ -253,7 +314,8 @@ class NavTrack:
         if self._source is None:
             raise ValueError("offset_deg: this NavTrack was not read by NavTrack.from_config")
         position, heading = self._source.channels(math.radians(offset_deg))
-        track = NavTrack(self.origin, position, heading, self.attitude, self.damaged)
+        track = NavTrack(self.origin, position, heading, self.attitude, self.damaged, self.errors)
+        track._fix_std = self._fix_std
         track._source = self._source
         track.heading_offset_deg = float(offset_deg)
         return track
@@ -270,8 +332,20 @@ class NavTrack:
             att = _interp(self._att, t, self.attitude.max_gap, True)  # type: ignore[union-attr]
             if att is not None:
                 roll, pitch = float(att[0]), float(att[1])
+        std = 0.0
+        if self._fix_std is not None:
+            std = float(_interp(self._fix_std, t, math.inf, False)[0])  # type: ignore[index]
+        position_var = self.errors.position_var(std, _spread(self._pos[0], t))
+        heading_var = self.errors.heading_var(_spread(self._head[0], t))
         return VesselPose(
-            float(t), float(ne[0]), float(ne[1]), float(h[0]) % (2 * math.pi), roll, pitch
+            float(t),
+            float(ne[0]),
+            float(ne[1]),
+            float(h[0]) % (2 * math.pi),
+            roll,
+            pitch,
+            position_var,
+            heading_var,
         )
 
 
@@ -309,6 +383,15 @@ class _NavSource:
         return position, heading
 
 
+def _spread(times: list[float], t: float) -> float:
+    """τ (T − τ) (s²) of time t between the two samples of `times` around it (0 on a sample
+    or outside them)."""
+    j = bisect.bisect_right(times, t)
+    if j == 0 or j == len(times):
+        return 0.0
+    return (t - times[j - 1]) * (times[j] - t)
+
+
 def _interp(
     channel: tuple[list[float], np.ndarray], t: float, max_gap: float, angle: bool
 ) -> np.ndarray | None:
@@ -330,7 +413,8 @@ def _interp(
     return values[i] + f * d
 
 
-_Nav = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]
+# fix times, lat, lon, fix quality (GGA; -1 unknown), heading times, headings rad, damaged
+_Nav = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]
 
 
 def yaw_convention(spec: Any) -> str:
@@ -368,11 +452,15 @@ def _read_nav(spec: Any) -> _Nav:
                 t, q, bad = read_bag_orientations(spec.path, spec.topic)
                 t, q, unusable = _oriented(spec, t, q)
                 heading = quaternion_heading(q, yaw_convention(spec))
-                return empty, empty, empty, t, heading, bad + unusable
+                return empty, empty, empty, empty, t, heading, bad + unusable
             if msgtype == "sensor_msgs/msg/NavSatFix":
                 fix = read_bag_navsatfix(spec.path, spec.topic)
                 ok = fix.status >= 0
-                return fix.times[ok], fix.lat_deg[ok], fix.lon_deg[ok], empty, empty, fix.skipped
+                unknown = np.full(int(ok.sum()), -1)
+                return (
+                    *(fix.times[ok], fix.lat_deg[ok], fix.lon_deg[ok], unknown),
+                    *(empty, empty, fix.skipped),
+                )
             try:
                 res = read_bag_nmea(spec.path, spec.topic)
             except ValueError:
@@ -394,7 +482,8 @@ def _read_nav(spec: Any) -> _Nav:
     ok = (p.fix_quality > 0) & np.isfinite(p.lat_deg) & np.isfinite(p.lon_deg)
     h = log.headings
     damaged = int(log.n_damaged) + int(bad or 0)
-    return p.time[ok], p.lat_deg[ok], p.lon_deg[ok], h.time, np.radians(h.heading_deg), damaged
+    q = p.fix_quality[ok]
+    return p.time[ok], p.lat_deg[ok], p.lon_deg[ok], q, h.time, np.radians(h.heading_deg), damaged
 
 
 def _stamped_nmea(spec: Any) -> _Nav:
@@ -403,7 +492,7 @@ def _stamped_nmea(spec: Any) -> _Nav:
     from usvfast.nav.bags import BagTopic
 
     reader = BagTopic(spec.path, spec.topic)
-    fixes: list[tuple[float, float, float]] = []
+    fixes: list[tuple[float, float, float, float]] = []
     heads: list[tuple[float, float]] = []
     bad = 0
     for m in reader:
@@ -413,12 +502,12 @@ def _stamped_nmea(spec: Any) -> _Nav:
             continue
         kind, values = parsed
         if kind == "fix":
-            fixes.append((float(m.time), float(values[0]), float(values[1])))
+            fixes.append((float(m.time), *values))
         elif kind == "heading":
             heads.append((float(m.time), math.radians(values[0])))
-    f = np.array(fixes, dtype=np.float64).reshape(-1, 3)
+    f = np.array(fixes, dtype=np.float64).reshape(-1, 4)
     h = np.array(heads, dtype=np.float64).reshape(-1, 2)
-    return f[:, 0], f[:, 1], f[:, 2], h[:, 0], h[:, 1], bad + reader.damaged
+    return f[:, 0], f[:, 1], f[:, 2], f[:, 3], h[:, 0], h[:, 1], bad + reader.damaged
 
 
 def _ok(sentence: str) -> bool:
@@ -492,7 +581,8 @@ def _read_attitude(spec: Any, reference: float) -> tuple[np.ndarray, np.ndarray,
 
 
 def parse_sentence(sentence: str) -> tuple[str, tuple[float, ...]] | None:
-    """One NMEA sentence of a live stream -> ("fix", (lat, lon)) for GGA/RMC/GLL with a fix,
+    """One NMEA sentence of a live stream -> ("fix", (lat, lon, GGA fix quality)) for
+    GGA/RMC/GLL with a fix (RMC and GLL: the quality of their FAA mode, usvfast.nav.nmea),
     ("heading", (deg,)) for HDT/THS and the GNSS-compass sentences PSAT,HPR, PASHR,HPR and
     PTNL,AVR (`usvfast.nav.nmea.compass_heading`), ("attitude", (roll rad, pitch rad)) for
     PASHR and XDR PITCH/ROLL, None otherwise or when it does not parse (checksum
@@ -500,7 +590,7 @@ def parse_sentence(sentence: str) -> tuple[str, tuple[float, ...]] | None:
     sentences by the fixes' own UTC times, less the receive delay)."""
     import pynmea2
 
-    from usvfast.nav.nmea import COMPASS_SENTENCES, compass_heading
+    from usvfast.nav.nmea import COMPASS_SENTENCES, MODE_QUALITY, compass_heading
 
     text = sentence.strip()
     if text.startswith(tuple(f"${a}," for a in COMPASS_SENTENCES)):
@@ -521,7 +611,12 @@ def parse_sentence(sentence: str) -> tuple[str, tuple[float, ...]] | None:
                 return None
             if kind in ("RMC", "GLL") and getattr(msg, "status", "A") != "A":
                 return None
-            return "fix", (float(msg.latitude), float(msg.longitude))
+            if kind == "GGA":
+                quality = int(msg.gps_qual)
+            else:
+                mode = getattr(msg, "mode_indicator" if kind == "RMC" else "faa_mode", "")
+                quality = MODE_QUALITY.get(mode or "A", 1)
+            return "fix", (float(msg.latitude), float(msg.longitude), float(quality))
         if kind in ("HDT", "THS"):
             return "heading", (float(msg.heading),)
         if kind in ("ASHRATT", "XDR"):
@@ -568,7 +663,9 @@ class LivePose:
     `at(t)` interpolates between the two samples around t or extrapolates the last two by at
     most `max_gap` seconds; None before the first fix and heading. origin (lat, lon, h) or
     None (the first fix); lever_arm (3,) of the GNSS antenna, body FRD m; heading_offset:
-    correction added to every heading, rad clockwise (an attribute: it may change).
+    correction added to every heading, rad clockwise (an attribute: it may change); errors:
+    the navigation's errors given to each pose (`NavErrors`), a fix of unknown quality taking
+    the previous fix's.
     """
 
     def __init__(
@@ -577,21 +674,27 @@ class LivePose:
         lever_arm: ArrayLike = (0.0, 0.0, 0.0),
         max_gap: float = 2.0,
         heading_offset: float = 0.0,
+        errors: NavErrors | None = None,
     ) -> None:
         self.origin = origin
+        self.errors = NavErrors() if errors is None else errors
+        self._fix_std = 0.0
         self.heading_offset = float(heading_offset)
         self.lever = np.asarray(lever_arm, dtype=np.float64)
         self.max_gap = float(max_gap)
-        self._fix: deque[tuple[float, float, float]] = deque(maxlen=2)
+        self._fix: deque[tuple[float, float, float, float]] = deque(maxlen=2)
         self._head: deque[tuple[float, float]] = deque(maxlen=2)
         self._att: deque[tuple[float, float, float]] = deque(maxlen=2)
 
-    def add_fix(self, t: float, lat_deg: float, lon_deg: float) -> None:
-        """A GNSS antenna fix (WGS84 degrees) at UNIX time t."""
+    def add_fix(self, t: float, lat_deg: float, lon_deg: float, quality: float = -1) -> None:
+        """A GNSS antenna fix (WGS84 degrees) at UNIX time t, of GGA fix `quality` (-1:
+        unknown)."""
         if self.origin is None:
             self.origin = (float(lat_deg), float(lon_deg), 0.0)
         n, e, _ = geodesy.geodetic2ned(lat_deg, lon_deg, 0.0, *self.origin)
-        _append(self._fix, (float(t), float(n), float(e)))
+        if quality >= 0:
+            self._fix_std = float(self.errors.std_of([quality])[0])
+        _append(self._fix, (float(t), float(n), float(e), self._fix_std))
 
     def add_heading(self, t: float, heading: float) -> None:
         """A true heading (rad clockwise from north) at UNIX time t."""
@@ -600,6 +703,13 @@ class LivePose:
     def add_attitude(self, t: float, roll: float, pitch: float) -> None:
         """Roll and pitch (rad, FRD) at UNIX time t."""
         _append(self._att, (float(t), float(roll), float(pitch)))
+
+    def _spread(self, samples: deque, t: float) -> float:
+        """|(t − t_a)(t − t_b)| (s²) of the two samples `_value` inter- or extrapolates from
+        (0 with one sample)."""
+        if len(samples) < 2:
+            return 0.0
+        return abs((t - samples[0][0]) * (t - samples[1][0]))
 
     def _value(self, samples: deque, t: float, angle: tuple[bool, ...]) -> tuple[float, ...] | None:
         if not samples:
@@ -621,14 +731,25 @@ class LivePose:
 
     def at(self, t: float) -> VesselPose | None:
         """The vessel pose at t from the newest samples, or None (no fix/heading near t)."""
-        ne = self._value(self._fix, t, (False, False))
+        ne = self._value(self._fix, t, (False, False, False))
         h = self._value(self._head, t, (True,))
         if ne is None or h is None:
             return None
         heading = (h[0] + self.heading_offset) % (2 * math.pi)
         dn, de = _lever_ne(self.lever, np.array(heading))
         att = self._value(self._att, t, (True, True)) or (0.0, 0.0)
-        return VesselPose(float(t), ne[0] - float(dn), ne[1] - float(de), heading, att[0], att[1])
+        position_var = self.errors.position_var(ne[2], self._spread(self._fix, t))
+        heading_var = self.errors.heading_var(self._spread(self._head, t))
+        return VesselPose(
+            float(t),
+            ne[0] - float(dn),
+            ne[1] - float(de),
+            heading,
+            att[0],
+            att[1],
+            position_var,
+            heading_var,
+        )
 
 
 __all__ += ["PoseGapError"]
