@@ -502,7 +502,7 @@ def _stamped_nmea(spec: Any) -> _Nav:
             continue
         kind, values = parsed
         if kind == "fix":
-            fixes.append((float(m.time), *values))
+            fixes.append((float(m.time), values[0], values[1], values[2]))
         elif kind == "heading":
             heads.append((float(m.time), math.radians(values[0])))
     f = np.array(fixes, dtype=np.float64).reshape(-1, 4)
