@@ -209,8 +209,8 @@ class NavTrack:
 
     position (NED m of the vessel reference point), heading and optional attitude channels;
     `origin` (lat, lon, h) of the NED frame; `damaged` {stream id: skipped records};
-    `errors` the navigation's errors given to each pose, with `fix_std` (times UNIX s, horizontal
-    std m) of the fixes by their quality.
+    `errors` the navigation's errors given to each pose, with `fix_std` (times UNIX s,
+    horizontal std m) of the fixes by their quality (None: no fix std).
     """
 
     def __init__(
@@ -225,6 +225,7 @@ class NavTrack:
     ) -> None:
         self.origin = origin
         self.errors = NavErrors() if errors is None else errors
+        self.fix_std = fix_std
         self._fix_std = None
         if fix_std is not None:
             self._fix_std = (np.asarray(fix_std[0]).tolist(), np.asarray(fix_std[1])[:, None])
@@ -314,8 +315,9 @@ class NavTrack:
         if self._source is None:
             raise ValueError("offset_deg: this NavTrack was not read by NavTrack.from_config")
         position, heading = self._source.channels(math.radians(offset_deg))
-        track = NavTrack(self.origin, position, heading, self.attitude, self.damaged, self.errors)
-        track._fix_std = self._fix_std
+        track = NavTrack(
+            self.origin, position, heading, self.attitude, self.damaged, self.errors, self.fix_std
+        )
         track._source = self._source
         track.heading_offset_deg = float(offset_deg)
         return track
@@ -332,10 +334,10 @@ class NavTrack:
             att = _interp(self._att, t, self.attitude.max_gap, True)  # type: ignore[union-attr]
             if att is not None:
                 roll, pitch = float(att[0]), float(att[1])
-        std = 0.0
-        if self._fix_std is not None:
-            std = float(_interp(self._fix_std, t, math.inf, False)[0])  # type: ignore[index]
-        position_var = self.errors.position_var(std, _spread(self._pos[0], t))
+        std = None if self._fix_std is None else _interp(self._fix_std, t, math.inf, False)
+        position_var = self.errors.position_var(
+            0.0 if std is None else float(std[0]), _spread(self._pos[0], t)
+        )
         heading_var = self.errors.heading_var(_spread(self._head[0], t))
         return VesselPose(
             float(t),
