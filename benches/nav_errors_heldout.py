@@ -63,7 +63,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import json
 import math
 import os
 import sys
@@ -75,6 +74,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from demo_detector_heldout import HELDOUT_SEEDS, SCORED_SEEDS, decide, figures, grid_runs, totals
+from sensor_offsets_heldout import consistency
 
 WEIGHTS = Path(__file__).resolve().parents[1] / "python/usvfast/data/models/harbour-demo.onnx"
 #: Settings are (RTK-float std m, heading acceleration std deg/s²); None: the shipped setting.
@@ -120,12 +120,6 @@ def window_nis(run_dir: Path, windows: list[tuple[float, float]]) -> list[float]
     return [n for t, n in rows if any(a < t <= b for a, b in windows)]
 
 
-def z_score(run_dir: Path) -> float:
-    """The floats' (ANIS - expected) / half the band of a run."""
-    a = json.loads((run_dir / "metrics.json").read_text())["groups"]["floats"]["anis"]
-    return (a["mean"] - a["expected"]) / ((a["upper"] - a["lower"]) / 2)
-
-
 def main(argv: list[str] | None = None) -> None:
     """Simulate, run and tabulate (module doc)."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -158,7 +152,7 @@ def main(argv: list[str] | None = None) -> None:
         fig = figures(out)
         win = window_nis(out, degraded_windows(args.work / "rec" / f"s{seed}"))
         rows[setting].append(fig)
-        zs[setting].append(z_score(out))
+        zs[setting].append(consistency(out)["z"])
         nis[setting] += win
         mean = f"{np.mean(win):.2f} ({len(win)})" if win else "– (0)"
         print(
