@@ -118,6 +118,25 @@ def test_covariance_at_is_the_poses_jacobian():
         )
         np.testing.assert_allclose(pose.covariance_at(z), expected, rtol=1e-5, atol=1e-12)
     assert VesselPose(0.0, 1.0, 2.0, 0.3).covariance_at(np.zeros((3, 2))) is None
+    with pytest.raises(ValueError, match="positions"):
+        pose.covariance_at([[1.0, np.nan]])
+    with pytest.raises(ValueError, match="positions"):
+        pose.covariance_at(np.zeros((3, 3)))
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "name"),
+    [
+        ({"fix_std": {5: -0.1}}, "fix_std"),
+        ({"fix_std": {5: math.nan}}, "fix_std"),
+        ({"fix_std": {"5": 0.1}}, "fix_std"),
+        ({"acceleration_std": -1.0}, "acceleration_std"),
+        ({"heading_acceleration_std": math.inf}, "heading_acceleration_std"),
+    ],
+)
+def test_nav_errors_refuse_bad_values(kwargs, name):
+    with pytest.raises(ValueError, match=name):
+        NavErrors(**kwargs)
 
 
 def test_navtrack_variance_follows_the_fix_quality(tmp_path):

@@ -33,6 +33,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from usvfast import geodesy
+from usvfast._core import DimensionError
+from usvfast._validate import as_float_array
 from usvfast.nav._fields import checksum_ok
 from usvfast.nav.pose import Channel, PoseGapError
 
@@ -90,9 +92,12 @@ class VesselPose:
         `positions` (k, 2) north, east m: `position_var` on both axes, and the heading's
         `heading_var` × range² across each line of sight from the reference point. None when
         the pose has no error (nothing to add)."""
+        z = as_float_array("positions", positions, ndim=2)
+        if z.shape[1] != 2:
+            raise DimensionError(f"positions: expected shape (k, 2), got {z.shape}")
         if self.position_var == 0.0 and self.heading_var == 0.0:
             return None
-        r = np.asarray(positions, dtype=np.float64).reshape(-1, 2) - (self.north, self.east)
+        r = z - (self.north, self.east)
         across = np.stack([-r[:, 1], r[:, 0]], axis=1)  # ⊥ line of sight, length = range
         cov = self.heading_var * across[:, :, None] * across[:, None, :]
         cov[:, 0, 0] += self.position_var
@@ -117,6 +122,17 @@ class NavErrors:
     fix_std: dict[int, float] = field(default_factory=dict)
     acceleration_std: float = 0.0
     heading_acceleration_std: float = 0.0
+
+    def __post_init__(self) -> None:
+        for quality, std in self.fix_std.items():
+            if not (isinstance(quality, int) and 0 <= std < math.inf):
+                raise ValueError(
+                    f"fix_std: expected {{GGA fix quality (int): std m >= 0}}, got "
+                    f"{quality!r}: {std!r}"
+                )
+        for name in ("acceleration_std", "heading_acceleration_std"):
+            if not 0 <= getattr(self, name) < math.inf:
+                raise ValueError(f"{name}: must be finite and >= 0, got {getattr(self, name)}")
 
     def std_of(self, quality: ArrayLike) -> np.ndarray:
         """Horizontal std (m) of fixes of GGA `quality` (n,); 0 for an unlisted quality."""
