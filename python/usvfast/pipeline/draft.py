@@ -236,6 +236,9 @@ class _Builder:
         ]
         if self.attitude is not None:
             head.append(f'attitude = "{self.attitude}"')
+        head.append(
+            "# fix_quality_std = [[5, 0.1], [2, 0.5]]  # SET: m per GGA quality beyond RTK fixed"
+        )
         lidar = []
         if self.lidars:
             head.append(
