@@ -12,7 +12,8 @@ import pytest
 
 from usvfast.nav.heading_offset import estimate_heading_offset, sharpness
 from usvfast.pipeline.config import ConfigError, load_config
-from usvfast.pipeline.pose import LivePose, NavTrack
+from usvfast.pipeline.live_pose import LivePose
+from usvfast.pipeline.pose import NavTrack
 
 BUNDLED = Path(__file__).resolve().parents[1] / "python" / "usvfast" / "data" / "harbour"
 
@@ -252,7 +253,7 @@ def test_process_calibrates_the_heading_on_live_frames():
 
 
 def test_sentence_utc_takes_the_day_of_the_receive_time():
-    from usvfast.pipeline.pose import sentence_utc
+    from usvfast.pipeline.live_pose import sentence_utc
 
     gga = "$GPGGA,235959.50,6326.3820,N,01024.1500,E,4,12,0.8,40.0,M,0.0,M,,*"
     body = gga[1:-1]

@@ -14,7 +14,8 @@ import pynmea2
 import pytest
 
 from usvfast.pipeline import ConfigError, Pipeline, load_config
-from usvfast.pipeline.pose import LivePose, NavErrors, NavTrack, VesselPose, parse_sentence
+from usvfast.pipeline.live_pose import LivePose, parse_sentence
+from usvfast.pipeline.pose import NavErrors, NavTrack, VesselPose
 
 T0 = 1_686_909_600.0
 ORIGIN = (63.44, 10.40, 0.0)

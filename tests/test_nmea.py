@@ -15,7 +15,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from usvfast.nav.nmea import DamagedRecordsWarning, compass_heading, read_nmea
-from usvfast.pipeline.pose import parse_sentence
+from usvfast.pipeline.live_pose import parse_sentence
 
 from conftest import SHARED_DATA
 

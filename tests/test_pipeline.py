@@ -20,7 +20,7 @@ from usvfast.nav.replay import Replay
 from usvfast.pipeline import ConfigError, NavigationError, Pipeline, load_config
 from usvfast.pipeline.config import preset_names
 from usvfast.pipeline.lidar_chain import level_points
-from usvfast.pipeline.pose import imu_roll_pitch
+from usvfast.pipeline.orientation import imu_roll_pitch
 from usvfast.pipeline.timing import StageTimer
 
 import pipeline_recording as pr

@@ -17,13 +17,8 @@ from scipy.spatial.transform import Rotation
 from usvfast.lidar.readers import make_header
 from usvfast.nav.bags import QuaternionSample, bag_typestore, read_bag_nmea
 from usvfast.pipeline import Pipeline, config_from_dict
-from usvfast.pipeline.pose import (
-    NavigationError,
-    NavTrack,
-    imu_roll_pitch,
-    quaternion_heading,
-    usable_orientations,
-)
+from usvfast.pipeline.orientation import imu_roll_pitch, quaternion_heading, usable_orientations
+from usvfast.pipeline.pose import NavigationError, NavTrack
 
 if sys.version_info >= (3, 11):
     import tomllib

@@ -16,7 +16,8 @@ import pytest
 from usvfast._damage import DamagedRecordsWarning
 from usvfast.pipeline import NavigationError, Pipeline, load_config
 from usvfast.pipeline.attitude import attitude_from_sentence, read_attitude_sentences
-from usvfast.pipeline.pose import NavTrack, parse_sentence
+from usvfast.pipeline.live_pose import parse_sentence
+from usvfast.pipeline.pose import NavTrack
 
 T0 = 1_686_960_000.0  # 2023-06-16 23:59:00 UTC: the log crosses midnight
 ORIGIN = (63.44, 10.40, 0.0)

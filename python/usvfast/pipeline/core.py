@@ -39,18 +39,10 @@ from usvfast.pipeline.camera_chain import CameraChain, load_detector
 from usvfast.pipeline.config import ConfigError, PipelineConfig, load_config
 from usvfast.pipeline.heading import HeadingCalibrator, calibrate_heading
 from usvfast.pipeline.lidar_chain import LidarChain
+from usvfast.pipeline.live_pose import LivePose, parse_sentence, sentence_utc
+from usvfast.pipeline.orientation import imu_roll_pitch, quaternion_heading, usable_orientations
 from usvfast.pipeline.outputs import OutputWriter
-from usvfast.pipeline.pose import (
-    LivePose,
-    NavTrack,
-    VesselPose,
-    imu_roll_pitch,
-    parse_sentence,
-    quaternion_heading,
-    sentence_utc,
-    usable_orientations,
-    yaw_convention,
-)
+from usvfast.pipeline.pose import NavTrack, VesselPose, yaw_convention
 from usvfast.pipeline.timing import StageTimer
 from usvfast.pipeline.tracker import (
     SENSORS,

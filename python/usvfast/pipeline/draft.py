@@ -100,7 +100,7 @@ def _first_message(bag: Path, topic: str) -> Any:
 
 def _has_orientation(imu: Any) -> bool:
     """Whether a sensor_msgs/Imu message (ImuSample) carries an orientation estimate."""
-    from usvfast.pipeline.pose import usable_orientations
+    from usvfast.pipeline.orientation import usable_orientations
 
     return imu is not None and bool(usable_orientations(imu.orientation_xyzw)[0])
 

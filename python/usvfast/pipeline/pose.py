@@ -7,25 +7,25 @@ Two sources share one result type, `VesselPose`:
   arrays: 10 Hz for an hour is 36,000 samples) and interpolates them at any time, as
   `usvfast.nav.pose` does (linear in NED metres, shortest arc for angles, refusing gaps longer
   than `recording.max_pose_gap`);
-- `LivePose` follows the navigation messages as they arrive (`pipeline.process`) and answers
-  from the newest samples (interpolated when bracketed, else extrapolated from the last two,
-  at most max_gap ahead).
+- `usvfast.pipeline.live_pose.LivePose` follows the navigation messages as they arrive
+  (`pipeline.process`) and answers from the newest samples (interpolated when bracketed, else
+  extrapolated from the last two, at most max_gap ahead).
 
-IMU orientation follows ROS REP-103 (body FLU relative to world ENU); it is turned into FRD/NED
-roll and pitch. The attitude stream's yaw is not used: heading comes from the navigation
-streams, as NMEA HDT/THS sentences (or a GNSS compass's PSAT,HPR / PASHR,HPR / PTNL,AVR,
-`usvfast.nav.nmea`) or as orientations from a dual-antenna GNSS
-(`geometry_msgs/QuaternionStamped` or `sensor_msgs/Imu` topics; `quaternion_heading`), whose
-yaw follows the stream option `yaw_convention`: "enu" (REP-103, the default: the body's x
-axis from east, counter-clockwise) or "north_clockwise" (the yaw is the heading itself, as
-nmea_navsat_driver publishes HDT on its `heading` topic).
+Each pose carries the navigation's errors (`NavErrors`: the fixes' std by their GGA quality,
+the interpolation's), which `VesselPose.covariance_at` turns into the covariance they add to a
+detection. IMU orientation follows ROS REP-103 (`usvfast.pipeline.orientation`). The attitude
+stream's yaw is not used: heading comes from the navigation streams, as NMEA HDT/THS sentences
+(or a GNSS compass's PSAT,HPR / PASHR,HPR / PTNL,AVR, `usvfast.nav.nmea`) or as orientations
+from a dual-antenna GNSS (`geometry_msgs/QuaternionStamped` or `sensor_msgs/Imu` topics;
+`quaternion_heading`), whose yaw follows the stream option `yaw_convention`: "enu" (REP-103,
+the default: the body's x axis from east, counter-clockwise) or "north_clockwise" (the yaw is
+the heading itself, as nmea_navsat_driver publishes HDT on its `heading` topic).
 """
 
 from __future__ import annotations
 
 import bisect
 import math
-from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -35,31 +35,22 @@ from numpy.typing import ArrayLike
 from usvfast import geodesy
 from usvfast._core import DimensionError
 from usvfast._validate import as_float_array
-from usvfast.nav._fields import checksum_ok
 from usvfast.nav.pose import Channel, PoseGapError
+from usvfast.pipeline.orientation import (
+    HEADING_MSGTYPES,
+    YAW_CONVENTIONS,
+    imu_roll_pitch,
+    quaternion_heading,
+    usable_orientations,
+)
 
 __all__ = [
-    "LivePose",
     "NavErrors",
     "NavTrack",
     "NavigationError",
     "VesselPose",
-    "imu_roll_pitch",
-    "parse_sentence",
-    "quaternion_heading",
-    "sentence_utc",
-    "usable_orientations",
     "yaw_convention",
 ]
-
-#: Yaw conventions of heading quaternions (the stream option `yaw_convention`).
-YAW_CONVENTIONS = ("enu", "north_clockwise")
-#: Message types whose orientation gives a navigation stream's heading.
-HEADING_MSGTYPES = ("geometry_msgs/msg/QuaternionStamped", "sensor_msgs/msg/Imu")
-
-# ENU -> NED (world) and FLU -> FRD (body) axis swaps.
-_ENU_NED = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
-_FLU_FRD = np.diag([1.0, -1.0, -1.0])
 
 
 class NavigationError(ValueError):
@@ -147,72 +138,6 @@ class NavErrors:
     def heading_var(self, spread: float) -> float:
         """Variance (rad²) of a heading interpolated with `spread` = |τ (T − τ)| (s²)."""
         return (0.5 * self.heading_acceleration_std * spread) ** 2
-
-
-def usable_orientations(orientation_xyzw: ArrayLike) -> np.ndarray:
-    """(n,) bool: which quaternions (n, 4) x, y, z, w are orientations — finite, with a norm
-    within 0.1 of one. An IMU without an orientation estimate publishes zeros (REP-145:
-    orientation covariance[0] = -1), which is no rotation."""
-    q = np.asarray(orientation_xyzw, dtype=np.float64).reshape(-1, 4)
-    with np.errstate(over="ignore", invalid="ignore"):
-        norm = np.linalg.norm(q, axis=1)
-    return np.isfinite(q).all(axis=1) & (np.abs(norm - 1.0) <= 0.1)
-
-
-def _rotations(orientation_xyzw: ArrayLike) -> np.ndarray:
-    """(n, 3, 3) rotation matrices of unit-normalised quaternions (n, 4) x, y, z, w (the
-    tests check them against scipy's Rotation; importing scipy.spatial costs more than the
-    whole navigation read). Raises ValueError naming the first quaternion that is no
-    orientation (`usable_orientations`)."""
-    q = np.asarray(orientation_xyzw, dtype=np.float64).reshape(-1, 4)
-    bad = np.flatnonzero(~usable_orientations(q))
-    if bad.size:
-        raise ValueError(
-            f"orientation_xyzw: row {bad[0]} {q[bad[0]].tolist()} is no orientation "
-            f"(a finite quaternion of norm 1 ± 0.1), {bad.size} such rows"
-        )
-    q = q / np.linalg.norm(q, axis=1, keepdims=True)
-    x, y, z, w = q.T
-    r = np.empty((len(q), 3, 3))
-    r[:, 0, 0] = 1 - 2 * (y * y + z * z)
-    r[:, 0, 1] = 2 * (x * y - z * w)
-    r[:, 0, 2] = 2 * (x * z + y * w)
-    r[:, 1, 0] = 2 * (x * y + z * w)
-    r[:, 1, 1] = 1 - 2 * (x * x + z * z)
-    r[:, 1, 2] = 2 * (y * z - x * w)
-    r[:, 2, 0] = 2 * (x * z - y * w)
-    r[:, 2, 1] = 2 * (y * z + x * w)
-    r[:, 2, 2] = 1 - 2 * (x * x + y * y)
-    return r
-
-
-def quaternion_heading(orientation_xyzw: ArrayLike, yaw_convention: str = "enu") -> np.ndarray:
-    """Headings (n,) rad clockwise from north in [0, 2π) of quaternions (n, 4) x, y, z, w:
-    with "enu" (REP-103) the direction of the body's x axis (FLU in ENU) in the horizontal
-    plane; with "north_clockwise" the quaternion's own yaw, which is then the heading.
-    Raises ValueError for another convention or a quaternion that is no orientation."""
-    if yaw_convention not in YAW_CONVENTIONS:
-        raise ValueError(
-            f"yaw_convention: expected one of {YAW_CONVENTIONS}, got {yaw_convention!r}"
-        )
-    r = _rotations(orientation_xyzw)
-    east, north = r[:, 0, 0], r[:, 1, 0]  # the x axis in the quaternion's frame
-    if yaw_convention == "enu":
-        heading = np.arctan2(east, north)
-    else:
-        heading = np.arctan2(north, east)  # the yaw itself
-    return np.mod(heading, 2 * math.pi)
-
-
-def imu_roll_pitch(orientation_xyzw: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
-    """Roll and pitch (rad, FRD body in NED) from REP-103 quaternions (n, 4) x, y, z, w of
-    the body FLU in ENU. Returns two (n,) arrays. Raises ValueError for a quaternion that is
-    no orientation (`usable_orientations`)."""
-    r = _rotations(orientation_xyzw)
-    r_ned = _ENU_NED @ r @ _FLU_FRD  # NED <- FRD = Rz(yaw) Ry(pitch) Rx(roll), eq. 3.9
-    pitch = np.arcsin(np.clip(-r_ned[:, 2, 0], -1.0, 1.0))
-    roll = np.arctan2(r_ned[:, 2, 1], r_ned[:, 2, 2])
-    return roll, pitch
 
 
 def _lever_ne(lever: np.ndarray, heading: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -508,6 +433,7 @@ def _stamped_nmea(spec: Any) -> _Nav:
     """`_read_nav`'s result for a bag topic of nmea_msgs/Sentence timed by the message stamps
     (sentences through `parse_sentence`); damaged = messages or sentences that did not parse."""
     from usvfast.nav.bags import BagTopic
+    from usvfast.pipeline.live_pose import parse_sentence
 
     reader = BagTopic(spec.path, spec.topic)
     fixes: list[tuple[float, float, float, float]] = []
@@ -596,178 +522,6 @@ def _read_attitude(spec: Any, reference: float) -> tuple[np.ndarray, np.ndarray,
             f"attitude stream {spec.id!r}: no roll/pitch (PASHR or XDR PITCH/ROLL sentences)"
         )
     return t, roll, pitch, bad
-
-
-def parse_sentence(sentence: str) -> tuple[str, tuple[float, ...]] | None:
-    """One NMEA sentence of a live stream -> ("fix", (lat, lon, GGA fix quality)) for
-    GGA/RMC/GLL with a fix (RMC and GLL: the quality of their FAA mode, usvfast.nav.nmea),
-    ("heading", (deg,)) for HDT/THS and the GNSS-compass sentences PSAT,HPR, PASHR,HPR and
-    PTNL,AVR (`usvfast.nav.nmea.compass_heading`), ("attitude", (roll rad, pitch rad)) for
-    PASHR and XDR PITCH/ROLL, None otherwise or when it does not parse (checksum
-    checked). Its time: see `sentence_utc` (the pipeline's live path times a stream's
-    sentences by the fixes' own UTC times, less the receive delay)."""
-    import pynmea2
-
-    from usvfast.nav.nmea import COMPASS_SENTENCES, MODE_QUALITY, compass_heading
-
-    text = sentence.strip()
-    if text.startswith(tuple(f"${a}," for a in COMPASS_SENTENCES)):
-        body, star, given = text[1:].partition("*")
-        try:
-            compass = compass_heading(body) if star and checksum_ok(body, given) else None
-        except (ValueError, IndexError):
-            return None
-        return None if compass is None else ("heading", (compass[3],))
-    try:
-        msg: Any = pynmea2.parse(sentence.strip(), check=True)
-    except (pynmea2.ParseError, ValueError, AttributeError):
-        return None
-    kind = type(msg).__name__
-    try:
-        if kind in ("GGA", "RMC", "GLL"):
-            if kind == "GGA" and int(msg.gps_qual or 0) == 0:
-                return None
-            if kind in ("RMC", "GLL") and getattr(msg, "status", "A") != "A":
-                return None
-            if kind == "GGA":
-                quality = int(msg.gps_qual)
-            else:
-                mode = getattr(msg, "mode_indicator" if kind == "RMC" else "faa_mode", "")
-                quality = MODE_QUALITY.get(mode or "A", 1)
-            return "fix", (float(msg.latitude), float(msg.longitude), float(quality))
-        if kind in ("HDT", "THS"):
-            return "heading", (float(msg.heading),)
-        if kind in ("ASHRATT", "XDR"):
-            from usvfast.pipeline.attitude import attitude_from_sentence
-
-            att = attitude_from_sentence(sentence)
-            return None if att is None else ("attitude", att)
-    except (TypeError, ValueError):
-        return None
-    return None
-
-
-def sentence_utc(sentence: str, near: float, max_delay: float = 2.0) -> float | None:
-    """The UNIX time (s) of a GGA/RMC/GLL sentence's own UTC time of day, taken on the UTC day
-    of `near` (the message's receive time, UNIX s); None when the sentence has no time or it
-    lies more than `max_delay` s from `near` (a clock that does not agree with the stamps)."""
-    import pynmea2
-
-    try:
-        stamp = getattr(pynmea2.parse(sentence.strip(), check=True), "timestamp", None)
-    except (pynmea2.ParseError, ValueError, AttributeError):
-        return None
-    if stamp is None or not hasattr(stamp, "hour"):
-        return None
-    of_day = stamp.hour * 3600 + stamp.minute * 60 + stamp.second + stamp.microsecond * 1e-6
-    utc = math.floor(near / 86400.0) * 86400.0 + of_day
-    utc += 86400.0 * round((near - utc) / 86400.0)  # across midnight
-    return utc if abs(near - utc) <= max_delay else None
-
-
-def _append(samples: deque, sample: tuple[float, ...]) -> None:
-    """Keep the newest two samples; a sample at the time of the newest replaces it."""
-    if samples and sample[0] <= samples[-1][0]:
-        if sample[0] == samples[-1][0]:
-            samples[-1] = sample
-        return
-    samples.append(sample)
-
-
-class LivePose:
-    """Pose from navigation messages fed one at a time (`add_fix`, `add_heading`,
-    `add_attitude`, all with UNIX times), for `Pipeline.process`.
-
-    `at(t)` interpolates between the two samples around t or extrapolates the last two by at
-    most `max_gap` seconds; None before the first fix and heading. origin (lat, lon, h) or
-    None (the first fix); lever_arm (3,) of the GNSS antenna, body FRD m; heading_offset:
-    correction added to every heading, rad clockwise (an attribute: it may change); errors:
-    the navigation's errors given to each pose (`NavErrors`), a fix of unknown quality taking
-    the previous fix's.
-    """
-
-    def __init__(
-        self,
-        origin: tuple[float, float, float] | None = None,
-        lever_arm: ArrayLike = (0.0, 0.0, 0.0),
-        max_gap: float = 2.0,
-        heading_offset: float = 0.0,
-        errors: NavErrors | None = None,
-    ) -> None:
-        self.origin = origin
-        self.errors = NavErrors() if errors is None else errors
-        self._fix_std = 0.0
-        self.heading_offset = float(heading_offset)
-        self.lever = np.asarray(lever_arm, dtype=np.float64)
-        self.max_gap = float(max_gap)
-        self._fix: deque[tuple[float, float, float, float]] = deque(maxlen=2)
-        self._head: deque[tuple[float, float]] = deque(maxlen=2)
-        self._att: deque[tuple[float, float, float]] = deque(maxlen=2)
-
-    def add_fix(self, t: float, lat_deg: float, lon_deg: float, quality: float = -1) -> None:
-        """A GNSS antenna fix (WGS84 degrees) at UNIX time t, of GGA fix `quality` (-1:
-        unknown)."""
-        if self.origin is None:
-            self.origin = (float(lat_deg), float(lon_deg), 0.0)
-        n, e, _ = geodesy.geodetic2ned(lat_deg, lon_deg, 0.0, *self.origin)
-        if quality >= 0:
-            self._fix_std = float(self.errors.std_of([quality])[0])
-        _append(self._fix, (float(t), float(n), float(e), self._fix_std))
-
-    def add_heading(self, t: float, heading: float) -> None:
-        """A true heading (rad clockwise from north) at UNIX time t."""
-        _append(self._head, (float(t), float(heading)))
-
-    def add_attitude(self, t: float, roll: float, pitch: float) -> None:
-        """Roll and pitch (rad, FRD) at UNIX time t."""
-        _append(self._att, (float(t), float(roll), float(pitch)))
-
-    def _spread(self, samples: deque, t: float) -> float:
-        """|(t − t_a)(t − t_b)| (s²) of the two samples `_value` inter- or extrapolates from
-        (0 with one sample)."""
-        if len(samples) < 2:
-            return 0.0
-        return abs((t - samples[0][0]) * (t - samples[1][0]))
-
-    def _value(self, samples: deque, t: float, angle: tuple[bool, ...]) -> tuple[float, ...] | None:
-        if not samples:
-            return None
-        last = samples[-1]
-        if len(samples) == 1:
-            return last[1:] if abs(t - last[0]) <= self.max_gap else None
-        a, b = samples[0], samples[1]
-        if b[0] - a[0] <= 0 or t - b[0] > self.max_gap or t < a[0] - self.max_gap:
-            return last[1:] if abs(t - last[0]) <= self.max_gap else None
-        f = (t - a[0]) / (b[0] - a[0])
-        out = []
-        for k, is_angle in enumerate(angle):
-            d = b[k + 1] - a[k + 1]
-            if is_angle:
-                d = (d + math.pi) % (2 * math.pi) - math.pi
-            out.append(a[k + 1] + f * d)
-        return tuple(out)
-
-    def at(self, t: float) -> VesselPose | None:
-        """The vessel pose at t from the newest samples, or None (no fix/heading near t)."""
-        ne = self._value(self._fix, t, (False, False, False))
-        h = self._value(self._head, t, (True,))
-        if ne is None or h is None:
-            return None
-        heading = (h[0] + self.heading_offset) % (2 * math.pi)
-        dn, de = _lever_ne(self.lever, np.array(heading))
-        att = self._value(self._att, t, (True, True)) or (0.0, 0.0)
-        position_var = self.errors.position_var(ne[2], self._spread(self._fix, t))
-        heading_var = self.errors.heading_var(self._spread(self._head, t))
-        return VesselPose(
-            float(t),
-            ne[0] - float(dn),
-            ne[1] - float(de),
-            heading,
-            att[0],
-            att[1],
-            position_var,
-            heading_var,
-        )
 
 
 __all__ += ["PoseGapError"]
