@@ -247,6 +247,9 @@ _RECORDING = {
     "fix_quality_std": ("pairs", None),
     "pose_acceleration_std": ("float", 0.0),
     "heading_acceleration_std": ("float", 0.0),
+    # Carry the GNSS heading across its gaps with the attitude IMU's gyro
+    # (usvfast.pipeline.gyro_bridge; the attitude stream must be a sensor_msgs/Imu topic).
+    "gyro_heading_bridge": ("bool", False),
 }
 SCHEMA: dict[str, dict[str, tuple[str, Any]]] = {
     "recording": _RECORDING,
@@ -282,7 +285,8 @@ class PipelineConfig:
     heading_offset_deg: correction added to the GNSS heading (degrees clockwise);
     heading_calibration_s: seconds of LiDAR from which `Pipeline.run` estimates a further
     correction (None: none); nav_errors: the navigation's errors that reach every detection
-    (`usvfast.pipeline.pose.NavErrors`; none by default)."""
+    (`usvfast.pipeline.pose.NavErrors`; none by default); gyro_heading_bridge: whether the
+    attitude IMU's gyro carries the heading across its gaps."""
 
     recording: Recording
     sensors: dict[str, str]
@@ -299,6 +303,7 @@ class PipelineConfig:
     heading_offset_deg: float = 0.0
     heading_calibration_s: float | None = None
     nav_errors: NavErrors = field(default_factory=NavErrors)
+    gyro_heading_bridge: bool = False
 
     def streams_of(self, sensor: str) -> list[StreamSpec]:
         """The streams consumed by `sensor` ("lidar" or "camera"), in file order."""
@@ -600,6 +605,7 @@ def _build(data: dict[str, Any], file: Path) -> PipelineConfig:
         heading_offset_deg=rec["heading_offset_deg"],
         heading_calibration_s=calibration,
         nav_errors=nav_errors,
+        gyro_heading_bridge=rec["gyro_heading_bridge"],
     )
 
 

@@ -36,6 +36,7 @@ from usvfast import geodesy
 from usvfast._core import DimensionError
 from usvfast._validate import as_float_array
 from usvfast.nav.pose import Channel, PoseGapError
+from usvfast.pipeline.gyro_bridge import bridge_heading_gaps, heading_rates
 from usvfast.pipeline.orientation import (
     HEADING_MSGTYPES,
     YAW_CONVENTIONS,
@@ -219,18 +220,12 @@ class NavTrack:
         n, e, _ = geodesy.geodetic2ned(lat, lon, np.zeros_like(lat), lat0, lon0, h0)
         t_head, head = headings[0]
         order = np.argsort(t_head, kind="stable")
+        t_head, head = t_head[order], head[order]
         gap = config.recording.max_pose_gap
-        source = _NavSource(t_fix, n, e, t_head[order], head[order], lever, gap)
-        position, heading = source.channels(math.radians(config.heading_offset_deg))
-        if not np.any(heading.covered(t_fix)):
-            raise NavigationError(
-                f"recording {config.recording.name!r}: headings of {names} do not overlap the "
-                "position fixes in time"
-            )
-        attitude = None
+        attitude = rates = None
         if config.attitude is not None:
             spec = config.recording.stream(config.attitude)
-            t_att, roll, pitch, bad = _read_attitude(spec, float(t_fix[0]))
+            t_att, roll, pitch, bad, rates = _read_attitude(spec, float(t_fix[0]))
             # A navigation stream read again for its attitude: its reader already counted
             # every damaged line.
             damaged[spec.id] = max(damaged.get(spec.id, 0), bad)
@@ -241,6 +236,23 @@ class NavTrack:
                 ("angle", "angle"),
                 0.0,
                 gap,
+            )
+            if rates is not None:
+                rates = (rates[0] + spec.clock_offset, rates[1])
+        if config.gyro_heading_bridge:
+            if rates is None:
+                raise NavigationError(
+                    f"recording {config.recording.name!r}: gyro_heading_bridge needs an "
+                    "attitude stream of sensor_msgs/Imu (its gyro carries the heading)"
+                )
+            min_gap = 3.0 * float(np.median(np.diff(t_head))) if len(t_head) > 1 else gap
+            t_head, head = bridge_heading_gaps(t_head, head, *rates, min_gap)
+        source = _NavSource(t_fix, n, e, t_head, head, lever, gap)
+        position, heading = source.channels(math.radians(config.heading_offset_deg))
+        if not np.any(heading.covered(t_fix)):
+            raise NavigationError(
+                f"recording {config.recording.name!r}: headings of {names} do not overlap the "
+                "position fixes in time"
             )
         errors = config.nav_errors
         fix_std = (t_fix, errors.std_of(quality)) if errors.fix_std else None
@@ -478,10 +490,13 @@ def _oriented(spec: Any, t: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.n
     return t[ok], q[ok], int((~ok).sum())
 
 
-def _read_attitude(spec: Any, reference: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
-    """(times, roll rad, pitch rad, damaged) of the attitude stream: a bag topic of
-    sensor_msgs/Imu or nmea_msgs/Sentence, or an NMEA text log (PASHR / XDR sentences,
-    usvfast.pipeline.attitude; `reference`: a UNIX time on the log's day)."""
+def _read_attitude(
+    spec: Any, reference: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, tuple[np.ndarray, np.ndarray] | None]:
+    """(times, roll rad, pitch rad, damaged, heading rates) of the attitude stream: a bag topic
+    of sensor_msgs/Imu or nmea_msgs/Sentence, or an NMEA text log (PASHR / XDR sentences,
+    usvfast.pipeline.attitude; `reference`: a UNIX time on the log's day). Heading rates
+    (times, rad/s; `usvfast.pipeline.gyro_bridge.heading_rates`) for an IMU, else None."""
     from usvfast.nav.bags import BagTopic, read_bag_imu
     from usvfast.pipeline.attitude import read_attitude_sentences
 
@@ -507,7 +522,10 @@ def _read_attitude(spec: Any, reference: float) -> tuple[np.ndarray, np.ndarray,
                 imu = read_bag_imu(spec.path, spec.topic)
                 t, q, unusable = _oriented(spec, imu.times, imu.orientation_xyzw)
                 roll, pitch = imu_roll_pitch(q)
-                return t, roll, pitch, imu.skipped + unusable
+                ok = usable_orientations(imu.orientation_xyzw)
+                order = np.argsort(t, kind="stable")
+                rate = heading_rates(imu.angular_velocity[ok], roll, pitch)
+                return t, roll, pitch, imu.skipped + unusable, (t[order], rate[order])
             reader = BagTopic(spec.path, spec.topic)
             t, roll, pitch, bad = read_attitude_sentences(
                 ((m.time, m.data) for m in reader), reference
@@ -521,7 +539,7 @@ def _read_attitude(spec: Any, reference: float) -> tuple[np.ndarray, np.ndarray,
         raise NavigationError(
             f"attitude stream {spec.id!r}: no roll/pitch (PASHR or XDR PITCH/ROLL sentences)"
         )
-    return t, roll, pitch, bad
+    return t, roll, pitch, bad, None
 
 
 __all__ += ["PoseGapError"]
