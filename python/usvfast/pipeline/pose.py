@@ -245,7 +245,9 @@ class NavTrack:
                     f"recording {config.recording.name!r}: gyro_heading_bridge needs an "
                     "attitude stream of sensor_msgs/Imu (its gyro carries the heading)"
                 )
-            min_gap = 3.0 * float(np.median(np.diff(t_head))) if len(t_head) > 1 else gap
+            steps = np.diff(t_head)
+            steps = steps[steps > 0]  # a gap: 3 of the headings' usual intervals
+            min_gap = 3.0 * float(np.median(steps)) if steps.size else gap
             t_head, head = bridge_heading_gaps(t_head, head, *rates, min_gap)
         source = _NavSource(t_fix, n, e, t_head, head, lever, gap)
         position, heading = source.channels(math.radians(config.heading_offset_deg))
