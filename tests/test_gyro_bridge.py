@@ -9,6 +9,7 @@ import math
 
 import numpy as np
 import pytest
+from nav_config import nav_config
 from scipy.spatial.transform import Rotation
 
 from usvfast.pipeline import load_config
@@ -132,32 +133,13 @@ def _write_bag(path, with_imu: bool) -> None:
 
 
 def _config(tmp_path, attitude: bool, bridge: bool):
-    path = tmp_path / "rec.toml"
-    imu = '[[stream]]\nid = "imu"\ntype = "bag"\npath = "bag"\ntopic = "/imu/data"\n'
-    path.write_text(
-        f"""
-[recording]
-navigation = "gnss"
-{'attitude = "imu"' if attitude else ""}
-origin = [{ORIGIN[0]}, {ORIGIN[1]}, 0.0]
-gyro_heading_bridge = {str(bridge).lower()}
-[[stream]]
-id = "gnss"
-type = "bag"
-path = "bag"
-topic = "/gnss/nmea"
-{imu if attitude else ""}
-[[stream]]
-id = "lidar"
-type = "pcap"
-path = "none.pcap"
-sensor = "lidar"
-[lidar]
-waterline_height = 0.3
-"""
-    )
-    (tmp_path / "none.pcap").write_bytes(b"")
-    return load_config(path)
+    recording = 'navigation = "gnss"\n' + ('attitude = "imu"\n' if attitude else "")
+    recording += f"origin = [{ORIGIN[0]}, {ORIGIN[1]}, 0.0]\n"
+    recording += f"gyro_heading_bridge = {str(bridge).lower()}"
+    streams = '[[stream]]\nid = "gnss"\ntype = "bag"\npath = "bag"\ntopic = "/gnss/nmea"\n'
+    if attitude:
+        streams += '[[stream]]\nid = "imu"\ntype = "bag"\npath = "bag"\ntopic = "/imu/data"\n'
+    return load_config(nav_config(tmp_path, recording, streams))
 
 
 def test_navtrack_bridges_the_heading_gap_with_the_imu(tmp_path):

@@ -12,6 +12,7 @@ from datetime import datetime, timezone
 import numpy as np
 import pynmea2
 import pytest
+from nav_config import nav_config
 
 from usvfast.pipeline import ConfigError, Pipeline, load_config
 from usvfast.pipeline.live_pose import LivePose, parse_sentence
@@ -65,30 +66,11 @@ def write_log(
 
 
 def config(tmp_path, recording_keys: str):
-    path = tmp_path / "nav.toml"
-    path.write_text(
-        f"""
-[recording]
-navigation = "gnss"
-origin = [{ORIGIN[0]}, {ORIGIN[1]}, 0.0]
-{recording_keys}
-[[stream]]
-id = "gnss"
-type = "nmea"
-path = "gnss.nmea"
-[[stream]]
-id = "lidar"
-type = "pcap"
-path = "none.pcap"
-sensor = "lidar"
-[lidar]
-waterline_height = 0.3
-"""
-    )
-    (tmp_path / "none.pcap").write_bytes(b"")
+    recording = f'navigation = "gnss"\norigin = [{ORIGIN[0]}, {ORIGIN[1]}, 0.0]\n{recording_keys}'
+    streams = '[[stream]]\nid = "gnss"\ntype = "nmea"\npath = "gnss.nmea"'
     if not (tmp_path / "gnss.nmea").exists():
         (tmp_path / "gnss.nmea").write_text("")
-    return load_config(path)
+    return load_config(nav_config(tmp_path, recording, streams))
 
 
 def test_nav_errors_variances():

@@ -12,6 +12,7 @@ import numpy as np
 import pymap3d
 import pynmea2
 import pytest
+from nav_config import nav_config
 
 from usvfast._damage import DamagedRecordsWarning
 from usvfast.pipeline import NavigationError, Pipeline, load_config
@@ -109,25 +110,8 @@ def test_attitude_sentences_parse_and_refuse_damage():
 
 
 def _config(tmp_path: Path, streams: str, navigation: str, attitude: str) -> Path:
-    path = tmp_path / "nav.toml"
-    path.write_text(
-        f"""
-[recording]
-navigation = {navigation}
-attitude = "{attitude}"
-origin = [{ORIGIN[0]}, {ORIGIN[1]}, 0.0]
-{streams}
-[[stream]]
-id = "lidar"
-type = "pcap"
-path = "none.pcap"
-sensor = "lidar"
-[lidar]
-waterline_height = 0.3
-"""
-    )
-    (tmp_path / "none.pcap").write_bytes(b"")
-    return path
+    recording = f'navigation = {navigation}\nattitude = "{attitude}"\n'
+    return nav_config(tmp_path, recording + f"origin = [{ORIGIN[0]}, {ORIGIN[1]}, 0.0]", streams)
 
 
 def _check_track(track: NavTrack, times: np.ndarray, roll_too: bool = True) -> None:
