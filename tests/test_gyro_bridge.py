@@ -14,6 +14,7 @@ from scipy.spatial.transform import Rotation
 
 from usvfast.pipeline import load_config
 from usvfast.pipeline.gyro_bridge import bridge_heading_gaps, heading_rates
+from usvfast.pipeline.live_pose import LivePose
 from usvfast.pipeline.pose import NavigationError, NavTrack
 
 T0 = 1_686_909_600.0
@@ -159,3 +160,28 @@ def test_bridge_without_an_imu_is_an_error(tmp_path):
     _write_bag(tmp_path / "bag", with_imu=False)
     with pytest.raises(NavigationError, match="gyro_heading_bridge needs an attitude"):
         NavTrack.from_config(_config(tmp_path, False, True))
+
+
+def test_live_pose_carries_the_heading_through_a_gap():
+    def live(bridge: bool) -> LivePose:
+        pose = LivePose(ORIGIN, gyro_bridge=bridge)
+        for k in range(41):  # headings at 10 Hz up to 4.0 s, then none
+            t = T0 + 0.1 * k
+            pose.add_fix(t, ORIGIN[0], ORIGIN[1], 4)
+            pose.add_heading(t, float(true_heading(np.array(t - T0))))
+        for ti in T0 + np.arange(0.0, 6.0, 0.02):
+            pose.add_heading_rate(float(ti), float(true_rate(np.array(ti - T0)) + 0.005))
+        return pose
+
+    probe = T0 + np.array([4.5, 5.0, 5.5])
+    truth = true_heading(probe - T0)
+
+    def worst(pose: LivePose) -> float:
+        h = np.array([pose.at(float(t)).heading for t in probe])
+        return float(np.degrees(np.abs(np.angle(np.exp(1j * (h - truth))))).max())
+
+    assert worst(live(True)) < 0.5  # the 0.005 rad/s bias over 1.5 s: 0.43 deg at most
+    assert worst(live(False)) > 3.0  # the last two headings extrapolated
+    # inside three heading intervals the last two are extrapolated as before
+    near = T0 + 4.05
+    assert live(True).at(near).heading == live(False).at(near).heading

@@ -37,6 +37,7 @@ from usvfast.nav.heading_offset import HeadingOffset
 from usvfast.nav.replay import Replay
 from usvfast.pipeline.camera_chain import CameraChain, load_detector
 from usvfast.pipeline.config import ConfigError, PipelineConfig, load_config
+from usvfast.pipeline.gyro_bridge import heading_rates
 from usvfast.pipeline.heading import HeadingCalibrator, calibrate_heading
 from usvfast.pipeline.lidar_chain import LidarChain
 from usvfast.pipeline.live_pose import LivePose, parse_sentence, sentence_utc
@@ -105,6 +106,7 @@ class Pipeline:
             cfg.recording.max_pose_gap,
             math.radians(cfg.heading_offset_deg),
             cfg.nav_errors,
+            cfg.gyro_heading_bridge,
         )
         self.origin = cfg.origin
         self.epoch: float | None = None
@@ -168,6 +170,14 @@ class Pipeline:
             if stream == self.config.attitude:
                 roll, pitch = imu_roll_pitch(data.orientation_xyzw)
                 self.live.add_attitude(t, float(roll[0]), float(pitch[0]))
+                gyro = np.asarray(getattr(data, "angular_velocity", np.full(3, np.nan)), float)
+                if (
+                    self.config.gyro_heading_bridge
+                    and gyro.shape == (3,)
+                    and np.isfinite(gyro).all()
+                ):
+                    rate = heading_rates(gyro[None], roll, pitch)
+                    self.live.add_heading_rate(t, float(rate[0]))
         if self.origin is None and self.live.origin is not None:
             self.origin = self.live.origin
 

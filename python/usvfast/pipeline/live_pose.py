@@ -86,6 +86,10 @@ def sentence_utc(sentence: str, near: float, max_delay: float = 2.0) -> float | 
     return utc if abs(near - utc) <= max_delay else None
 
 
+#: Heading-rate samples kept for the gyro bridge (20 s of a 50 Hz IMU).
+_RATE_SAMPLES = 1000
+
+
 def _append(samples: deque, sample: tuple[float, ...]) -> None:
     """Keep the newest two samples; a sample at the time of the newest replaces it."""
     if samples and sample[0] <= samples[-1][0]:
@@ -104,7 +108,9 @@ class LivePose:
     None (the first fix); lever_arm (3,) of the GNSS antenna, body FRD m; heading_offset:
     correction added to every heading, rad clockwise (an attribute: it may change); errors:
     the navigation's errors given to each pose (`NavErrors`), a fix of unknown quality taking
-    the previous fix's.
+    the previous fix's; gyro_bridge: when the newest heading is older than three of its
+    intervals (a gap), carry it forward by the heading rates given to `add_heading_rate` (the
+    attitude IMU's gyro, `usvfast.pipeline.gyro_bridge.heading_rates`).
     """
 
     def __init__(
@@ -114,8 +120,11 @@ class LivePose:
         max_gap: float = 2.0,
         heading_offset: float = 0.0,
         errors: NavErrors | None = None,
+        gyro_bridge: bool = False,
     ) -> None:
         self.origin = origin
+        self.gyro_bridge = bool(gyro_bridge)
+        self._rates: deque[tuple[float, float]] = deque(maxlen=_RATE_SAMPLES)
         self.errors = NavErrors() if errors is None else errors
         self._fix_std = 0.0
         self.heading_offset = float(heading_offset)
@@ -142,6 +151,26 @@ class LivePose:
     def add_attitude(self, t: float, roll: float, pitch: float) -> None:
         """Roll and pitch (rad, FRD) at UNIX time t."""
         _append(self._att, (float(t), float(roll), float(pitch)))
+
+    def add_heading_rate(self, t: float, rate: float) -> None:
+        """The heading's rate (rad/s, clockwise) at UNIX time t, from the attitude IMU."""
+        if not self._rates or t > self._rates[-1][0]:
+            self._rates.append((float(t), float(rate)))
+
+    def _gyro_heading(self, t: float) -> float | None:
+        """The newest heading carried to t by the heading rates (trapezoid rule), when the
+        bridge is on, the heading is in a gap at t and the rates cover it; else None."""
+        if not self.gyro_bridge or len(self._head) < 2 or not self._rates:
+            return None
+        (ta, _), (t0, h0) = self._head
+        if t - t0 <= 3.0 * (t0 - ta) or self._rates[0][0] > t0 or self._rates[-1][0] < t:
+            return None
+        ts = np.array([r[0] for r in self._rates])
+        rs = np.array([r[1] for r in self._rates])
+        inside = (ts > t0) & (ts < t)
+        knots = np.concatenate([[t0], ts[inside], [t]])
+        rates = np.interp(knots, ts, rs)
+        return h0 + float(np.sum(0.5 * (rates[1:] + rates[:-1]) * np.diff(knots)))
 
     def _spread(self, samples: deque, t: float) -> float:
         """|(t − t_a)(t − t_b)| (s²) of the two samples `_value` inter- or extrapolates from
@@ -174,6 +203,9 @@ class LivePose:
         h = self._value(self._head, t, (True,))
         if ne is None or h is None:
             return None
+        bridged = self._gyro_heading(t)
+        if bridged is not None:
+            h = (bridged,)
         heading = (h[0] + self.heading_offset) % (2 * math.pi)
         dn, de = _lever_ne(self.lever, np.array(heading))
         att = self._value(self._att, t, (True, True)) or (0.0, 0.0)
