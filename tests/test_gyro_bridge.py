@@ -163,25 +163,26 @@ def test_bridge_without_an_imu_is_an_error(tmp_path):
 
 
 def test_live_pose_carries_the_heading_through_a_gap():
-    def live(bridge: bool) -> LivePose:
+    def live(bridge: bool, until: float) -> LivePose:
+        """Headings at 10 Hz up to 4.0 s, then none; the 50 Hz rates (biased) up to `until`."""
         pose = LivePose(ORIGIN, gyro_bridge=bridge)
-        for k in range(41):  # headings at 10 Hz up to 4.0 s, then none
+        for k in range(41):
             t = T0 + 0.1 * k
             pose.add_fix(t, ORIGIN[0], ORIGIN[1], 4)
             pose.add_heading(t, float(true_heading(np.array(t - T0))))
-        for ti in T0 + np.arange(0.0, 6.0, 0.02):
+        for ti in T0 + np.arange(0.0, until - T0, 0.02):
             pose.add_heading_rate(float(ti), float(true_rate(np.array(ti - T0)) + 0.005))
         return pose
 
-    probe = T0 + np.array([4.5, 5.0, 5.5])
-    truth = true_heading(probe - T0)
+    def error(bridge: bool, t: float, until: float) -> float:
+        h = live(bridge, until).at(t).heading
+        return abs(math.degrees(np.angle(np.exp(1j * (h - true_heading(np.array(t - T0)))))))
 
-    def worst(pose: LivePose) -> float:
-        h = np.array([pose.at(float(t)).heading for t in probe])
-        return float(np.degrees(np.abs(np.angle(np.exp(1j * (h - truth))))).max())
-
-    assert worst(live(True)) < 0.5  # the 0.005 rad/s bias over 1.5 s: 0.43 deg at most
-    assert worst(live(False)) > 3.0  # the last two headings extrapolated
+    for t in T0 + np.array([4.5, 5.0, 5.5]):
+        # a sensor message comes 15 ms after the newest IMU sample, as in a replay
+        assert error(True, t, t - 0.015) < 0.5  # 0.005 rad/s of bias over 1.5 s: 0.43 deg
+    assert error(False, T0 + 5.5, T0 + 5.5) > 3.0  # the last two headings extrapolated
+    assert error(True, T0 + 5.5, T0 + 5.3) > 3.0  # rates 0.2 s old: not held that long
     # inside three heading intervals the last two are extrapolated as before
     near = T0 + 4.05
-    assert live(True).at(near).heading == live(False).at(near).heading
+    assert live(True, near).at(near).heading == live(False, near).at(near).heading

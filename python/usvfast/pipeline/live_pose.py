@@ -86,8 +86,10 @@ def sentence_utc(sentence: str, near: float, max_delay: float = 2.0) -> float | 
     return utc if abs(near - utc) <= max_delay else None
 
 
-#: Heading-rate samples kept for the gyro bridge (20 s of a 50 Hz IMU).
+#: Heading-rate samples kept for the gyro bridge (20 s of a 50 Hz IMU), and how long the
+#: newest rate is held when a sensor message comes before the next IMU sample (s).
 _RATE_SAMPLES = 1000
+_RATE_HOLD_S = 0.1
 
 
 def _append(samples: deque, sample: tuple[float, ...]) -> None:
@@ -159,17 +161,20 @@ class LivePose:
 
     def _gyro_heading(self, t: float) -> float | None:
         """The newest heading carried to t by the heading rates (trapezoid rule), when the
-        bridge is on, the heading is in a gap at t and the rates cover it; else None."""
+        bridge is on, the heading is in a gap at t and the rates cover it (to within
+        `_RATE_HOLD_S`); else None."""
         if not self.gyro_bridge or len(self._head) < 2 or not self._rates:
             return None
         (ta, _), (t0, h0) = self._head
-        if t - t0 <= 3.0 * (t0 - ta) or self._rates[0][0] > t0 or self._rates[-1][0] < t:
+        if t - t0 <= 3.0 * (t0 - ta) or self._rates[0][0] > t0:
+            return None
+        if self._rates[-1][0] < t - _RATE_HOLD_S:
             return None
         ts = np.array([r[0] for r in self._rates])
         rs = np.array([r[1] for r in self._rates])
         inside = (ts > t0) & (ts < t)
         knots = np.concatenate([[t0], ts[inside], [t]])
-        rates = np.interp(knots, ts, rs)
+        rates = np.interp(knots, ts, rs)  # the newest rate held after it
         return h0 + float(np.sum(0.5 * (rates[1:] + rates[:-1]) * np.diff(knots)))
 
     def _spread(self, samples: deque, t: float) -> float:
