@@ -170,14 +170,11 @@ class Pipeline:
             if stream == self.config.attitude:
                 roll, pitch = imu_roll_pitch(data.orientation_xyzw)
                 self.live.add_attitude(t, float(roll[0]), float(pitch[0]))
-                gyro = np.asarray(getattr(data, "angular_velocity", np.full(3, np.nan)), float)
-                if (
-                    self.config.gyro_heading_bridge
-                    and gyro.shape == (3,)
-                    and np.isfinite(gyro).all()
-                ):
-                    rate = heading_rates(gyro[None], roll, pitch)
-                    self.live.add_heading_rate(t, float(rate[0]))
+                if self.config.gyro_heading_bridge and hasattr(data, "angular_velocity"):
+                    gyro = np.asarray(data.angular_velocity, dtype=np.float64)
+                    if gyro.shape == (3,) and np.isfinite(gyro).all():
+                        rate = heading_rates(gyro[None], roll, pitch)
+                        self.live.add_heading_rate(t, float(rate[0]))
         if self.origin is None and self.live.origin is not None:
             self.origin = self.live.origin
 

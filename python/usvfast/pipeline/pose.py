@@ -407,7 +407,8 @@ def _read_nav(spec: Any) -> _Nav:
                 from usvfast.nav.bags import read_bag_orientations
 
                 t, q, bad = read_bag_orientations(spec.path, spec.topic)
-                t, q, unusable = _oriented(spec, t, q)
+                ok = _oriented(spec, q)
+                t, q, unusable = t[ok], q[ok], int((~ok).sum())
                 heading = quaternion_heading(q, yaw_convention(spec))
                 return empty, empty, empty, empty, t, heading, bad + unusable
             if msgtype == "sensor_msgs/msg/NavSatFix":
@@ -479,9 +480,9 @@ def _ok(sentence: str) -> bool:
     return True
 
 
-def _oriented(spec: Any, t: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
-    """The samples of a bag topic whose quaternion is an orientation, and how many were not;
-    NavigationError when none is (an IMU that publishes no orientation estimate)."""
+def _oriented(spec: Any, q: np.ndarray) -> np.ndarray:
+    """(n,) bool: which samples of a bag topic have a quaternion that is an orientation;
+    NavigationError when none has (an IMU that publishes no orientation estimate)."""
     ok = usable_orientations(q)
     if not ok.any():
         raise NavigationError(
@@ -489,7 +490,7 @@ def _oriented(spec: Any, t: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.n
             f"{len(q)} messages (zero or invalid quaternions: an IMU without an orientation "
             "estimate); use another topic for heading or attitude"
         )
-    return t[ok], q[ok], int((~ok).sum())
+    return ok
 
 
 def _read_attitude(
@@ -522,12 +523,11 @@ def _read_attitude(
             )
             if msgtype == "sensor_msgs/msg/Imu":
                 imu = read_bag_imu(spec.path, spec.topic)
-                t, q, unusable = _oriented(spec, imu.times, imu.orientation_xyzw)
-                roll, pitch = imu_roll_pitch(q)
-                ok = usable_orientations(imu.orientation_xyzw)
-                order = np.argsort(t, kind="stable")
+                ok = _oriented(spec, imu.orientation_xyzw)
+                t = imu.times[ok]
+                roll, pitch = imu_roll_pitch(imu.orientation_xyzw[ok])
                 rate = heading_rates(imu.angular_velocity[ok], roll, pitch)
-                return t, roll, pitch, imu.skipped + unusable, (t[order], rate[order])
+                return t, roll, pitch, imu.skipped + int((~ok).sum()), (t, rate)
             reader = BagTopic(spec.path, spec.topic)
             t, roll, pitch, bad = read_attitude_sentences(
                 ((m.time, m.data) for m in reader), reference
